@@ -1,0 +1,329 @@
+/* The board's side of the I2C protocol (see protocol.h and docs/protocol.md). */
+#include "protocol.h"
+
+#include <stddef.h>
+#include <string.h>
+
+#define ADDR_W ((uint8_t)(PROTO_ADDRESS << 1))
+#define ADDR_R ((uint8_t)((PROTO_ADDRESS << 1) | 1u))
+
+/* head and tail are free-running byte counters: their difference is the fill level. */
+typedef char proto_queue_depth_divides_256[(256 % PROTO_QUEUE_DEPTH == 0) ? 1 : -1];
+
+/* An order replaces the current one, so until the core publishes it, the status shows the new
+ * order running and none of the end bits the order will clear. */
+#define STATUS_CLEARED_BY_ORDER (STATUS_PB_MOTEUR | STATUS_CHOC_BORD | STATUS_CHOC_PANIER)
+
+uint8_t proto_crc8(uint8_t crc, const uint8_t *data, uint8_t n)
+{
+	for (uint8_t i = 0; i < n; i++) {
+		crc ^= data[i];
+		for (uint8_t b = 0; b < 8; b++)
+			crc = (crc & 0x80u) ? (uint8_t)((crc << 1) ^ 0x07u) : (uint8_t)(crc << 1);
+	}
+	return crc;
+}
+
+static uint8_t crc_of_byte(uint8_t b)
+{
+	return proto_crc8(0, &b, 1);
+}
+
+void proto_init(struct proto *p)
+{
+	memset(p, 0, sizeof(*p));
+	p->selected = PROTO_NONE;
+}
+
+static const struct proto_snapshot *published(const struct proto *p)
+{
+	return &p->snap[p->snap_index & 1u];
+}
+
+uint8_t proto_status(const struct proto *p)
+{
+	uint8_t s = published(p)->status & (uint8_t)~STATUS_COMMANDE_REJETEE;
+	if (p->orders_in != p->orders_published) {
+		s &= (uint8_t)~STATUS_CLEARED_BY_ORDER;
+		s |= p->pending_status;
+	}
+	if (p->rejected)
+		s |= STATUS_COMMANDE_REJETEE;
+	return s;
+}
+
+static uint8_t put_u16(uint8_t *out, uint16_t v)
+{
+	out[0] = (uint8_t)(v >> 8);
+	out[1] = (uint8_t)v;
+	return 2;
+}
+
+uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struct proto_snapshot *s,
+			 uint8_t *out)
+{
+	const struct proto_debug *d = &s->debug;
+	uint8_t n = 0;
+
+	switch (designation) {
+	case PROTO_CHECK_BUSY:
+		out[n++] = proto_status(p);
+		break;
+	case PROTO_POSITION:
+		n += put_u16(&out[n], (uint16_t)s->x_mm);
+		n += put_u16(&out[n], (uint16_t)s->y_mm);
+		out[n++] = (uint8_t)s->angle_2deg;
+		out[n++] = s->radius_mm;
+		break;
+	case PROTO_INFO_CHOC:
+		out[n++] = s->sensors;
+		break;
+	case PROTO_VERSION:
+		out[n++] = PROTO_VERSION_MAJOR;
+		out[n++] = PROTO_VERSION_MINOR;
+		n += put_u16(&out[n], CAP_ALL);
+		break;
+	case PROTO_LAST_REJECT:
+		out[n++] = p->last_reject;
+		out[n++] = p->last_reject_designation;
+		out[n++] = p->reject_count;
+		break;
+	case PROTO_DEBUG:
+		n += put_u16(&out[n], d->tick);
+		n += put_u16(&out[n], (uint16_t)d->heading_cdeg);
+		n += put_u16(&out[n], (uint16_t)d->speed_mm_s);
+		n += put_u16(&out[n], (uint16_t)d->turn_rate_cdeg_s);
+		n += put_u16(&out[n], (uint16_t)d->dist_err_um);
+		n += put_u16(&out[n], (uint16_t)d->angle_err_um);
+		n += put_u16(&out[n], (uint16_t)d->duty_left_q15);
+		n += put_u16(&out[n], (uint16_t)d->duty_right_q15);
+		n += put_u16(&out[n], (uint16_t)d->current_left_ma);
+		n += put_u16(&out[n], (uint16_t)d->current_right_ma);
+		out[n++] = d->order_state;
+		out[n++] = d->end_reason;
+		break;
+	default:
+		break;
+	}
+	return n;
+}
+
+static void reject(struct proto *p, uint8_t reason)
+{
+	p->rejected = 1;
+	p->last_reject = reason;
+	p->last_reject_designation = p->rx_len ? p->rx[0] : 0;
+	if (p->reject_count < 255u)
+		p->reject_count++;
+}
+
+/* Decode and range-check the params of rx[] into m. Returns 0 or a REJECT_ code. */
+static uint8_t decode_params(const struct proto *p, const struct proto_msg_desc *d,
+			     uint8_t n_params, struct proto_msg *m)
+{
+	uint8_t pos = 1;
+
+	m->designation = d->designation;
+	m->n_args = n_params;
+	for (uint8_t i = 0; i < PROTO_MAX_PARAMS; i++)
+		m->arg[i] = 0;
+	for (uint8_t i = 0; i < n_params; i++) {
+		const struct proto_param_desc *pd = &proto_params[d->first_param + i];
+		int32_t v;
+
+		switch (pd->type) {
+		case PROTO_U8:
+			v = p->rx[pos];
+			pos += 1;
+			break;
+		case PROTO_S8:
+			v = (int8_t)p->rx[pos];
+			pos += 1;
+			break;
+		case PROTO_U16:
+			v = (int32_t)(((uint16_t)p->rx[pos] << 8) | p->rx[pos + 1]);
+			pos += 2;
+			break;
+		default: /* PROTO_S16 */
+			v = (int16_t)(uint16_t)(((uint16_t)p->rx[pos] << 8) | p->rx[pos + 1]);
+			pos += 2;
+			break;
+		}
+		if (pd->mask) {
+			if ((uint8_t)v & (uint8_t)~pd->mask)
+				return REJECT_RESERVED_BIT;
+		} else if (v < pd->min || v > pd->max) {
+			return REJECT_OUT_OF_RANGE;
+		}
+		m->arg[i] = v;
+	}
+	return REJECT_NONE;
+}
+
+static void select_reply(struct proto *p, uint8_t designation)
+{
+	p->selected = designation;
+	p->tx_len = proto_pack_reply(p, designation, published(p), p->tx);
+	p->tx_pos = 0;
+}
+
+/* A write frame is over: judge it whole, then apply it whole or not at all. */
+static void end_write(struct proto *p)
+{
+	const struct proto_msg_desc *d;
+	struct proto_msg m;
+	uint8_t n = p->rx_len;
+	uint8_t n_params;
+	uint8_t reason;
+
+	p->in_write = 0;
+	if (n == 0 && !p->rx_overflow)
+		return; /* address-only write (SMBus quick command, i2cdetect): not a frame */
+	p->selected = PROTO_NONE;
+	p->write_crc = proto_crc8(crc_of_byte(ADDR_W), p->rx, n);
+	if (p->rx_overflow) {
+		reject(p, REJECT_BAD_LENGTH);
+		return;
+	}
+	d = proto_lookup(p->rx[0]);
+	if (d == NULL) {
+		reject(p, REJECT_UNKNOWN_DESIGNATION);
+		return;
+	}
+	if (n == d->write_len) {
+		n_params = d->n_params;
+	} else if (n == d->short_len) {
+		n_params = d->min_params;
+	} else if (n == d->write_len + 1u) {
+		n_params = d->n_params;
+		if (proto_crc8(crc_of_byte(ADDR_W), p->rx, (uint8_t)(n - 1u)) != p->rx[n - 1u]) {
+			reject(p, REJECT_BAD_PEC);
+			return;
+		}
+	} else {
+		reject(p, REJECT_BAD_LENGTH);
+		return;
+	}
+	reason = decode_params(p, d, n_params, &m);
+	if (reason != REJECT_NONE) {
+		reject(p, reason);
+		return;
+	}
+	if (d->kind == PROTO_KIND_ETAT) {
+		/* A read selection is not an order: it leaves COMMANDE_REJETEE for the master to
+		 * read. */
+		select_reply(p, d->designation);
+		return;
+	}
+	if (d->kind == PROTO_KIND_ORDRE && (published(p)->status & STATUS_PB_GRAVE)) {
+		reject(p, REJECT_REFUSED_PB_GRAVE);
+		return;
+	}
+	if ((uint8_t)(p->head - p->tail) >= PROTO_QUEUE_DEPTH) {
+		reject(p, REJECT_QUEUE_FULL);
+		return;
+	}
+	p->queue[p->head % PROTO_QUEUE_DEPTH] = m;
+	p->head++;
+	p->rejected = 0;
+	if (d->kind == PROTO_KIND_ORDRE) {
+		p->pending_status = STATUS_BUSY_TRAJET;
+		if (d->designation == PROTO_GOTO_PANIER)
+			p->pending_status |= STATUS_BUSY_GOTO_PANIER;
+		p->orders_in++;
+	}
+}
+
+static void end_read(struct proto *p)
+{
+	p->selected = PROTO_NONE;
+	p->tx_len = 0;
+	p->tx_pos = 0;
+	p->restart_crc = 0;
+}
+
+void proto_on_write_start(struct proto *p)
+{
+	if (p->in_write)
+		end_write(p);
+	p->rx_len = 0;
+	p->rx_overflow = 0;
+	p->in_write = 1;
+}
+
+void proto_on_byte(struct proto *p, uint8_t byte)
+{
+	if (!p->in_write)
+		return; /* a byte outside a write: the port reported no start, nothing to judge */
+	if (p->rx_len < PROTO_MAX_WRITE)
+		p->rx[p->rx_len++] = byte;
+	else
+		p->rx_overflow = 1;
+}
+
+void proto_on_read_start(struct proto *p)
+{
+	uint8_t crc;
+
+	p->restart_crc = p->in_write;
+	if (p->in_write)
+		end_write(p);
+	if (p->selected == PROTO_NONE)
+		select_reply(p, PROTO_CHECK_BUSY);
+	else if (p->selected == PROTO_CHECK_BUSY || p->selected == PROTO_LAST_REJECT)
+		select_reply(p, p->selected); /* status bits may have moved since the selection */
+	/* SMBus PEC covers the whole transaction since its START: the selecting write too when the
+	 * read follows it by a repeated start. */
+	crc = p->restart_crc ? p->write_crc : 0;
+	crc = proto_crc8(crc, &(const uint8_t){ADDR_R}, 1);
+	p->tx[p->tx_len] = proto_crc8(crc, p->tx, p->tx_len);
+	p->tx_len++;
+	p->tx_pos = 0;
+}
+
+uint8_t proto_read_byte(struct proto *p)
+{
+	if (p->tx_pos < p->tx_len)
+		return p->tx[p->tx_pos++];
+	return 0xFFu; /* the bus's idle level: what a master reads from a released SDA */
+}
+
+void proto_on_stop(struct proto *p)
+{
+	if (p->in_write)
+		end_write(p);
+	else if (p->tx_len)
+		end_read(p);
+}
+
+void proto_on_abort(struct proto *p)
+{
+	if (p->in_write) {
+		p->in_write = 0;
+		p->selected = PROTO_NONE;
+		reject(p, REJECT_ABORTED);
+	}
+	end_read(p);
+}
+
+int proto_poll(struct proto *p, struct proto_msg *out)
+{
+	uint8_t t = p->tail;
+
+	if (t == p->head)
+		return 0;
+	*out = p->queue[t % PROTO_QUEUE_DEPTH];
+	p->tail = (uint8_t)(t + 1u);
+	if (proto_lookup(out->designation)->kind == PROTO_KIND_ORDRE)
+		p->orders_taken++;
+	return 1;
+}
+
+void proto_publish(struct proto *p, const struct proto_snapshot *s)
+{
+	uint8_t next = (uint8_t)((p->snap_index + 1u) & 1u);
+
+	p->snap[next] = *s;
+	p->snap_index = next;
+	p->orders_published = p->orders_taken;
+}

@@ -1,0 +1,306 @@
+"""The master's codec of the board's I2C protocol: encode every write, decode every reply.
+
+Everything is driven by the generated message table (``_protocol.py``, from
+``protocol/messages.toml``), and validation follows the board's rules exactly, so that a frame
+this module refuses is a frame the board would reject, with the same reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Final
+
+from ._protocol import (
+    ADDRESS,
+    MAX_WRITE,
+    MESSAGES,
+    Capability,
+    EndReason,
+    Field,
+    Message,
+    OrderState,
+    Reject,
+    Status,
+)
+
+_SIZE: Final = {"u8": 1, "s8": 1, "u16": 2, "s16": 2}
+
+BY_NAME: Final[dict[str, Message]] = {m.name: m for m in MESSAGES}
+BY_DESIGNATION: Final[dict[int, Message]] = {
+    d: m for m in MESSAGES for d in (m.designation, *m.aliases)
+}
+
+
+class FrameError(ValueError):
+    """A frame the board rejects, with the board's reason code and where it went wrong."""
+
+    def __init__(self, reason: Reject, detail: str) -> None:
+        super().__init__(f"{reason.name}: {detail}")
+        self.reason = reason
+        self.detail = detail
+
+
+def crc8(data: bytes | bytearray | list[int], crc: int = 0) -> int:
+    """SMBus PEC: CRC-8, polynomial x^8 + x^2 + x + 1 (0x07), no reflection, from ``crc``."""
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x07) & 0xFF if crc & 0x80 else (crc << 1) & 0xFF
+    return crc
+
+
+def write_address(address: int = ADDRESS) -> int:
+    """The address byte of a write transaction."""
+    return (address << 1) & 0xFE
+
+
+def read_address(address: int = ADDRESS) -> int:
+    """The address byte of a read transaction."""
+    return ((address << 1) | 1) & 0xFF
+
+
+def message(name_or_designation: str | int) -> Message:
+    """The table entry of a message, by name (``"GOTO"``) or designation byte (aliases too)."""
+    try:
+        if isinstance(name_or_designation, str):
+            return BY_NAME[name_or_designation]
+        return BY_DESIGNATION[name_or_designation]
+    except KeyError:
+        raise FrameError(
+            Reject.UNKNOWN_DESIGNATION, f"no message {name_or_designation!r}"
+        ) from None
+
+
+def _check(msg: Message, f: Field, value: int) -> None:
+    if f.mask is not None:
+        if not 0 <= value <= 0xFF:
+            raise FrameError(Reject.OUT_OF_RANGE, f"{msg.name}.{f.name}={value} is not a byte")
+        if value & ~f.mask:
+            raise FrameError(
+                Reject.RESERVED_BIT,
+                f"{msg.name}.{f.name}=0x{value:02x} sets reserved bits (allowed 0x{f.mask:02x})",
+            )
+    elif not f.min <= value <= f.max:
+        raise FrameError(
+            Reject.OUT_OF_RANGE, f"{msg.name}.{f.name}={value} is outside {f.min}..{f.max}"
+        )
+
+
+def _pack(f: Field, value: int) -> bytes:
+    signed = f.type.startswith("s")
+    return int(value).to_bytes(_SIZE[f.type], "big", signed=signed)
+
+
+def _unpack(f: Field, data: bytes) -> int:
+    return int.from_bytes(data, "big", signed=f.type.startswith("s"))
+
+
+def encode(name: str, *args: int, pec: bool = False, address: int = ADDRESS) -> bytes:
+    """The bytes of a write: designation, then params big-endian, then the PEC if asked.
+
+    ``args`` are the params in table order; messages with a short form (SET_VITESSE_TRAJ,
+    SET_VITESSE_ROT) take fewer. A PEC is only possible on the full form (docs/protocol.md).
+    Raises FrameError with the reason the board would give.
+    """
+    msg = message(name)
+    n = len(args)
+    if not msg.min_params <= n <= len(msg.params):
+        want = (
+            f"{len(msg.params)}"
+            if msg.min_params == len(msg.params)
+            else f"{msg.min_params}..{len(msg.params)}"
+        )
+        raise FrameError(Reject.BAD_LENGTH, f"{msg.name} takes {want} params, got {n}")
+    if pec and n != len(msg.params):
+        raise FrameError(
+            Reject.BAD_LENGTH, f"{msg.name}: a PEC needs the full form ({len(msg.params)} params)"
+        )
+    out = bytearray([msg.designation])
+    for f, value in zip(msg.params, args, strict=False):
+        _check(msg, f, value)
+        out += _pack(f, value)
+    if pec:
+        out.append(crc8(bytes([write_address(address)]) + out))
+    return bytes(out)
+
+
+@dataclass(frozen=True)
+class Write:
+    """A write as the board understands it."""
+
+    message: Message
+    args: tuple[int, ...]
+    pec: bool
+
+    def describe(self) -> str:
+        params = " ".join(
+            f"{f.name}={v}" for f, v in zip(self.message.params, self.args, strict=False)
+        )
+        pec = " +PEC" if self.pec else ""
+        return f"{self.message.name} {params}".rstrip() + pec
+
+
+def decode_write(frame: bytes | bytearray | list[int], address: int = ADDRESS) -> Write:
+    """Judge a write as the board does: the message and its params, or FrameError."""
+    frame = bytes(frame)
+    n = len(frame)
+    if n == 0:
+        raise FrameError(Reject.BAD_LENGTH, "empty write (an address-only write is not a frame)")
+    if n > MAX_WRITE:
+        raise FrameError(Reject.BAD_LENGTH, f"{n} bytes, longer than any message ({MAX_WRITE})")
+    msg = BY_DESIGNATION.get(frame[0])
+    if msg is None:
+        raise FrameError(Reject.UNKNOWN_DESIGNATION, f"designation {frame[0]} names no message")
+    full = 1 + sum(_SIZE[f.type] for f in msg.params)
+    short = 1 + sum(_SIZE[f.type] for f in msg.params[: msg.min_params])
+    if n == full:
+        params, pec = msg.params, False
+    elif n == short:
+        params, pec = msg.params[: msg.min_params], False
+    elif n == full + 1:
+        params, pec = msg.params, True
+        want = crc8(bytes([write_address(address)]) + frame[:-1])
+        if frame[-1] != want:
+            raise FrameError(
+                Reject.BAD_PEC, f"{msg.name}: PEC 0x{frame[-1]:02x}, expected 0x{want:02x}"
+            )
+    else:
+        raise FrameError(
+            Reject.BAD_LENGTH,
+            f"{msg.name}: {n} bytes, expected {full}"
+            + (f" or {short}" if short != full else "")
+            + f" (or {full + 1} with PEC)",
+        )
+    args = []
+    pos = 1
+    for f in params:
+        size = _SIZE[f.type]
+        value = _unpack(f, frame[pos : pos + size])
+        _check(msg, f, value)
+        args.append(value)
+        pos += size
+    return Write(msg, tuple(args), pec)
+
+
+@dataclass(frozen=True)
+class Pose:
+    """POSITION: the board's estimate and its error radius."""
+
+    x_mm: int
+    y_mm: int
+    angle_2deg: int
+    radius_mm: int
+
+    @property
+    def angle_deg(self) -> int:
+        return 2 * self.angle_2deg
+
+
+@dataclass(frozen=True)
+class Version:
+    """VERSION (extension)."""
+
+    major: int
+    minor: int
+    capabilities: Capability
+
+
+@dataclass(frozen=True)
+class LastReject:
+    """LAST_REJECT (extension)."""
+
+    reason: Reject
+    designation: int
+    count: int
+
+
+@dataclass(frozen=True)
+class Debug:
+    """DEBUG telemetry (units in protocol/messages.toml)."""
+
+    tick: int
+    heading_cdeg: int
+    speed_mm_s: int
+    turn_rate_cdeg_s: int
+    dist_err_um: int
+    angle_err_um: int
+    duty_left_q15: int
+    duty_right_q15: int
+    current_left_ma: int
+    current_right_ma: int
+    order_state: OrderState
+    end_reason: EndReason
+
+
+Reply = Status | Pose | int | Version | LastReject | Debug
+
+
+class PecError(ValueError):
+    """A reply whose PEC does not match: the bytes were corrupted on the bus."""
+
+
+def reply_length(name: str) -> int:
+    """Bytes of a reply, without PEC."""
+    return sum(_SIZE[f.type] for f in message(name).reply)
+
+
+def decode_reply(
+    name: str, data: bytes | bytearray | list[int], pec_prefix: bytes | None = None
+) -> Reply:
+    """Decode the bytes read after an ETAT designation into a named type.
+
+    With ``pec_prefix`` (the transaction's bytes before the reply: the read address byte, preceded
+    by the write address byte and the designation when the read follows by a repeated start), the
+    last byte of ``data`` is the PEC and is checked.
+    """
+    msg = message(name)
+    data = bytes(data)
+    n = reply_length(msg.name)
+    if pec_prefix is not None:
+        if len(data) != n + 1:
+            raise ValueError(f"{msg.name}: {len(data)} bytes read, expected {n} + PEC")
+        want = crc8(pec_prefix + data[:-1])
+        if data[-1] != want:
+            raise PecError(f"{msg.name}: PEC 0x{data[-1]:02x}, expected 0x{want:02x}")
+        data = data[:-1]
+    if len(data) != n:
+        raise ValueError(f"{msg.name}: {len(data)} bytes read, expected {n}")
+    values = []
+    pos = 0
+    for f in msg.reply:
+        values.append(_unpack(f, data[pos : pos + _SIZE[f.type]]))
+        pos += _SIZE[f.type]
+    if msg.name == "CHECK_BUSY":
+        return Status(values[0])
+    if msg.name == "POSITION":
+        return Pose(*values)
+    if msg.name == "INFO_CHOC":
+        return values[0]
+    if msg.name == "VERSION":
+        return Version(values[0], values[1], Capability(values[2]))
+    if msg.name == "LAST_REJECT":
+        return LastReject(Reject(values[0]), values[1], values[2])
+    if msg.name == "DEBUG":
+        v = dict(zip((f.name for f in msg.reply), values, strict=True))
+        return Debug(
+            tick=v["tick"],
+            heading_cdeg=v["heading_cdeg"],
+            speed_mm_s=v["speed_mm_s"],
+            turn_rate_cdeg_s=v["turn_rate_cdeg_s"],
+            dist_err_um=v["dist_err_um"],
+            angle_err_um=v["angle_err_um"],
+            duty_left_q15=v["duty_left_q15"],
+            duty_right_q15=v["duty_right_q15"],
+            current_left_ma=v["current_left_ma"],
+            current_right_ma=v["current_right_ma"],
+            order_state=OrderState(v["order_state"]),
+            end_reason=EndReason(v["end_reason"]),
+        )
+    raise AssertionError(f"no decoder for {msg.name}")  # the table check keeps this unreachable
+
+
+def reply_fields(reply: Reply) -> dict[str, int]:
+    """The reply's values by table field name, for printing and for comparing with the table."""
+    if isinstance(reply, Pose | Version | LastReject | Debug):
+        return {f.name: int(getattr(reply, f.name)) for f in fields(reply)}
+    return {"value": int(reply)}

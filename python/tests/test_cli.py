@@ -1,0 +1,29 @@
+"""The command line: demonstration and protocol tools, including their error messages."""
+
+import pytest
+
+from asserv.cli import main
+
+
+def test_demo_runs_the_annex_session(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["demo"]) == 0
+    out = capsys.readouterr().out
+    assert "master -> [00 00 c8 00 64 00]  GOTO x_mm=200 y_mm=100 options=0" in out
+    assert "master -> [02 16]  GOTO_PANIER angle_2deg=22" in out
+    assert "all frames taken as encoded" in out
+
+
+def test_encode_and_decode(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["encode", "GOTO", "200", "100", "0", "--pec"]) == 0
+    assert capsys.readouterr().out.strip() == "00 00 c8 00 64 00 ce"
+    assert main(["decode", "00", "00", "c8", "00", "64", "00", "ce"]) == 0
+    assert capsys.readouterr().out.strip() == "GOTO x_mm=200 y_mm=100 options=0 +PEC"
+
+
+def test_bad_arguments_say_what_is_wrong(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["encode", "GOTO", "200", "100", "8"]) == 2
+    assert "RESERVED_BIT: GOTO.options=0x08" in capsys.readouterr().err
+    with pytest.raises(SystemExit, match=r"param 2 \('x'\) is not an integer"):
+        main(["encode", "GOTO", "1", "x", "0"])
+    with pytest.raises(SystemExit, match=r"byte 2 \('zz'\) is not hexadecimal"):
+        main(["decode", "00", "zz"])

@@ -1,0 +1,40 @@
+# Sourced by scripts/demo.sh and scripts/test.sh: installs what the project needs, idempotently.
+#  - Debian packages: with apt-get when run as root, otherwise a message naming the missing ones.
+#  - A Python virtual environment in .venv with the package and its dev tools (pip).
+# After it: ROOT is the repository, the venv is active, and build/ is the CMake build directory.
+
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+cd "$ROOT"
+
+DEBIAN_PACKAGES=(
+	build-essential cmake ninja-build pkg-config python3 python3-venv python3-dev
+	libcmocka-dev clang-format valgrind
+)
+
+missing=()
+for pkg in "${DEBIAN_PACKAGES[@]}"; do
+	dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+	if [ "$(id -u)" = 0 ]; then
+		echo "setup: installing Debian packages: ${missing[*]}"
+		export DEBIAN_FRONTEND=noninteractive
+		apt-get update -qq
+		apt-get install -y -qq "${missing[@]}" >/dev/null
+	else
+		echo "setup: missing Debian packages: ${missing[*]}" >&2
+		echo "setup: install them with: sudo apt-get install ${missing[*]}" >&2
+		exit 1
+	fi
+fi
+
+if [ ! -x .venv/bin/python ]; then
+	echo "setup: creating the Python virtual environment .venv"
+	python3 -m venv .venv
+fi
+# shellcheck disable=SC1091
+. .venv/bin/activate
+python -m pip install -q --upgrade pip >/dev/null
+echo "setup: installing the asserv package and its tools into .venv (pip)"
+python -m pip install -q -e '.[dev]'
