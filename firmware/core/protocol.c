@@ -112,7 +112,7 @@ static void reject(struct proto *p, uint8_t reason)
 {
 	p->rejected = 1;
 	p->last_reject = reason;
-	p->last_reject_designation = p->rx_len ? p->rx[0] : 0;
+	p->last_reject_designation = p->rx_len ? p->rx[0] : 0xFFu; /* 0xFF: no byte came */
 	if (p->reject_count < 255u)
 		p->reject_count++;
 }
@@ -180,7 +180,6 @@ static void end_write(struct proto *p)
 	if (n == 0 && !p->rx_overflow)
 		return; /* address-only write (SMBus quick command, i2cdetect): not a frame */
 	p->selected = PROTO_NONE;
-	p->write_crc = proto_crc8(crc_of_byte(ADDR_W), p->rx, n);
 	if (p->rx_overflow) {
 		reject(p, REJECT_BAD_LENGTH);
 		return;
@@ -236,6 +235,7 @@ static void end_write(struct proto *p)
 
 static void end_read(struct proto *p)
 {
+	p->in_read = 0;
 	p->selected = PROTO_NONE;
 	p->tx_len = 0;
 	p->tx_pos = 0;
@@ -246,6 +246,9 @@ void proto_on_write_start(struct proto *p)
 {
 	if (p->in_write)
 		end_write(p);
+	else if (p->in_read)
+		end_read(p);
+	p->write_crc = crc_of_byte(ADDR_W);
 	p->rx_len = 0;
 	p->rx_overflow = 0;
 	p->in_write = 1;
@@ -255,6 +258,7 @@ void proto_on_byte(struct proto *p, uint8_t byte)
 {
 	if (!p->in_write)
 		return; /* a byte outside a write: the port reported no start, nothing to judge */
+	p->write_crc = proto_crc8(p->write_crc, &byte, 1); /* every byte, for a PEC after Sr */
 	if (p->rx_len < PROTO_MAX_WRITE)
 		p->rx[p->rx_len++] = byte;
 	else
@@ -265,6 +269,8 @@ void proto_on_read_start(struct proto *p)
 {
 	uint8_t crc;
 
+	if (p->in_read)
+		end_read(p); /* read, repeated start, read: the first read is over */
 	p->restart_crc = p->in_write;
 	if (p->in_write)
 		end_write(p);
@@ -279,6 +285,7 @@ void proto_on_read_start(struct proto *p)
 	p->tx[p->tx_len] = proto_crc8(crc, p->tx, p->tx_len);
 	p->tx_len++;
 	p->tx_pos = 0;
+	p->in_read = 1;
 }
 
 uint8_t proto_read_byte(struct proto *p)
@@ -292,7 +299,7 @@ void proto_on_stop(struct proto *p)
 {
 	if (p->in_write)
 		end_write(p);
-	else if (p->tx_len)
+	else if (p->in_read)
 		end_read(p);
 }
 

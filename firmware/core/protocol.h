@@ -56,11 +56,12 @@ struct proto {
 	uint8_t rx_len;
 	uint8_t rx_overflow;
 	uint8_t in_write;
+	uint8_t in_read;
 	uint8_t tx[PROTO_MAX_REPLY + 1]; /* reply + PEC */
 	uint8_t tx_len;                  /* reply + PEC */
 	uint8_t tx_pos;
 	uint8_t selected;    /* designation whose reply is ready in tx[], or PROTO_NONE */
-	uint8_t write_crc;   /* CRC-8 of address + the write that selected the reply */
+	uint8_t write_crc;   /* CRC-8 of address + every byte of the last write */
 	uint8_t restart_crc; /* 1 when the read continues that write (repeated start) */
 
 	/* Interrupt side: rejections. */

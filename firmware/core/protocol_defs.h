@@ -38,7 +38,7 @@
 #define STATUS_CHOC_PANIER (1u << 3) /* the last trajectory ended on a basket contact or a basket-side shock sensor */
 #define STATUS_CHOC_BORD (1u << 4) /* the last trajectory ended on a border-side shock sensor */
 #define STATUS_PB_MOTEUR (1u << 5) /* the last trajectory was abandoned on a motor problem (following error, overcurrent, slip) */
-#define STATUS_COMMANDE_REJETEE (1u << 6) /* the last order or setting written was rejected (extension; cleared by the next accepted one) */
+#define STATUS_COMMANDE_REJETEE (1u << 6) /* the last write was rejected (extension; cleared by the next accepted order or setting) */
 
 /* Bits of VERSION's capabilities. */
 #define CAP_PEC (1u << 0) /* SMBus PEC on writes and reads */

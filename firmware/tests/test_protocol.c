@@ -244,6 +244,87 @@ static void test_reply_lengths_match_table(void **state)
 				 proto_msgs[i].reply_len);
 }
 
+/* Read, repeated start, read: the second read is a read of its own (the status byte and its
+ * PEC), and nothing is written past the reply buffer. */
+static void test_read_restart_read(void **state)
+{
+	struct proto p;
+	struct proto_snapshot s;
+	uint8_t got[2];
+	const uint8_t addr_r = (PROTO_ADDRESS << 1) | 1;
+
+	(void)state;
+	memset(&s, 0, sizeof(s));
+	s.status = STATUS_BUSY_TRAJET;
+	proto_init(&p);
+	proto_publish(&p, &s);
+	write_frame(&p, (const uint8_t[]){PROTO_DEBUG}, 1, 1);
+	for (int k = 0; k < 4; k++) {
+		proto_on_read_start(&p);
+		for (int i = 0; i < PROTO_DEBUG_REPLY_LEN + 1; i++)
+			(void)proto_read_byte(&p);
+	}
+	proto_on_read_start(&p);
+	got[0] = proto_read_byte(&p);
+	got[1] = proto_read_byte(&p);
+	proto_on_stop(&p);
+	assert_int_equal(got[0], STATUS_BUSY_TRAJET);
+	assert_int_equal(got[1], proto_crc8(proto_crc8(0, &addr_r, 1), got, 1));
+	assert_int_equal(p.in_read, 0);
+}
+
+/* The PEC of a read after a repeated start covers the whole transaction: an address-only write,
+ * or a write longer than any message, included. */
+static void test_restart_pec_covers_the_write(void **state)
+{
+	struct proto p;
+	uint8_t got[2];
+	const uint8_t long_write[] = {9, 1, 2, 3, 4, 5, 6, 7, 8, 9};
+	uint8_t tr[16];
+	uint8_t n = 0;
+
+	(void)state;
+	proto_init(&p);
+	write_frame(&p, NULL, 0, 0);
+	proto_on_read_start(&p);
+	got[0] = proto_read_byte(&p);
+	got[1] = proto_read_byte(&p);
+	proto_on_stop(&p);
+	tr[0] = PROTO_ADDRESS << 1;
+	tr[1] = (PROTO_ADDRESS << 1) | 1;
+	tr[2] = got[0];
+	assert_int_equal(got[1], proto_crc8(0, tr, 3));
+
+	write_frame(&p, long_write, sizeof(long_write), 0);
+	proto_on_read_start(&p);
+	got[0] = proto_read_byte(&p);
+	got[1] = proto_read_byte(&p);
+	proto_on_stop(&p);
+	tr[n++] = PROTO_ADDRESS << 1;
+	for (size_t i = 0; i < sizeof(long_write); i++)
+		tr[n++] = long_write[i];
+	tr[n++] = (PROTO_ADDRESS << 1) | 1;
+	tr[n++] = got[0];
+	assert_int_equal(got[0], STATUS_COMMANDE_REJETEE);
+	assert_int_equal(got[1], proto_crc8(0, tr, n));
+}
+
+/* A bus error before any data byte: the rejected designation reads 0xFF, not GOTO's 0. */
+static void test_abort_before_any_byte(void **state)
+{
+	struct proto p;
+	uint8_t got[3];
+
+	(void)state;
+	proto_init(&p);
+	proto_on_write_start(&p);
+	proto_on_abort(&p);
+	write_frame(&p, (const uint8_t[]){PROTO_LAST_REJECT}, 1, 1);
+	read_frame(&p, got, 3);
+	assert_int_equal(got[0], REJECT_ABORTED);
+	assert_int_equal(got[1], 0xFF);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -255,6 +336,9 @@ int main(void)
 		cmocka_unit_test(test_position_reply_is_one_snapshot),
 		cmocka_unit_test(test_debug_frame_layout),
 		cmocka_unit_test(test_reply_lengths_match_table),
+		cmocka_unit_test(test_read_restart_read),
+		cmocka_unit_test(test_restart_pec_covers_the_write),
+		cmocka_unit_test(test_abort_before_any_byte),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

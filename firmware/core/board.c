@@ -1,0 +1,348 @@
+/* The board: one tick function that runs the control period's steps in order (see board.h). */
+#include "board.h"
+
+#include "fixmath.h"
+#include "protocol_defs.h"
+
+#define UM_PER_MM 1000
+#define STATUS_END_BITS (STATUS_CHOC_PANIER | STATUS_CHOC_BORD | STATUS_PB_MOTEUR)
+
+void board_default_config(struct board_config *c)
+{
+	/* Reference robot: 25 mm free wheels, 2000 counts/rev, 280 mm apart; drive wheels 160 mm
+	 * apart; motors reaching ~1.64 m/s at full duty (Maxon RE25 24 V, 20.25:1, 32.5 mm
+	 * wheels: ../shared/notes/physics.md). */
+	const uint32_t um_per_count_q16 = 5146970; /* 2 pi 25 mm / 2000 = 78.54 um, * 2^16 */
+
+	c->tick_hz = 1000;
+	c->odometry.left_um_per_count_q16 = um_per_count_q16;
+	c->odometry.right_um_per_count_q16 = um_per_count_q16;
+	c->odometry.track_um = 280000;
+
+	c->uncertainty.noise_left_mm2_per_m_q16 = 10 << 16; /* 0.1 mm^2/m, mid-range */
+	c->uncertainty.noise_left_mm2_per_m_q16 /= 100;
+	c->uncertainty.noise_right_mm2_per_m_q16 = c->uncertainty.noise_left_mm2_per_m_q16;
+	c->uncertainty.track_um = 280000;
+	c->uncertainty.ratio_error_ppm = 500; /* calibrated: 0.05 % */
+	c->uncertainty.track_error_um = 100;  /* calibrated: 0.1 mm */
+	c->uncertainty.scale_error_ppm = 500;
+	c->uncertainty.k_q8 = 776; /* 3.03: 99 % */
+	c->uncertainty.batch_ticks = 10;
+
+	c->control.tick_hz = 1000;
+	c->control.duty_max_q15 = 32767;
+	c->control.ff_speed_q15_per_m_s = 19980; /* 32767 / 1.64 m/s */
+	c->control.ff_accel_q15_per_m_s2 = 1400; /* 8 kg on two 32.5 mm wheels */
+	c->control.ff_angle_accel_q15_per_m_s2 = 900;
+	c->control.presets[FILTRE_STD] = (struct control_gains){205, 400, 160};
+	c->control.presets[FILTRE_SOUPLE] = (struct control_gains){40, 0, 60};
+	c->control.presets[FILTRE_RAIDE] = (struct control_gains){400, 1200, 250};
+
+	c->faults.shock_basket_mask = 0x00; /* every shock sensor is on the border side */
+	c->faults.following_max_um = 20000;
+	c->faults.following_ticks = 100;
+	c->faults.current_max_ma = 6000;
+	c->faults.current_ticks = 50;
+	c->faults.motor_encoders = 1;
+	c->faults.motor_um_per_count_q16 = 322717; /* 2 pi 32.5 mm / (2048 * 20.25), * 2^16 */
+	c->faults.slip_max_um = 10000;
+	c->faults.slip_shift = 7;
+	c->faults.lost_min_um = 5000;
+	c->faults.repeat_max = 3;
+	c->faults.repeat_window_ticks = 10000;
+
+	c->orders.drive_track_um = 160000;
+	c->orders.heading_window_turn32 = 0x00E38E39u * 5u; /* 5 degrees */
+	c->orders.freeze_radius_um = 30000;
+	c->orders.arrive_window_um = 500;
+	c->orders.arrive_speed_um_s = 5000;
+	c->orders.settle_ticks = 20;
+	c->orders.settle_timeout_ticks = 1000;
+	c->orders.push_speed_um_s = 150000;
+	c->orders.push_max_um = 500000;
+	c->orders.basket_contact_um = 150000;
+	c->orders.n_baskets = 0;
+	c->orders.tick_hz = 1000;
+	c->orders.jerk_um_s3 = 0;
+
+	/* The specification: x 0, at the end of the field (the 3 m field's left border is at
+	 * x -1500 mm; the robot's axis 200 mm in), angle 0. */
+	c->start.x_um = -1300000;
+	c->start.y_um = 0;
+	c->start.heading_turn32 = 0;
+}
+
+/* The angle axis [um of drive-wheel arc] from the unwrapped heading. Exact to 2^-32 turn; the
+ * product stays in 64 bits for 4000 turns of the robot. */
+static int32_t angle_axis_um(const struct board *b)
+{
+	return fx_sat32(fx_shr_round64(b->heading_unwrapped_turn32 * b->orders.pi_track_um, 32));
+}
+
+static void update_status(struct board *b);
+static void publish(struct board *b, const struct board_inputs *in, const struct orders_measure *m);
+
+static void measure(const struct board *b, const struct board_inputs *in, struct orders_measure *m)
+{
+	struct odometry_step st = odometry_get_step(&b->odometry);
+
+	m->pose = odometry_get_pose(&b->odometry);
+	m->dist_um = odometry_get_distance_um(&b->odometry);
+	m->angle_um = angle_axis_um(b);
+	m->dist_speed_um_s = st.ds_um * b->cfg.tick_hz;
+	m->angle_speed_um_s =
+		fx_mul_shr(st.dtheta_turn32, b->orders.pi_track_um, 32) * b->cfg.tick_hz;
+	m->basket_contact = in->basket;
+	m->basket_shock = (in->shocks & b->cfg.faults.shock_basket_mask) != 0;
+}
+
+int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in)
+{
+	struct orders_measure m;
+
+	if (cfg->tick_hz < 100 || cfg->tick_hz > 2000 || cfg->control.tick_hz != cfg->tick_hz ||
+	    cfg->orders.tick_hz != cfg->tick_hz)
+		return -1;
+	b->cfg = *cfg;
+	proto_init(&b->proto);
+	if (odometry_init(&b->odometry, &cfg->odometry, in->free_count[0], in->free_count[1]) ||
+	    uncertainty_init(&b->uncertainty, &cfg->uncertainty) ||
+	    control_init(&b->control, &cfg->control) ||
+	    faults_init(&b->faults, &cfg->faults, in->motor_count))
+		return -1;
+	odometry_set_pose(&b->odometry, &cfg->start);
+	uncertainty_reset(&b->uncertainty, 0, cfg->start.heading_turn32);
+	b->heading_unwrapped_turn32 = 0;
+	b->free_ratio_q16 = (int32_t)fx_div_round64((int64_t)cfg->orders.drive_track_um << 16,
+						    cfg->odometry.track_um);
+	if (orders_init(&b->orders, &cfg->orders, odometry_get_distance_um(&b->odometry), 0))
+		return -1;
+	b->tick = 0;
+	b->status = 0;
+	b->last_out.duty_q15[0] = 0;
+	b->last_out.duty_q15[1] = 0;
+	measure(b, in, &m);
+	update_status(b);
+	publish(b, in, &m);
+	return 0;
+}
+
+/* A new order clears what the last one ended with. */
+static void start_order(struct board *b)
+{
+	b->status &= (uint8_t)~STATUS_END_BITS;
+	faults_order_started(&b->faults, b->shocks);
+}
+
+static void set_new_pos(struct board *b, const struct proto_msg *msg)
+{
+	struct odometry_pose p = odometry_get_pose(&b->odometry);
+
+	/* The master sends the estimate's error (estimate - truth): subtract it. */
+	p.x_um -= msg->arg[ARG_SET_NEW_POS_ERR_X_MM] * UM_PER_MM;
+	p.y_um -= msg->arg[ARG_SET_NEW_POS_ERR_Y_MM] * UM_PER_MM;
+	p.heading_turn32 -= fx_deg_to_turn32(msg->arg[ARG_SET_NEW_POS_ERR_ANGLE_DEG]);
+	odometry_set_pose(&b->odometry, &p);
+	orders_pose_changed(&b->orders);
+}
+
+static void apply(struct board *b, const struct proto_msg *msg, struct orders_measure *m)
+{
+	const int32_t *a = msg->arg;
+	struct control_gains g;
+
+	if ((b->status & STATUS_PB_GRAVE) &&
+	    proto_lookup(msg->designation)->kind == PROTO_KIND_ORDRE)
+		return; /* raced the PB_GRAVE publication: refused like the protocol layer does */
+	switch (msg->designation) {
+	case PROTO_GOTO:
+		start_order(b);
+		orders_goto(&b->orders, m, a[ARG_GOTO_X_MM] * UM_PER_MM,
+			    a[ARG_GOTO_Y_MM] * UM_PER_MM, (uint8_t)a[ARG_GOTO_OPTIONS]);
+		break;
+	case PROTO_GOTO_REVERSE:
+		start_order(b);
+		orders_goto_reverse(&b->orders, m, a[ARG_GOTO_REVERSE_DISTANCE_MM] * UM_PER_MM);
+		break;
+	case PROTO_GOTO_PANIER:
+		start_order(b);
+		orders_goto_panier(&b->orders, m,
+				   fx_deg_to_turn32(a[ARG_GOTO_PANIER_ANGLE_2DEG] * 2));
+		break;
+	case PROTO_STOP:
+		start_order(b);
+		orders_stop(&b->orders);
+		break;
+	case PROTO_SET_VITESSE_TRAJ:
+		orders_set_traj_limits(
+			&b->orders, (uint8_t)a[ARG_SET_VITESSE_TRAJ_SPEED_CM_S],
+			msg->n_args > 1 ? (uint8_t)a[ARG_SET_VITESSE_TRAJ_ACCEL_CM_S2] : 0);
+		break;
+	case PROTO_SET_VITESSE_ROT:
+		orders_set_rot_limits(&b->orders, (uint8_t)a[ARG_SET_VITESSE_ROT_SPEED_CM_S],
+				      msg->n_args > 1 ? (uint8_t)a[ARG_SET_VITESSE_ROT_ACCEL_CM_S2]
+						      : 0);
+		break;
+	case PROTO_SET_FILTRE:
+		control_set_preset(&b->control, (uint8_t)a[ARG_SET_FILTRE_PRESET]);
+		break;
+	case PROTO_SET_FILTRE_RAW:
+		g.p = (uint16_t)a[ARG_SET_FILTRE_RAW_P];
+		g.i = (uint16_t)a[ARG_SET_FILTRE_RAW_I];
+		g.d = (uint16_t)a[ARG_SET_FILTRE_RAW_D];
+		control_set_gains(&b->control, &g);
+		break;
+	case PROTO_SET_NEW_POS:
+		set_new_pos(b, msg);
+		m->pose = odometry_get_pose(&b->odometry);
+		break;
+	default:
+		break; /* ETAT messages never reach the queue */
+	}
+}
+
+/* Stop the running order at once; the status says why. */
+static void react(struct board *b, uint8_t event, const struct orders_measure *m)
+{
+	static const uint8_t bits[] = {
+		[FAULTS_SHOCK_BORD] = STATUS_CHOC_BORD,
+		[FAULTS_SHOCK_PANIER] = STATUS_CHOC_PANIER,
+		[FAULTS_MOTOR] = STATUS_PB_MOTEUR,
+		[FAULTS_GRAVE] = STATUS_PB_GRAVE,
+	};
+	static const uint8_t reasons[] = {
+		[FAULTS_SHOCK_BORD] = END_REASON_SHOCK,
+		[FAULTS_SHOCK_PANIER] = END_REASON_SHOCK,
+		[FAULTS_MOTOR] = END_REASON_MOTOR,
+		[FAULTS_GRAVE] = END_REASON_FAULT,
+	};
+
+	if (event == FAULTS_NONE || ((b->status & STATUS_PB_GRAVE) && event == FAULTS_GRAVE))
+		return;
+	orders_abort(&b->orders, m, reasons[event]);
+	control_reset(&b->control);
+	b->status |= bits[event];
+}
+
+/* An order ended by itself this tick. */
+static void finish(struct board *b, uint8_t reason, struct orders_measure *m)
+{
+	struct odometry_pose p;
+
+	if (reason != END_REASON_BASKET)
+		return;
+	b->status |= STATUS_CHOC_PANIER;
+	control_reset(&b->control);
+	if (orders_basket_pose(&b->orders, &m->pose, &p) == 0) {
+		odometry_set_pose(&b->odometry, &p);
+		m->pose = p;
+	}
+}
+
+static void update_status(struct board *b)
+{
+	uint8_t s = b->status & (uint8_t)(STATUS_END_BITS | STATUS_PB_GRAVE);
+
+	if (orders_busy(&b->orders)) {
+		s |= STATUS_BUSY_TRAJET;
+		if (b->orders.designation == PROTO_GOTO_PANIER)
+			s |= STATUS_BUSY_GOTO_PANIER;
+	}
+	b->status = s;
+}
+
+static int16_t mm_of(int32_t um)
+{
+	return fx_sat16(fx_div_round(um, UM_PER_MM));
+}
+
+static void publish(struct board *b, const struct board_inputs *in, const struct orders_measure *m)
+{
+	struct proto_snapshot s;
+	int32_t cdeg = fx_turn32_to_cdeg(m->pose.heading_turn32);
+
+	s.x_mm = mm_of(m->pose.x_um);
+	s.y_mm = mm_of(m->pose.y_um);
+	s.angle_2deg = (int8_t)fx_div_round(cdeg, 200); /* -90..90 */
+	s.radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
+	s.status = b->status;
+	s.sensors = in->shocks;
+	s.debug.tick = b->tick;
+	s.debug.heading_cdeg = (int16_t)cdeg;
+	s.debug.speed_mm_s = mm_of(m->dist_speed_um_s);
+	s.debug.turn_rate_cdeg_s = fx_sat16(
+		fx_turn32_to_cdeg((uint32_t)odometry_get_step(&b->odometry).dtheta_turn32) *
+		b->cfg.tick_hz);
+	s.debug.dist_err_um = fx_sat16(b->control.dist_err_um);
+	s.debug.angle_err_um = fx_sat16(b->control.angle_err_um);
+	s.debug.duty_left_q15 = b->control.duty_q15[0];
+	s.debug.duty_right_q15 = b->control.duty_q15[1];
+	s.debug.current_left_ma = in->current_ma[0];
+	s.debug.current_right_ma = in->current_ma[1];
+	s.debug.order_state = b->orders.state;
+	s.debug.end_reason = b->orders.end_reason;
+	proto_publish(&b->proto, &s);
+}
+
+void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out)
+{
+	struct odometry_step step;
+	struct orders_measure m;
+	struct faults_inputs fi;
+	struct proto_msg msg;
+	uint8_t reason;
+
+	/* 1. Encoders -> odometry. */
+	odometry_update(&b->odometry, in->free_count[0], in->free_count[1]);
+	step = odometry_get_step(&b->odometry);
+	b->heading_unwrapped_turn32 += step.dtheta_turn32;
+
+	/* 2. Error radius. */
+	uncertainty_update(&b->uncertainty, step.left_q16, step.right_q16,
+			   odometry_get_pose(&b->odometry).heading_turn32);
+
+	/* 3. The two polar axes and the pose, measured; the switches. */
+	measure(b, in, &m);
+	b->shocks = in->shocks;
+
+	/* 4. Messages from the master, in the order they arrived. */
+	while (proto_poll(&b->proto, &msg))
+		apply(b, &msg, &m);
+
+	/* 5. Stop conditions: shocks, motor problems, unrecoverable faults. */
+	/* Pushing a basket closes the front bumper with the basket switch: the expected contact. */
+	fi.shocks = (b->orders.state == ORDER_STATE_PUSH && in->basket) ? 0 : in->shocks;
+	fi.current_ma[0] = in->current_ma[0];
+	fi.current_ma[1] = in->current_ma[1];
+	fi.motor_count[0] = in->motor_count[0];
+	fi.motor_count[1] = in->motor_count[1];
+	fi.free_step_q16[0] = step.left_q16;
+	fi.free_step_q16[1] = step.right_q16;
+	fi.free_ratio_q16 = b->free_ratio_q16;
+	fi.dist_err_um = b->orders.sp_dist.pos_um - m.dist_um;
+	fi.angle_err_um = b->orders.sp_angle.pos_um - m.angle_um;
+	fi.moving = (uint8_t)orders_busy(&b->orders);
+	fi.pushing = b->orders.state == ORDER_STATE_PUSH;
+	react(b, faults_check(&b->faults, &fi), &m);
+
+	/* 6. Orders -> profiles -> setpoints of both axes. */
+	reason = orders_update(&b->orders, &m);
+	finish(b, reason, &m);
+	update_status(b);
+
+	/* 7. Control: feed-forward + PID on both axes, mixed into the motor duties. */
+	if (b->status & STATUS_PB_GRAVE)
+		control_off(&b->control);
+	else
+		control_update(&b->control, &b->orders.sp_dist, &b->orders.sp_angle, m.dist_um,
+			       m.angle_um);
+
+	/* 8. Outputs. */
+	out->duty_q15[0] = b->control.duty_q15[0];
+	out->duty_q15[1] = b->control.duty_q15[1];
+	b->last_out = *out;
+
+	/* 9. The state replies are built from, all of this tick. */
+	b->tick++;
+	publish(b, in, &m);
+}

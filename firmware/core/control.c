@@ -1,0 +1,111 @@
+/* Polar control (see control.h). */
+#include "control.h"
+
+#include "fixmath.h"
+#include "protocol_defs.h"
+
+/* Coefficient per m/s [duty_q15] -> per um/s [duty_q15 * 2^20]. */
+static int32_t per_um_q20(int32_t per_m)
+{
+	return (int32_t)fx_div_round64((int64_t)per_m << 20, 1000000);
+}
+
+static int pid_with(struct pid *p, const struct control_config *cfg, const struct control_gains *g)
+{
+	struct pid_config pc;
+
+	pc.p = g->p;
+	pc.i = g->i;
+	pc.d = g->d;
+	pc.out_limit_q15 = cfg->duty_max_q15;
+	pc.tick_hz = cfg->tick_hz;
+	return pid_set_config(p, &pc);
+}
+
+int control_init(struct control *c, const struct control_config *cfg)
+{
+	struct pid_config pc;
+
+	if (cfg->duty_max_q15 <= 0 || cfg->ff_speed_q15_per_m_s < 0 ||
+	    cfg->ff_speed_q15_per_m_s > 1000000 || cfg->ff_accel_q15_per_m_s2 < 0 ||
+	    cfg->ff_accel_q15_per_m_s2 > 1000000 || cfg->ff_angle_accel_q15_per_m_s2 < 0 ||
+	    cfg->ff_angle_accel_q15_per_m_s2 > 1000000)
+		return -1;
+	c->cfg = *cfg;
+	c->k_speed_q20 = per_um_q20(cfg->ff_speed_q15_per_m_s);
+	c->k_accel_q20 = per_um_q20(cfg->ff_accel_q15_per_m_s2);
+	c->k_angle_accel_q20 = per_um_q20(cfg->ff_angle_accel_q15_per_m_s2);
+	c->gains = cfg->presets[FILTRE_STD];
+	pc.p = c->gains.p;
+	pc.i = c->gains.i;
+	pc.d = c->gains.d;
+	pc.out_limit_q15 = cfg->duty_max_q15;
+	pc.tick_hz = cfg->tick_hz;
+	if (pid_init(&c->dist, &pc) || pid_init(&c->angle, &pc))
+		return -1;
+	c->dist_err_um = 0;
+	c->angle_err_um = 0;
+	c->duty_q15[0] = 0;
+	c->duty_q15[1] = 0;
+	return 0;
+}
+
+void control_set_gains(struct control *c, const struct control_gains *g)
+{
+	c->gains = *g;
+	pid_with(&c->dist, &c->cfg, g);
+	pid_with(&c->angle, &c->cfg, g);
+}
+
+int control_set_preset(struct control *c, uint8_t preset)
+{
+	if (preset >= CONTROL_N_PRESETS)
+		return -1;
+	control_set_gains(c, &c->cfg.presets[preset]);
+	return 0;
+}
+
+void control_reset(struct control *c)
+{
+	pid_reset(&c->dist);
+	pid_reset(&c->angle);
+}
+
+static int32_t feed_forward(int32_t k_speed, int32_t k_accel, const struct orders_axis *sp)
+{
+	return fx_mul_shr(sp->vel_um_s, k_speed, 20) + fx_mul_shr(sp->acc_um_s2, k_accel, 20);
+}
+
+void control_update(struct control *c, const struct orders_axis *sp_dist,
+		    const struct orders_axis *sp_angle, int32_t dist_um, int32_t angle_um)
+{
+	int32_t lim = c->cfg.duty_max_q15;
+	int32_t u_d, u_a, head;
+
+	c->dist_err_um = sp_dist->pos_um - dist_um;
+	c->angle_err_um = sp_angle->pos_um - angle_um;
+	u_d = feed_forward(c->k_speed_q20, c->k_accel_q20, sp_dist) +
+	      pid_update(&c->dist, c->dist_err_um);
+	u_a = feed_forward(c->k_speed_q20, c->k_angle_accel_q20, sp_angle) +
+	      pid_update(&c->angle, c->angle_err_um);
+	/* Steering first: when the sum would saturate a motor, the distance command gives way,
+	 * so the robot keeps its heading (a saturated turn would otherwise curve the path). */
+	if (u_a > lim)
+		u_a = lim;
+	if (u_a < -lim)
+		u_a = -lim;
+	head = lim - (u_a < 0 ? -u_a : u_a);
+	if (u_d > head)
+		u_d = head;
+	if (u_d < -head)
+		u_d = -head;
+	c->duty_q15[0] = (int16_t)(u_d - u_a); /* left */
+	c->duty_q15[1] = (int16_t)(u_d + u_a);
+}
+
+void control_off(struct control *c)
+{
+	control_reset(c);
+	c->duty_q15[0] = 0;
+	c->duty_q15[1] = 0;
+}

@@ -1,0 +1,64 @@
+/* Polar control: per axis, feed-forward from the profile's velocity and acceleration plus a PID
+ * on the following error, then the mix of the two axes into the two motor duties. */
+#ifndef ASSERV_CONTROL_H
+#define ASSERV_CONTROL_H
+
+#include <stdint.h>
+
+#include "orders.h"
+#include "pid.h"
+
+#define CONTROL_N_PRESETS 3
+
+/* SET_FILTRE_RAW's gains (units in pid.h). */
+struct control_gains {
+	uint16_t p;
+	uint16_t i;
+	uint16_t d;
+};
+
+struct control_config {
+	uint16_t tick_hz;
+	int16_t duty_max_q15;                /* output limit of each motor */
+	int32_t ff_speed_q15_per_m_s;        /* duty that holds a wheel speed of 1 m/s */
+	int32_t ff_accel_q15_per_m_s2;       /* extra duty per m/s^2 along the distance axis */
+	int32_t ff_angle_accel_q15_per_m_s2; /* ... and per m/s^2 of wheel arc when turning */
+	struct control_gains
+		presets[CONTROL_N_PRESETS]; /* FILTRE_STD, FILTRE_SOUPLE, FILTRE_RAIDE */
+};
+
+struct control {
+	struct control_config cfg;
+	int32_t k_speed_q20; /* [duty_q15 per um/s * 2^20] */
+	int32_t k_accel_q20; /* [duty_q15 per um/s^2 * 2^20] */
+	int32_t k_angle_accel_q20;
+	struct pid dist;
+	struct pid angle;
+	struct control_gains gains; /* in effect */
+	int32_t dist_err_um;        /* last following errors */
+	int32_t angle_err_um;
+	int16_t duty_q15[2]; /* last output, HAL_LEFT, HAL_RIGHT */
+};
+
+/* Returns 0, or -1 when the configuration is out of range. Starts with FILTRE_STD.
+ * Interrupt-safe: no. */
+int control_init(struct control *c, const struct control_config *cfg);
+
+/* SET_FILTRE_RAW: gains on both axes; the integrals are kept. Interrupt-safe: no. */
+void control_set_gains(struct control *c, const struct control_gains *g);
+
+/* SET_FILTRE: a preset, 0..CONTROL_N_PRESETS-1; returns -1 for another. Interrupt-safe: no. */
+int control_set_preset(struct control *c, uint8_t preset);
+
+/* Forget the integrals and derivatives (after a hard stop). Interrupt-safe: no. */
+void control_reset(struct control *c);
+
+/* One tick: setpoints and measures of both axes [um] -> duties [q15] in duty_q15[].
+ * Interrupt-safe: no. */
+void control_update(struct control *c, const struct orders_axis *sp_dist,
+		    const struct orders_axis *sp_angle, int32_t dist_um, int32_t angle_um);
+
+/* Motors off (PB_GRAVE). Interrupt-safe: no. */
+void control_off(struct control *c);
+
+#endif

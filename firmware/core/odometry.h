@@ -1,0 +1,98 @@
+/* Odometry from two free encoder wheels: the pose (x, y, heading) integrated once per tick from
+ * the free-running 16-bit counters, with exact arc integration and a heading that cannot drift.
+ *
+ * Frame: x along heading 0, y to its left, heading counter-clockwise (the right wheel going
+ * forward alone turns the robot left). Counters increase when their wheel rolls forward.
+ * Model and fixed-point formats: docs/odometry.md.
+ */
+#ifndef ASSERV_ODOMETRY_H
+#define ASSERV_ODOMETRY_H
+
+#include <stdint.h>
+
+/* Ranges accepted by odometry_init and odometry_set_config. */
+#define ODOMETRY_UM_PER_COUNT_Q16_MAX ((uint32_t)1 << 24) /* 256 um per count */
+#define ODOMETRY_TRACK_UM_MIN ((uint32_t)1 << 14)         /* 16.4 mm */
+#define ODOMETRY_TRACK_UM_MAX ((uint32_t)1 << 21)         /* 2.097 m */
+/* Largest travel of one wheel in one tick [um * 2^16] (32.8 mm); more is reported as an error. */
+#define ODOMETRY_STEP_Q16_MAX INT32_MAX
+
+struct odometry_config {
+	uint32_t left_um_per_count_q16;  /* [um per count * 2^16], 1..2^24 */
+	uint32_t right_um_per_count_q16; /* [um per count * 2^16], 1..2^24 */
+	uint32_t track_um;               /* distance between the encoder wheels [um], 2^14..2^21 */
+};
+
+struct odometry_pose {
+	int32_t x_um;
+	int32_t y_um;
+	uint32_t heading_turn32; /* [turn * 2^32] */
+};
+
+/* What the last odometry_update measured. */
+struct odometry_step {
+	int32_t left_q16;      /* travel of the left wheel [um * 2^16], exact */
+	int32_t right_q16;     /* travel of the right wheel [um * 2^16], exact */
+	int32_t ds_um;         /* travel of the midpoint, (left + right) / 2, rounded [um] */
+	int32_t dtheta_turn32; /* heading change [turn * 2^32], counter-clockwise positive */
+};
+
+struct odometry {
+	struct odometry_config cfg;
+	/* Derived from cfg: differential travel of one full turn, 2 pi track [um * 2^16], and its
+	 * reciprocal 2^(40 + turn_bits) / turn_period_q16 with turn_bits the period's bit length.
+	 */
+	int64_t turn_period_q16;
+	uint64_t turn_inv;
+	uint8_t turn_bits;
+
+	uint16_t left_count;
+	uint16_t right_count;
+	/* Heading = heading_base_turn32 + turn_acc_q16 * 2^32 / turn_period_q16, with turn_acc_q16
+	 * the exact sum of right - left travels since the last set_pose or set_config, kept in
+	 * [0, turn_period_q16). */
+	int64_t turn_acc_q16;
+	uint32_t heading_base_turn32;
+	uint32_t heading_turn32;
+	int64_t x_q16;        /* [um * 2^16] */
+	int64_t y_q16;        /* [um * 2^16] */
+	int64_t distance_q17; /* signed travel of the midpoint since init [um * 2^17], exact */
+	struct odometry_step step;
+};
+
+/* Start from the current counter values (so the first update does not jump), at pose (0, 0, 0).
+ * Returns 0, or -EDOM if cfg is out of range (o is then unusable).
+ * interrupt-safe: no. */
+int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_t left_count,
+		  uint16_t right_count);
+
+/* Change the wheel factors and track, keeping the current pose; takes effect from the next
+ * update. Returns 0, or -EDOM if cfg is out of range (the old config is kept).
+ * interrupt-safe: no (call between two ticks). */
+int odometry_set_config(struct odometry *o, const struct odometry_config *cfg);
+
+/* One tick: read both counters (free-running, wrapping at 65536; at most 32767 counts of travel
+ * per tick in either direction) and integrate the pose. Returns 0, or -ERANGE if a wheel moved
+ * more than ODOMETRY_STEP_Q16_MAX in the tick: its travel is then clamped to that value and the
+ * caller should treat it as an encoder fault.
+ * interrupt-safe: no (call from the tick only). */
+int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count);
+
+/* The pose, rounded to the micrometre (saturated to int32).
+ * interrupt-safe: no (read in the tick context, or with the tick masked). */
+struct odometry_pose odometry_get_pose(const struct odometry *o);
+
+/* Replace the pose (start position, recalibration, SET_NEW_POS); the counters are untouched.
+ * interrupt-safe: no (call between two ticks). */
+void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose);
+
+/* The last tick's wheel travels, midpoint travel and heading change (all zero after init).
+ * interrupt-safe: no. */
+struct odometry_step odometry_get_step(const struct odometry *o);
+
+/* Signed travel of the midpoint since init [um], rounded from an exact sum, saturated to int32
+ * (2147 m), for a distance loop. Not changed by set_pose.
+ * interrupt-safe: no. */
+int32_t odometry_get_distance_um(const struct odometry *o);
+
+#endif

@@ -1,0 +1,366 @@
+/* Orders: the state machine of GOTO, GOTO_REVERSE, GOTO_PANIER and STOP (see orders.h). */
+#include "orders.h"
+
+#include "fixmath.h"
+#include "protocol_defs.h"
+
+#define CM_TO_UM 10000
+
+static int32_t abs32(int32_t v)
+{
+	return v < 0 ? -v : v;
+}
+
+/* Heading difference [turn * 2^32] -> arc at the drive wheels [um]. */
+static int32_t arc_um(const struct orders *o, int32_t dheading_turn32)
+{
+	return fx_mul_shr(dheading_turn32, o->pi_track_um, 32);
+}
+
+static struct profile_limits limits_of(uint8_t speed_cm_s, uint8_t accel_cm_s2, uint32_t jerk)
+{
+	struct profile_limits l;
+
+	l.v_max_um_s = (int32_t)speed_cm_s * CM_TO_UM;
+	l.a_max_um_s2 = (int32_t)accel_cm_s2 * CM_TO_UM;
+	l.j_max_um_s3 = (int32_t)jerk;
+	return l;
+}
+
+int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_um,
+		int32_t angle_um)
+{
+	struct profile_config pc;
+
+	if (cfg->drive_track_um < 10000u || cfg->drive_track_um > 1000000u ||
+	    cfg->n_baskets > ORDERS_MAX_BASKETS || cfg->settle_ticks == 0)
+		return -1;
+	o->cfg = *cfg;
+	/* pi as 355/113 (8e-8 relative). */
+	o->pi_track_um = fx_div_round((int32_t)cfg->drive_track_um * 355, 113);
+	/* The specification's initial state: 10 cm/s, 40 cm/s^2. */
+	o->traj = limits_of(10, 40, cfg->jerk_um_s3);
+	o->rot = o->traj;
+	pc.tick_hz = cfg->tick_hz;
+	pc.limits = o->traj;
+	if (profile_init(&o->dist, &pc, dist_um) || profile_init(&o->angle, &pc, angle_um))
+		return -1;
+	o->designation = 0xFFu;
+	o->state = ORDER_STATE_IDLE;
+	o->end_reason = END_REASON_NONE;
+	o->ended = 0;
+	o->sp_dist.pos_um = dist_um;
+	o->sp_dist.vel_um_s = 0;
+	o->sp_dist.acc_um_s2 = 0;
+	o->sp_angle.pos_um = angle_um;
+	o->sp_angle.vel_um_s = 0;
+	o->sp_angle.acc_um_s2 = 0;
+	return 0;
+}
+
+static void apply_limits(struct orders *o)
+{
+	struct profile_limits d = o->traj;
+
+	if (o->state == ORDER_STATE_PUSH && d.v_max_um_s > o->cfg.push_speed_um_s)
+		d.v_max_um_s = o->cfg.push_speed_um_s;
+	profile_set_limits(&o->dist, &d);
+	profile_set_limits(&o->angle, &o->rot);
+}
+
+static void set_limits(struct orders *o, struct profile_limits *l, uint8_t speed_cm_s,
+		       uint8_t accel_cm_s2)
+{
+	struct profile_limits n = limits_of(speed_cm_s, accel_cm_s2, o->cfg.jerk_um_s3);
+
+	if (speed_cm_s)
+		l->v_max_um_s = n.v_max_um_s;
+	if (accel_cm_s2)
+		l->a_max_um_s2 = n.a_max_um_s2;
+	apply_limits(o);
+}
+
+void orders_set_traj_limits(struct orders *o, uint8_t speed_cm_s, uint8_t accel_cm_s2)
+{
+	set_limits(o, &o->traj, speed_cm_s, accel_cm_s2);
+}
+
+void orders_set_rot_limits(struct orders *o, uint8_t speed_cm_s, uint8_t accel_cm_s2)
+{
+	set_limits(o, &o->rot, speed_cm_s, accel_cm_s2);
+}
+
+static void enter(struct orders *o, uint8_t state)
+{
+	o->state = state;
+	o->settle_count = 0;
+	o->settle_time = 0;
+	apply_limits(o);
+}
+
+static void begin(struct orders *o, uint8_t designation)
+{
+	o->designation = designation;
+	o->frozen = 0;
+	o->ended = 0;
+}
+
+static void end(struct orders *o, uint8_t reason)
+{
+	o->state = ORDER_STATE_IDLE;
+	o->end_reason = reason;
+	o->ended = 1;
+	apply_limits(o);
+}
+
+/* Aim the angle axis at an absolute heading, from the current estimate. */
+static void aim(struct orders *o, const struct orders_measure *m, uint32_t heading_turn32)
+{
+	int32_t d = fx_angle_diff(heading_turn32, m->pose.heading_turn32);
+
+	profile_set_target(&o->angle, m->angle_um + arc_um(o, d));
+}
+
+static uint32_t bearing(const struct orders *o, const struct odometry_pose *p)
+{
+	return fx_atan2(o->target_y_um - p->y_um, o->target_x_um - p->x_um);
+}
+
+/* Distance to the target [um] and its projection on the heading [um], for GOTO. */
+static void remaining(const struct orders *o, const struct odometry_pose *p, int32_t *dist_um,
+		      int32_t *proj_um)
+{
+	int32_t dx = o->target_x_um - p->x_um;
+	int32_t dy = o->target_y_um - p->y_um;
+	int32_t s, c;
+
+	fx_sincos(p->heading_turn32, &s, &c);
+	*dist_um = (int32_t)fx_isqrt64((uint64_t)((int64_t)dx * dx + (int64_t)dy * dy));
+	*proj_um = fx_sat32(fx_shr_round64((int64_t)dx * c + (int64_t)dy * s, 30));
+}
+
+void orders_goto(struct orders *o, const struct orders_measure *m, int32_t x_um, int32_t y_um,
+		 uint8_t options)
+{
+	int32_t dist, proj;
+
+	begin(o, PROTO_GOTO);
+	o->options = options;
+	o->target_x_um = x_um;
+	o->target_y_um = y_um;
+	remaining(o, &m->pose, &dist, &proj);
+	if (dist <= o->cfg.freeze_radius_um) {
+		/* Too close to aim: no spinning on the spot, a straight correction along the
+		 * current heading (backwards if the target is just behind). */
+		o->frozen = 1;
+		enter(o, ORDER_STATE_TRANSLATE);
+		profile_set_target(&o->dist, m->dist_um + proj);
+		profile_set_target(&o->angle, o->angle.out.pos_um);
+		return;
+	}
+	enter(o, ORDER_STATE_ROTATE);
+	profile_stop(&o->dist);
+	aim(o, m, bearing(o, &m->pose));
+}
+
+void orders_goto_reverse(struct orders *o, const struct orders_measure *m, int32_t distance_um)
+{
+	begin(o, PROTO_GOTO_REVERSE);
+	enter(o, ORDER_STATE_TRANSLATE);
+	profile_set_target(&o->dist, m->dist_um - distance_um);
+	profile_stop(&o->angle);
+}
+
+void orders_goto_panier(struct orders *o, const struct orders_measure *m, uint32_t heading_turn32)
+{
+	begin(o, PROTO_GOTO_PANIER);
+	o->target_heading_turn32 = heading_turn32;
+	enter(o, ORDER_STATE_ROTATE);
+	profile_stop(&o->dist);
+	aim(o, m, heading_turn32);
+}
+
+void orders_stop(struct orders *o)
+{
+	begin(o, PROTO_STOP);
+	enter(o, ORDER_STATE_STOPPING);
+	profile_stop(&o->dist);
+	profile_stop(&o->angle);
+}
+
+static void hold_measured(struct orders *o, const struct orders_measure *m)
+{
+	profile_reset(&o->dist, m->dist_um);
+	profile_reset(&o->angle, m->angle_um);
+	o->sp_dist.pos_um = m->dist_um;
+	o->sp_dist.vel_um_s = 0;
+	o->sp_dist.acc_um_s2 = 0;
+	o->sp_angle.pos_um = m->angle_um;
+	o->sp_angle.vel_um_s = 0;
+	o->sp_angle.acc_um_s2 = 0;
+}
+
+void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_reason)
+{
+	hold_measured(o, m);
+	end(o, end_reason);
+}
+
+void orders_pose_changed(struct orders *o)
+{
+	/* A frozen GOTO keeps its targets: the correction is smaller than the freeze radius in
+	 * any sensible use, and re-aiming there would spin the robot. Otherwise the next update
+	 * re-aims from the corrected estimate by itself. */
+	(void)o;
+}
+
+static int settled(struct orders *o, const struct orders_measure *m)
+{
+	int32_t ed = o->sp_dist.pos_um - m->dist_um;
+	int32_t ea = o->sp_angle.pos_um - m->angle_um;
+
+	if (abs32(ed) < o->cfg.arrive_window_um && abs32(ea) < o->cfg.arrive_window_um &&
+	    abs32(m->dist_speed_um_s) < o->cfg.arrive_speed_um_s &&
+	    abs32(m->angle_speed_um_s) < o->cfg.arrive_speed_um_s) {
+		if (o->settle_count < 0xFFFFu)
+			o->settle_count++;
+	} else {
+		o->settle_count = 0;
+	}
+	if (o->settle_time < 0xFFFFu)
+		o->settle_time++;
+	return o->settle_count >= o->cfg.settle_ticks ||
+	       o->settle_time >= o->cfg.settle_timeout_ticks;
+}
+
+static void step_goto(struct orders *o, const struct orders_measure *m)
+{
+	int32_t dist, proj;
+
+	if (o->frozen)
+		return;
+	remaining(o, &m->pose, &dist, &proj);
+	if (dist <= o->cfg.freeze_radius_um) {
+		o->frozen = 1;
+		return;
+	}
+	aim(o, m, bearing(o, &m->pose));
+	if (o->state == ORDER_STATE_TRANSLATE)
+		profile_set_target(&o->dist, m->dist_um + proj);
+}
+
+static uint8_t update_state(struct orders *o, const struct orders_measure *m)
+{
+	uint32_t heading_err;
+
+	switch (o->state) {
+	case ORDER_STATE_ROTATE:
+		if (o->designation == PROTO_GOTO)
+			step_goto(o, m);
+		heading_err = (uint32_t)abs32(fx_angle_diff(o->designation == PROTO_GOTO
+								    ? bearing(o, &m->pose)
+								    : o->target_heading_turn32,
+							    m->pose.heading_turn32));
+		if (heading_err > o->cfg.heading_window_turn32)
+			break;
+		if (o->designation == PROTO_GOTO_PANIER) {
+			enter(o, ORDER_STATE_PUSH);
+			o->push_start_um = m->dist_um;
+			profile_set_target(&o->dist, m->dist_um + o->cfg.push_max_um);
+		} else {
+			enter(o, ORDER_STATE_TRANSLATE);
+			step_goto(o, m);
+		}
+		break;
+	case ORDER_STATE_TRANSLATE:
+		if (o->designation == PROTO_GOTO)
+			step_goto(o, m);
+		if (profile_is_done(&o->dist) && profile_is_done(&o->angle))
+			enter(o, ORDER_STATE_SETTLE);
+		break;
+	case ORDER_STATE_SETTLE:
+		if (settled(o, m)) {
+			end(o, END_REASON_DONE);
+			return END_REASON_DONE;
+		}
+		break;
+	case ORDER_STATE_PUSH:
+		if (m->basket_contact || m->basket_shock) {
+			hold_measured(o, m);
+			end(o, END_REASON_BASKET);
+			return END_REASON_BASKET;
+		}
+		if (profile_is_done(&o->dist)) {
+			end(o, END_REASON_DONE); /* nothing touched: no CHOC_PANIER */
+			return END_REASON_DONE;
+		}
+		break;
+	case ORDER_STATE_STOPPING:
+		if (profile_is_done(&o->dist) && profile_is_done(&o->angle)) {
+			end(o, END_REASON_STOPPED);
+			return END_REASON_STOPPED;
+		}
+		break;
+	default:
+		break;
+	}
+	return END_REASON_NONE;
+}
+
+static void copy_out(struct orders_axis *a, const struct profile_out *p)
+{
+	a->pos_um = p->pos_um;
+	a->vel_um_s = p->vel_um_s;
+	a->acc_um_s2 = p->acc_um_s2;
+}
+
+uint8_t orders_update(struct orders *o, const struct orders_measure *m)
+{
+	uint8_t reason = END_REASON_NONE;
+
+	if (o->state != ORDER_STATE_IDLE)
+		reason = update_state(o, m);
+	if (reason == END_REASON_BASKET)
+		return reason; /* setpoints already hold the contact position */
+	copy_out(&o->sp_dist, profile_update(&o->dist));
+	copy_out(&o->sp_angle, profile_update(&o->angle));
+	return reason;
+}
+
+int orders_basket_pose(const struct orders *o, const struct odometry_pose *estimate,
+		       struct odometry_pose *out)
+{
+	const struct orders_basket *best = 0;
+	int64_t best_d2 = 0;
+	int32_t s, c, reach;
+
+	/* The basket touched is the one nearest to the switch's estimated position. */
+	fx_sincos(estimate->heading_turn32, &s, &c);
+	for (uint8_t i = 0; i < o->cfg.n_baskets; i++) {
+		const struct orders_basket *b = &o->cfg.baskets[i];
+		int64_t dx = (int64_t)b->x_um - estimate->x_um -
+			     fx_shr_round64((int64_t)o->cfg.basket_contact_um * c, 30);
+		int64_t dy = (int64_t)b->y_um - estimate->y_um -
+			     fx_shr_round64((int64_t)o->cfg.basket_contact_um * s, 30);
+		int64_t d2 = dx * dx + dy * dy;
+
+		if (!best || d2 < best_d2) {
+			best = b;
+			best_d2 = d2;
+		}
+	}
+	if (!best)
+		return -1;
+	/* The switch touches the circle on the robot's heading line: the axis midpoint is
+	 * radius + contact offset behind the basket's centre. */
+	reach = best->radius_um + o->cfg.basket_contact_um;
+	out->heading_turn32 = estimate->heading_turn32;
+	out->x_um = best->x_um - fx_mul_shr(reach, c, 30);
+	out->y_um = best->y_um - fx_mul_shr(reach, s, 30);
+	return 0;
+}
+
+int orders_busy(const struct orders *o)
+{
+	return o->state != ORDER_STATE_IDLE;
+}

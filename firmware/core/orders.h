@@ -1,0 +1,119 @@
+/* Orders: GOTO, GOTO_REVERSE, GOTO_PANIER and STOP as a state machine that drives two motion
+ * profiles, one per polar axis. Both axes are in [um]: the distance axis is the travel of the
+ * encoder-wheel midpoint, the angle axis is the heading as an arc at the drive wheels
+ * (heading [rad] * drive track / 2), so one set of PID gains means the same on both. */
+#ifndef ASSERV_ORDERS_H
+#define ASSERV_ORDERS_H
+
+#include <stdint.h>
+
+#include "odometry.h"
+#include "profile.h"
+
+#define ORDERS_MAX_BASKETS 4
+
+/* A basket seen from above: a circle the front contact switch touches. */
+struct orders_basket {
+	int32_t x_um;
+	int32_t y_um;
+	int32_t radius_um;
+};
+
+struct orders_config {
+	uint32_t drive_track_um;        /* between the drive wheels' contact points */
+	uint32_t heading_window_turn32; /* GOTO translates once the heading error is below this */
+	int32_t freeze_radius_um;       /* within this distance of the target, no re-aiming */
+	int32_t arrive_window_um;       /* settled when both following errors are below this */
+	int32_t arrive_speed_um_s;      /* ... and both measured speeds below this */
+	uint16_t settle_ticks;          /* ... for this many consecutive ticks */
+	uint16_t settle_timeout_ticks;  /* an order ends DONE after this long in SETTLE anyway */
+	int32_t push_speed_um_s;   /* GOTO_PANIER's approach speed (capped by the traj limit) */
+	int32_t push_max_um;       /* GOTO_PANIER gives up (DONE, no CHOC_PANIER) after this */
+	int32_t basket_contact_um; /* from the encoder axis midpoint to the basket switch */
+	uint8_t n_baskets;
+	struct orders_basket baskets[ORDERS_MAX_BASKETS];
+	uint16_t tick_hz;
+	uint32_t jerk_um_s3; /* 0: trapezoids; else S-curves with this jerk on both axes */
+};
+
+/* The setpoint of one axis for this tick, for the controller. */
+struct orders_axis {
+	int32_t pos_um;
+	int32_t vel_um_s;
+	int32_t acc_um_s2;
+};
+
+/* What the state machine needs to know of the robot this tick. */
+struct orders_measure {
+	struct odometry_pose pose; /* estimate */
+	int32_t dist_um;           /* distance axis */
+	int32_t angle_um;          /* angle axis */
+	int32_t dist_speed_um_s;   /* measured, for the settle test */
+	int32_t angle_speed_um_s;
+	uint8_t basket_contact;
+	uint8_t basket_shock; /* a basket-side shock sensor is pressed */
+};
+
+struct orders {
+	struct orders_config cfg;
+	int32_t pi_track_um; /* pi * drive track: one turn of heading on the angle axis */
+	struct profile dist;
+	struct profile angle;
+	struct profile_limits traj; /* SET_VITESSE_TRAJ */
+	struct profile_limits rot;  /* SET_VITESSE_ROT */
+	uint8_t designation;        /* the running or last order, PROTO_NONE before the first */
+	uint8_t state;              /* ORDER_STATE_* */
+	uint8_t end_reason;         /* END_REASON_* of the last order that ended */
+	uint8_t ended;              /* set when an order ends, cleared by orders_take_end() */
+	uint8_t options;            /* GOTO options */
+	int32_t target_x_um;
+	int32_t target_y_um;
+	uint32_t target_heading_turn32;
+	int32_t push_start_um;
+	uint16_t settle_count;
+	uint16_t settle_time;
+	uint8_t frozen; /* GOTO within the freeze radius: targets no longer follow the estimate */
+	struct orders_axis sp_dist;
+	struct orders_axis sp_angle;
+};
+
+/* Power-on: no order, holding (dist_um, angle_um); limits 10 cm/s, 40 cm/s^2 on both axes.
+ * Returns 0 or -1 when the configuration is out of range. Interrupt-safe: no. */
+int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_um,
+		int32_t angle_um);
+
+/* SET_VITESSE_TRAJ / SET_VITESSE_ROT: new limits [cm/s], [cm/s^2] (0 leaves one unchanged);
+ * a running profile replans from where it is. Interrupt-safe: no. */
+void orders_set_traj_limits(struct orders *o, uint8_t speed_cm_s, uint8_t accel_cm_s2);
+void orders_set_rot_limits(struct orders *o, uint8_t speed_cm_s, uint8_t accel_cm_s2);
+
+/* Start an order; a running one is replaced smoothly (the profiles continue from their current
+ * velocity). Interrupt-safe: no. */
+void orders_goto(struct orders *o, const struct orders_measure *m, int32_t x_um, int32_t y_um,
+		 uint8_t options);
+void orders_goto_reverse(struct orders *o, const struct orders_measure *m, int32_t distance_um);
+void orders_goto_panier(struct orders *o, const struct orders_measure *m, uint32_t heading_turn32);
+void orders_stop(struct orders *o);
+
+/* End the running order at once (shock, motor fault): both setpoints jump to the measured
+ * position with zero velocity, so the controller stops driving in the same tick. */
+void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_reason);
+
+/* The estimate was moved (SET_NEW_POS, recalibration): the axes are not, so nothing moves
+ * physically; a running GOTO re-aims at its target from the new estimate. */
+void orders_pose_changed(struct orders *o);
+
+/* One tick: advance the state machine and the profiles; fills sp_dist and sp_angle.
+ * Returns END_REASON_NONE, or the reason when the order ended during this tick (for
+ * END_REASON_BASKET the caller recalibrates from orders_basket_pose()). */
+uint8_t orders_update(struct orders *o, const struct orders_measure *m);
+
+/* After a basket contact: the pose the basket's geometry gives, keeping the estimated heading.
+ * Returns 0, or -1 with no basket configured. */
+int orders_basket_pose(const struct orders *o, const struct odometry_pose *estimate,
+		       struct odometry_pose *out);
+
+/* 1 while an order runs (BUSY_TRAJET). */
+int orders_busy(const struct orders *o);
+
+#endif

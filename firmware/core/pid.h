@@ -1,0 +1,61 @@
+/* PID on a following error (set point minus measure), used by both polar loops (distance and
+ * rotation expressed as wheel arc): error in um in, duty out.
+ *
+ * Gains are in the protocol's units (protocol/messages.toml SET_FILTRE_RAW):
+ *   p [2^-12 full duty per mm of error]
+ *   i [2^-12 full duty per mm*s of integrated error]
+ *   d [2^-16 full duty per mm/s of error rate]
+ * so that duty_q15 = 32768 * (p 2^-12 e_mm + i 2^-12 integral_mm_s + d 2^-16 de_dt_mm_s).
+ * The derivative is taken on the error difference between two ticks. docs/control.md "PID" gives
+ * the fixed-point formats and the anti-windup.
+ */
+#ifndef ASSERV_PID_H
+#define ASSERV_PID_H
+
+#include <stdint.h>
+
+#define PID_TICK_HZ_MIN 100
+#define PID_TICK_HZ_MAX 2000
+/* Errors beyond this are clipped [um] (4.19 m: more than the field's diagonal). */
+#define PID_ERR_MAX_UM 4194304
+
+struct pid_config {
+	uint16_t p;            /* [2^-12 full duty per mm] 0..65535 */
+	uint16_t i;            /* [2^-12 full duty per mm*s] 0..65535 */
+	uint16_t d;            /* [2^-16 full duty per mm/s] 0..65535 */
+	int16_t out_limit_q15; /* [2^-15 full duty] 1..32767: |output| <= this */
+	uint16_t tick_hz;      /* [Hz] PID_TICK_HZ_MIN..PID_TICK_HZ_MAX */
+};
+
+/* Gains converted once to [2^-24 duty_q15] per um (P), per um*tick (I), per um/tick (D). */
+struct pid {
+	struct pid_config cfg;
+	int64_t kp_q24;
+	int64_t ki_q24;
+	int64_t kd_q24;
+	int64_t i_acc_q24; /* [2^-24 duty_q15] integral contribution, |.| <= out_limit_q15 * 2^24 */
+	int32_t prev_err_um;
+	uint8_t has_prev; /* 0 after a reset: the first derivative is 0 */
+	int16_t out_q15;  /* last output */
+};
+
+/* Set the gains, limit and tick rate, and reset. Returns 0, or -1 if cfg is out of range.
+ * Interrupt-safe: no. */
+int pid_init(struct pid *c, const struct pid_config *cfg);
+
+/* Change the settings while running (e.g. SET_FILTRE_RAW). The integral is kept as a duty, so a
+ * new i gain does not make the output jump; it is clipped to the new limit. Returns 0, or -1
+ * (nothing changed) if cfg is out of range. Interrupt-safe: no (same context as pid_update). */
+int pid_set_config(struct pid *c, const struct pid_config *cfg);
+
+/* Forget the integral and the previous error (e.g. when the loop is disabled or the set point
+ * is reset). Interrupt-safe: no (same context as pid_update). */
+void pid_reset(struct pid *c);
+
+/* One tick with the following error err_um [um] (any int32; clipped to +/-PID_ERR_MAX_UM).
+ * Returns the duty [2^-15 full duty], within +/-out_limit_q15. Anti-windup: the integral's
+ * contribution is clipped to the output limit, and the integral does not grow while the output
+ * is saturated in the direction of the error. No division. Interrupt-safe: yes. */
+int16_t pid_update(struct pid *c, int32_t err_um);
+
+#endif

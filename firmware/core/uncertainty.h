@@ -1,0 +1,97 @@
+/* The error radius ("rayon d'erreur max") of the odometry's pose: a bound, in millimetres, that
+ * the true position stays within with a configured probability. It adds a worst-case systematic
+ * term (calibration residuals of the wheel ratio, the track and the wheel scale) to k times the
+ * largest standard deviation of a random-walk covariance propagated as in Chong & Kleeman (ICRA
+ * 1997) and Kelly (CMU-RI-TR-00-20). Model, units and limits: docs/odometry.md.
+ */
+#ifndef ASSERV_UNCERTAINTY_H
+#define ASSERV_UNCERTAINTY_H
+
+#include <stdint.h>
+
+#define UNCERTAINTY_RADIUS_MAX_MM 255
+#define UNCERTAINTY_BATCH_TICKS_MAX 64
+/* A batch also ends when its wheels have travelled this much [um], bounding the linearisation. */
+#define UNCERTAINTY_BATCH_PATH_UM ((int32_t)1 << 14)
+/* Largest accepted noise coefficient [mm^2/m * 2^16] (16 mm^2/m). */
+#define UNCERTAINTY_NOISE_Q16_MAX ((uint32_t)1 << 20)
+
+enum uncertainty_axis { UNCERTAINTY_AXIS_X, UNCERTAINTY_AXIS_Y };
+
+struct uncertainty_config {
+	/* Variance of a wheel's travel per length travelled, k in Var = k |ds| (Chong & Kleeman)
+	 * [mm^2/m * 2^16] = [um^2/um * 2^16], 0..2^20; physics.md: 0.04..0.25 mm^2/m. */
+	uint32_t noise_left_mm2_per_m_q16;
+	uint32_t noise_right_mm2_per_m_q16;
+	uint32_t track_um;        /* encoder track, as in odometry [um], 2^14..2^21 */
+	uint32_t ratio_error_ppm; /* bound on the right/left wheel factor ratio error [1e-6], <= 1e6
+				   */
+	uint32_t track_error_um;  /* bound on the track error [um], <= track_um */
+	uint32_t scale_error_ppm; /* bound on the common wheel factor error [1e-6], <= 1e6 */
+	uint16_t k_q8; /* radius / sigma [2^-8], 1..65535: 627 = 2.45 (95 %), 776 = 3.03 (99 %) */
+	uint8_t batch_ticks; /* covariance update every that many ticks, 1..64 */
+};
+
+struct uncertainty {
+	struct uncertainty_config cfg;
+	/* Derived from cfg: 2^44 / track, and the systematic coefficients [2^-60 per um]. */
+	int64_t inv_track_q44;
+	int64_t ratio_coef_q60; /* ratio_error / track */
+	int64_t track_coef_q60; /* track_error / track^2 */
+	int64_t scale_coef_q60; /* scale_error */
+
+	/* Covariance of (x [um], y [um], heading [rad * 2^20]) [unit^2 * 2^16]. */
+	int64_t xx, xy, yy, xt, yt, tt;
+	uint8_t saturated; /* a variance passed its cap: the radius reads 255 until a reset */
+
+	/* Systematic part: signed travel of the midpoint [um * 2^17] and right - left travel
+	 * [um * 2^16] since the last heading reset, and the first-order position error per unit
+	 * parameter error (w1: wheel ratio, w2: track, [um^2]; d: scale, [um]). */
+	int64_t travel_q17;
+	int64_t turn_q16;
+	int64_t w1[2], w2[2], d[2];
+
+	/* Travels of the batch in progress [um * 2^16]: signed, and absolute for the noise. */
+	int64_t batch_left_q16, batch_right_q16;
+	int64_t batch_abs_left_q16, batch_abs_right_q16;
+	uint8_t batch_n;
+
+	uint8_t radius_mm;
+};
+
+/* Check cfg and start from a zero radius (call uncertainty_reset for another start).
+ * Returns 0, or -EDOM if cfg is out of range (u is then unusable). interrupt-safe: no. */
+int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg);
+
+/* Change the configuration keeping the accumulated uncertainty. Returns 0, or -EDOM (the old
+ * config is kept). interrupt-safe: no (between two ticks). */
+int uncertainty_set_config(struct uncertainty *u, const struct uncertainty_config *cfg);
+
+/* One tick, after odometry_update: the wheel travels of the tick (odometry_step.left_q16,
+ * right_q16 [um * 2^16]) and the heading after the tick
+ * [turn * 2^32]. Accumulates; every batch_ticks ticks, or UNCERTAINTY_BATCH_PATH_UM of travel,
+ * propagates the covariance and refreshes the radius. interrupt-safe: no (tick only). */
+void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q16,
+			uint32_t heading_turn32);
+
+/* The error radius [mm], rounded up, 0..255 (255 also means "255 or more").
+ * interrupt-safe: yes (one byte). */
+uint8_t uncertainty_get_radius_mm(const struct uncertainty *u);
+
+/* Full recalibration: position known within radius_um, heading within heading_turn32 (both
+ * bounds at the configured probability; sigma = bound / k), systematic terms cleared, the batch
+ * in progress dropped. The radius then reads ceil(radius_um / 1000).
+ * interrupt-safe: no (between two ticks). */
+void uncertainty_reset(struct uncertainty *u, uint32_t radius_um, uint32_t heading_turn32);
+
+/* One coordinate known again (e.g. after a border contact): its variance is set from bound_um,
+ * its correlations and its systematic errors cleared; the other coordinate keeps its
+ * (conservative) variance. interrupt-safe: no (between two ticks). */
+void uncertainty_reset_axis(struct uncertainty *u, enum uncertainty_axis axis, uint32_t bound_um);
+
+/* The heading known again within bound_turn32 (e.g. after aligning on a border): its variance is
+ * set, its correlations cleared, and the systematic heading drift restarts from zero; position
+ * errors already accumulated are kept. interrupt-safe: no (between two ticks). */
+void uncertainty_reset_heading(struct uncertainty *u, uint32_t bound_turn32);
+
+#endif

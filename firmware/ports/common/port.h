@@ -1,0 +1,15 @@
+/* What every port does once per control period: sample the HAL, run the board's tick, apply
+ * the duties. Ports call port_control_tick() from their control interrupt or lockstep. */
+#ifndef ASSERV_PORT_H
+#define ASSERV_PORT_H
+
+#include "board.h"
+
+/* Sample the HAL into in (hal_encoder_*, hal_motor_current_ma, hal_*_read). Interrupt-safe: it
+ * runs in the control interrupt. */
+void port_sample(struct board_inputs *in);
+
+/* Sample, board_tick(), hal_motor_set(). Must not be re-entered. */
+void port_control_tick(struct board *b);
+
+#endif

@@ -1,0 +1,415 @@
+/* The board in closed loop with the simulator through the host port: every order, its state
+ * transitions and its stop conditions, asserted on the status the master reads, the estimate
+ * and the simulator's ground truth. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+#include <math.h>
+
+#include <cmocka.h>
+
+#include "host.h"
+
+static struct host h;
+
+static void setup_field(struct sim_field *f)
+{
+	sim_field_defaults(f);
+}
+
+static void start(const struct sim_field *f)
+{
+	struct sim_config sc;
+	struct board_config bc;
+
+	sim_config_defaults(&sc);
+	host_board_config(&sc, f, &bc);
+	assert_int_equal(host_init(&h, &bc, &sc, f), 0);
+}
+
+static void send(const uint8_t *bytes, uint8_t n)
+{
+	host_i2c_write(&h, bytes, n, 1);
+}
+
+static uint8_t status(void)
+{
+	uint8_t s;
+
+	host_i2c_read(&h, &s, 1);
+	return s;
+}
+
+/* Ticks until BUSY_TRAJET clears (the master's `while (BUSY_TRAJET)`), at most max. */
+static uint32_t run_until_idle(uint32_t max)
+{
+	uint32_t n = 0;
+
+	do {
+		host_tick(&h);
+		n++;
+	} while ((status() & STATUS_BUSY_TRAJET) && n < max);
+	return n;
+}
+
+static void truth(double *x, double *y, double *heading_deg)
+{
+	struct sim_truth t;
+
+	sim_get_truth(&h.sim, &t);
+	*x = t.odo_pose.x_mm;
+	*y = t.odo_pose.y_mm;
+	*heading_deg = t.odo_pose.heading_rad * 57.29577951308232;
+}
+
+static void position(int16_t *x, int16_t *y, int8_t *angle_2deg, uint8_t *radius)
+{
+	uint8_t r[6];
+
+	send((const uint8_t[]){PROTO_POSITION}, 1);
+	host_i2c_read(&h, r, 6);
+	*x = (int16_t)(uint16_t)(r[0] << 8 | r[1]);
+	*y = (int16_t)(uint16_t)(r[2] << 8 | r[3]);
+	*angle_2deg = (int8_t)r[4];
+	*radius = r[5];
+}
+
+static void goto_mm(int16_t x, int16_t y)
+{
+	uint8_t f[6] = {PROTO_GOTO, (uint8_t)((uint16_t)x >> 8),
+			(uint8_t)x, (uint8_t)((uint16_t)y >> 8),
+			(uint8_t)y, 0};
+
+	send(f, 6);
+}
+
+/* GOTO: busy at once, ROTATE then TRANSLATE then SETTLE, ends DONE settled on the target:
+ * estimate within 1 mm, truth within 2 mm (a perfect robot), in about the profile's time. */
+static void test_goto_arrives(void **state)
+{
+	struct sim_field f;
+	int16_t x, y;
+	int8_t a;
+	uint8_t r;
+	double tx, ty, th;
+	uint32_t ticks, saw_rotate = 0, saw_translate = 0, saw_settle = 0;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 100, 100}, 3);
+	send((const uint8_t[]){PROTO_SET_VITESSE_ROT, 50, 100}, 3);
+	goto_mm(200, 100);
+	assert_true(status() & STATUS_BUSY_TRAJET);
+	for (ticks = 0; ticks < 10000; ticks++) {
+		host_tick(&h);
+		saw_rotate += h.board.orders.state == ORDER_STATE_ROTATE;
+		saw_translate += h.board.orders.state == ORDER_STATE_TRANSLATE;
+		saw_settle += h.board.orders.state == ORDER_STATE_SETTLE;
+		if (!(status() & STATUS_BUSY_TRAJET))
+			break;
+	}
+	/* A 3.8 degree turn is inside the heading window: translation starts at once. */
+	assert_true(saw_rotate == 0 && saw_translate > 0 && saw_settle > 0);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+	assert_int_equal(status(), 0);
+	position(&x, &y, &a, &r);
+	truth(&tx, &ty, &th);
+	print_message("GOTO 200,100 from -1300,0: %u ticks, estimate (%d, %d) %d*2 deg r %u, truth "
+		      "(%.2f, %.2f) %.2f deg\n",
+		      ticks, x, y, a, r, tx, ty, th);
+	assert_int_equal(x, 200);
+	assert_int_equal(y, 100);
+	assert_true(fabs(tx - 200.0) < 2.0 && fabs(ty - 100.0) < 2.0);
+	/* 1503 mm at 1 m/s, 1 m/s^2: 2.50 s of translation; plus a 3.8 degree turn. */
+	assert_true(ticks < 3200);
+}
+
+/* A GOTO that needs a turn: ROTATE first (no translation until the heading is within the
+ * window), then TRANSLATE, SETTLE; the heading ends on the bearing. */
+static void test_goto_turns_first(void **state)
+{
+	struct sim_field f;
+	uint32_t ticks, rotate_ticks = 0;
+	double x0, y0, hd, tx, ty, th;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	truth(&x0, &y0, &hd);
+	goto_mm(-1300, 500);
+	for (ticks = 0; ticks < 20000; ticks++) {
+		host_tick(&h);
+		if (h.board.orders.state == ORDER_STATE_ROTATE) {
+			rotate_ticks++;
+			truth(&tx, &ty, &th);
+			assert_true(fabs(tx - x0) < 1.0 && fabs(ty - y0) < 1.0);
+		}
+		if (!(status() & STATUS_BUSY_TRAJET))
+			break;
+	}
+	truth(&tx, &ty, &th);
+	print_message("90 degree GOTO: %u ticks, %u rotating, truth (%.2f, %.2f) %.2f deg\n", ticks,
+		      rotate_ticks, tx, ty, th);
+	assert_true(rotate_ticks > 100);
+	assert_true(fabs(tx + 1300.0) < 2.0 && fabs(ty - 500.0) < 2.0);
+	assert_true(fabs(th - 90.0) < 1.0);
+}
+
+/* GOTO_REVERSE: straight back, heading kept. */
+static void test_goto_reverse(void **state)
+{
+	struct sim_field f;
+	double x0, y0, h0, x1, y1, h1;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	goto_mm(-1000, 0);
+	run_until_idle(20000);
+	truth(&x0, &y0, &h0);
+	send((const uint8_t[]){PROTO_GOTO_REVERSE, 200}, 2);
+	assert_true(run_until_idle(20000) < 20000);
+	truth(&x1, &y1, &h1);
+	assert_true(fabs((x0 - x1) - 200.0) < 1.5);
+	assert_true(fabs(y1 - y0) < 1.0 && fabs(h1 - h0) < 0.2);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+}
+
+/* STOP mid-move: decelerates (no hard stop), ends STOPPED, not busy. */
+static void test_stop(void **state)
+{
+	struct sim_field f;
+	double x0, y0, hd, x1, y1;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 50, 50}, 3);
+	goto_mm(1000, 0);
+	for (int i = 0; i < 1500; i++)
+		host_tick(&h);
+	truth(&x0, &y0, &hd);
+	send((const uint8_t[]){PROTO_STOP}, 1);
+	assert_true(status() & STATUS_BUSY_TRAJET);
+	run_until_idle(5000);
+	truth(&x1, &y1, &hd);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_STOPPED);
+	/* Braking from 0.5 m/s at 0.5 m/s^2 takes 250 mm. */
+	assert_true(x1 - x0 > 230.0 && x1 - x0 < 270.0);
+}
+
+/* A new GOTO while moving replaces the order without a jump of the setpoints. */
+static void test_replace_is_smooth(void **state)
+{
+	struct sim_field f;
+	int32_t prev_v = 0, max_dv = 0;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 80, 80}, 3);
+	goto_mm(0, 0);
+	for (int i = 0; i < 4000; i++) {
+		int32_t v, dv;
+
+		if (i == 1500)
+			goto_mm(0, 600);
+		host_tick(&h);
+		v = h.board.orders.sp_dist.vel_um_s;
+		dv = v > prev_v ? v - prev_v : prev_v - v;
+		if (dv > max_dv)
+			max_dv = dv;
+		prev_v = v;
+	}
+	/* 0.8 m/s^2 at 1 kHz: 800 um/s per tick. */
+	assert_true(max_dv <= 801);
+	run_until_idle(20000);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+}
+
+/* A shock sensor stops the trajectory in the tick it closes: CHOC_BORD, motors no longer
+ * driving forward. */
+static void test_shock_stops(void **state)
+{
+	struct sim_field f;
+	uint32_t ticks = 0;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 30, 50}, 3);
+	goto_mm(1600, 0); /* beyond the border at x = 1500 */
+	while (!(h.board.status & STATUS_CHOC_BORD) && ticks < 20000) {
+		struct sim_sensors s;
+
+		sim_read_sensors(&h.sim, &s);
+		if (s.shock_mask) {
+			/* The board sees the switch at this tick: it must stop now. */
+			host_tick(&h);
+			ticks++;
+			assert_true(h.board.status & STATUS_CHOC_BORD);
+			assert_true(h.board.last_out.duty_q15[0] < 3000);
+			break;
+		}
+		host_tick(&h);
+		ticks++;
+	}
+	assert_int_equal(status() & (STATUS_CHOC_BORD | STATUS_BUSY_TRAJET), STATUS_CHOC_BORD);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_SHOCK);
+	/* The next order clears it. */
+	send((const uint8_t[]){PROTO_GOTO_REVERSE, 100}, 2);
+	host_tick(&h);
+	assert_int_equal(status() & STATUS_CHOC_BORD, 0);
+}
+
+/* GOTO_PANIER: turn to the angle, push until the basket switch, CHOC_PANIER, position
+ * recalibrated from the basket's geometry. */
+static void test_goto_panier(void **state)
+{
+	struct sim_field f;
+	uint32_t ticks;
+	double tx, ty, th;
+	struct odometry_pose p;
+	int saw_busy_panier = 0;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	/* The default basket at (-1200, 750), radius 125: go in front of it, then push at 90. */
+	goto_mm(-1200, 300);
+	run_until_idle(20000);
+	send((const uint8_t[]){PROTO_GOTO_PANIER, 45}, 2);
+	for (ticks = 0; ticks < 20000; ticks++) {
+		host_tick(&h);
+		saw_busy_panier |= (status() & STATUS_BUSY_GOTO_PANIER) != 0;
+		if (!(status() & STATUS_BUSY_TRAJET))
+			break;
+	}
+	assert_true(saw_busy_panier);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_BASKET);
+	assert_int_equal(status() & STATUS_CHOC_PANIER, STATUS_CHOC_PANIER);
+	truth(&tx, &ty, &th);
+	p = odometry_get_pose(&h.board.odometry);
+	print_message("basket contact: truth (%.2f, %.2f), estimate (%.2f, %.2f)\n", tx, ty,
+		      p.x_um / 1000.0, p.y_um / 1000.0);
+	assert_true(fabs(p.y_um / 1000.0 - ty) < 3.0);
+	assert_true(fabs(p.x_um / 1000.0 - tx) < 3.0);
+}
+
+/* A stalled motor: the order is abandoned with PB_MOTEUR; the next order may run. */
+static void test_stuck_motor(void **state)
+{
+	struct sim_field f;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	goto_mm(-800, 0);
+	for (int i = 0; i < 300; i++)
+		host_tick(&h);
+	sim_set_motor_stuck(&h.sim, SIM_LEFT, true);
+	run_until_idle(5000);
+	assert_int_equal(status() & (STATUS_PB_MOTEUR | STATUS_BUSY_TRAJET), STATUS_PB_MOTEUR);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_MOTOR);
+	sim_set_motor_stuck(&h.sim, SIM_LEFT, false);
+	goto_mm(-800, 0);
+	host_tick(&h);
+	assert_int_equal(status() & STATUS_PB_MOTEUR, 0);
+	run_until_idle(20000);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+}
+
+/* A cut free-wheel encoder while driving: PB_GRAVE, motors off, orders refused. */
+static void test_encoder_cut_is_grave(void **state)
+{
+	struct sim_field f;
+	uint8_t r[3];
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	goto_mm(-300, 0);
+	for (int i = 0; i < 500; i++)
+		host_tick(&h);
+	sim_set_encoder_cut(&h.sim, SIM_RIGHT, true);
+	run_until_idle(5000);
+	print_message("fault cause %u\n", h.board.faults.cause);
+	assert_true(status() & STATUS_PB_GRAVE);
+	assert_int_equal(h.board.faults.cause, FAULTS_CAUSE_ENCODER_LOST);
+	assert_int_equal(h.board.last_out.duty_q15[0], 0);
+	assert_int_equal(h.board.last_out.duty_q15[1], 0);
+	goto_mm(0, 0);
+	assert_true(status() & STATUS_COMMANDE_REJETEE);
+	send((const uint8_t[]){PROTO_LAST_REJECT}, 1);
+	host_i2c_read(&h, r, 3);
+	assert_int_equal(r[0], REJECT_REFUSED_PB_GRAVE);
+}
+
+/* SET_NEW_POS moves the estimate by minus the error, between two ticks, and the robot does not
+ * move for it. */
+static void test_set_new_pos(void **state)
+{
+	struct sim_field f;
+	int16_t x, y;
+	int8_t a;
+	uint8_t r;
+	double tx0, ty0, th0, tx1, ty1, th1;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	host_tick(&h);
+	truth(&tx0, &ty0, &th0);
+	/* err x +5 mm, y -3 mm, angle +10 degrees */
+	send((const uint8_t[]){PROTO_SET_NEW_POS, 0, 5, 0xFF, 0xFD, 0, 10}, 7);
+	for (int i = 0; i < 500; i++)
+		host_tick(&h);
+	position(&x, &y, &a, &r);
+	truth(&tx1, &ty1, &th1);
+	assert_int_equal(x, -1305);
+	assert_int_equal(y, 3);
+	assert_int_equal(a, -5);
+	assert_true(fabs(tx1 - tx0) < 0.2 && fabs(ty1 - ty0) < 0.2 && fabs(th1 - th0) < 0.05);
+}
+
+/* The error radius grows with travel. */
+static void test_radius_grows(void **state)
+{
+	struct sim_field f;
+	int16_t x, y;
+	int8_t a;
+	uint8_t r0, r1;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	position(&x, &y, &a, &r0);
+	goto_mm(1000, 0);
+	run_until_idle(20000);
+	position(&x, &y, &a, &r1);
+	print_message("radius after 2.3 m: %u mm\n", r1);
+	assert_int_equal(r0, 0);
+	assert_true(r1 > r0);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_goto_arrives),
+		cmocka_unit_test(test_goto_turns_first),
+		cmocka_unit_test(test_goto_reverse),
+		cmocka_unit_test(test_stop),
+		cmocka_unit_test(test_replace_is_smooth),
+		cmocka_unit_test(test_shock_stops),
+		cmocka_unit_test(test_goto_panier),
+		cmocka_unit_test(test_stuck_motor),
+		cmocka_unit_test(test_encoder_cut_is_grave),
+		cmocka_unit_test(test_set_new_pos),
+		cmocka_unit_test(test_radius_grows),
+	};
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,327 @@
+/* The error radius (uncertainty.c) against closed forms: lateral variance of a straight line
+ * ((kR + kL) L^3 / (3 b^2), physics.md), variance of a rotation in place, the systematic
+ * offsets d^2 Ed / (2 b) and (Eb / b) theta d, monotonic growth, resets, saturation. */
+#include <errno.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include <cmocka.h>
+
+#include "uncertainty.h"
+
+#define PI_L 3.14159265358979323846264338327950288L
+#define TRACK_UM 280000u
+
+/* 0.1 mm^2/m per wheel (physics.md: 0.04..0.25), no systematic error, 99 %, 16 ticks. */
+static const struct uncertainty_config cfg_noise = {6554, 6554, TRACK_UM, 0, 0, 0, 776, 16};
+
+static long double absl(long double v)
+{
+	return v < 0 ? -v : v;
+}
+
+/* The noise coefficient of the config [um^2 / um]. */
+static long double k_of(uint32_t q16)
+{
+	return q16 / 65536.0L;
+}
+
+/* At 1 mm per tick on each wheel a batch ends every ceil(16384 / 2000) = 9 ticks
+ * (UNCERTAINTY_BATCH_PATH_UM); the radius is refreshed at the end of each batch. */
+#define BATCH 9
+
+/* Ticks of constant wheel travels [um per tick]; the heading passed is that of the ideal robot,
+ * integrated here from the same travels. */
+static long double heading_rad;
+
+static void drive(struct uncertainty *u, long double dl_um, long double dr_um, long ticks,
+		  uint32_t track_um)
+{
+	for (long i = 0; i < ticks; i++) {
+		long double turns;
+
+		heading_rad += (dr_um - dl_um) / track_um;
+		turns = heading_rad / (2 * PI_L);
+		turns -= (long double)(long long)turns;
+		if (turns < 0)
+			turns += 1;
+		uncertainty_update(u, (int32_t)(dl_um * 65536), (int32_t)(dr_um * 65536),
+				   (uint32_t)(long long)(turns * 4294967296.0L));
+	}
+}
+
+/* Straight line of L = 2 m at 1 m/s and 1 kHz along heading 0: Var(y) = (kR + kL) L^3 / (3 b^2)
+ * from the heading's random walk, plus (kR + kL) L / 4 along x (Chong & Kleeman; physics.md). */
+static void test_straight_lateral_sigma(void **state)
+{
+	struct uncertainty u;
+	const long double len = 2e6L, k = k_of(cfg_noise.noise_left_mm2_per_m_q16) * 2;
+	long double var_lat = k * len * len * len / (3.0L * TRACK_UM * TRACK_UM);
+	long double var_long = k * len / 4;
+	long double yy, xx, sigma;
+
+	(void)state;
+	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
+	heading_rad = 0;
+	drive(&u, 1000, 1000, 2000, TRACK_UM);
+	yy = u.yy / 65536.0L;
+	xx = u.xx / 65536.0L;
+	print_message("lateral var %.0Lf um^2 (closed form %.0Lf), along %.0Lf (%.0Lf)\n", yy,
+		      var_lat, xx, var_long);
+	assert_true(absl(yy / var_lat - 1) <= 0.02L);
+	assert_true(absl(xx / var_long - 1) <= 0.02L);
+	/* The heading variance is (kR + kL) L / b^2 [rad^2], here in (rad * 2^20)^2 * 2^16. */
+	assert_true(absl(u.tt / (k * len / TRACK_UM / TRACK_UM * 1099511627776.0L * 65536) - 1) <=
+		    0.02L);
+	/* radius = ceil(k sigma_max), sigma_max^2 = the lateral variance here. */
+	/* sigma = ceil(sqrt(yy)), xx being 70 times smaller and xy zero on this path. */
+	sigma = 0;
+	while (sigma * sigma < yy)
+		sigma += 1;
+	print_message("radius %u mm, k sigma %.3Lf mm\n", uncertainty_get_radius_mm(&u),
+		      3.03L * sigma / 1000);
+	assert_int_equal(uncertainty_get_radius_mm(&u),
+			 (unsigned)((776.0L / 256 * sigma + 999.0L) / 1000));
+}
+
+/* The same straight along 3/8 turn: the variance across the path is the same. */
+static void test_straight_any_heading(void **state)
+{
+	struct uncertainty u;
+	const long double len = 2e6L, k = k_of(cfg_noise.noise_left_mm2_per_m_q16) * 2;
+	long double var_lat = k * len * len * len / (3.0L * TRACK_UM * TRACK_UM);
+	long double c = -0.70710678118654752440L, s = 0.70710678118654752440L, across;
+
+	(void)state;
+	uncertainty_init(&u, &cfg_noise);
+	heading_rad = 3 * PI_L / 4;
+	drive(&u, 1000, 1000, 2000, TRACK_UM);
+	/* n^T Sigma n with n = (-sin, cos). */
+	across = (s * s * u.xx - 2 * s * c * u.xy + c * c * u.yy) / 65536.0L;
+	assert_true(absl(across / var_lat - 1) <= 0.02L);
+}
+
+/* In place, each wheel rolls pi b per turn: Var(theta) = (kR + kL) pi b n / b^2 and
+ * Var(x) + Var(y) = (kR + kL) pi b n / 4, growing the radius. */
+static void test_rotation_in_place_grows(void **state)
+{
+	struct uncertainty u;
+	const long double k = k_of(cfg_noise.noise_left_mm2_per_m_q16) * 2;
+	const long double path = PI_L * TRACK_UM * 10; /* 10 turns, per wheel */
+	long ticks = (long)(path / 1000 + 0.5L);
+	uint8_t r0;
+
+	(void)state;
+	uncertainty_init(&u, &cfg_noise);
+	uncertainty_reset(&u, 1000, 0);
+	r0 = uncertainty_get_radius_mm(&u);
+	assert_int_equal(r0, 1);
+	heading_rad = 0;
+	drive(&u, -1000, 1000, ticks, TRACK_UM);
+	assert_true(absl((u.xx + u.yy) / 65536.0L /
+				 (k * ticks * 1000.0L / 4 +
+				  2 * (1000 * 256.0L / 776) * (1000 * 256.0L / 776)) -
+			 1) <= 0.02L);
+	assert_true(
+		absl(u.tt / (k * ticks * 1000.0L / TRACK_UM / TRACK_UM * 1099511627776.0L * 65536) -
+		     1) <= 0.02L);
+	print_message("after 10 turns: radius %u mm\n", uncertainty_get_radius_mm(&u));
+	assert_true(uncertainty_get_radius_mm(&u) > r0);
+}
+
+/* Only a wheel ratio error: after a straight d the offset is d^2 Ed / (2 b) (physics.md: 0.1 %,
+ * 300 mm, 3 m -> 15 mm); here 2.907 m (323 whole batches) gives 14.08 mm, so the radius reads
+ * 15. */
+static void test_systematic_ratio(void **state)
+{
+	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16};
+	struct uncertainty u;
+
+	(void)state;
+	uncertainty_init(&u, &cfg);
+	heading_rad = 0;
+	drive(&u, 1000, 1000, 323 * BATCH, 300000);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 15);
+	/* Going on to 3.105 m: 16.07 mm -> 17. */
+	drive(&u, 1000, 1000, 22 * BATCH, 300000);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 17);
+	/* Backing up along the same line undoes it (the heading error is proportional to the
+	 * net distance): back at the start, the radius is 0 again. */
+	drive(&u, -1000, -1000, 345 * BATCH, 300000);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
+}
+
+/* Only a track error Eb: a turn in place by theta gives a heading error (Eb / b) theta, then a
+ * straight d an offset (Eb / b) theta d: 1 mm / 280 mm * 2 pi * 1 m = 22.44 mm -> 23. */
+static void test_systematic_track(void **state)
+{
+	const struct uncertainty_config cfg = {0, 0, TRACK_UM, 0, 1000, 0, 776, 16};
+	struct uncertainty u;
+	long ticks = (long)(PI_L * TRACK_UM / 1000 + 0.5L);
+
+	(void)state;
+	uncertainty_init(&u, &cfg);
+	heading_rad = 0;
+	drive(&u, -1000, 1000, ticks, TRACK_UM);
+	/* ticks * 1 mm is pi b within 0.5 mm: the turn is 2 pi within 3.6e-3 rad. Turning in
+	 * place moves nothing yet. */
+	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
+	drive(&u, 1000, 1000, 1000, TRACK_UM);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 23);
+	/* Turning back cancels the heading error (it is proportional to the net turn): the
+	 * offset already made stays but stops growing. */
+	drive(&u, 1000, -1000, ticks, TRACK_UM);
+	drive(&u, 1000, 1000, 1000, TRACK_UM);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 23);
+}
+
+/* Every term on, along a path of forward straights, left arcs and left turns in place: the
+ * radius never decreases. (Backing up or looping back may legitimately shrink it, as the
+ * first-order systematic errors and the heading-correlated covariance undo themselves: see
+ * test_systematic_ratio.) */
+static void test_radius_monotonic(void **state)
+{
+	const struct uncertainty_config cfg = {16384, 9830, TRACK_UM, 500, 100, 300, 776, 8};
+	struct uncertainty u;
+	uint8_t last = 0;
+	static const long double moves[][3] = {
+		{1000, 1000, 800}, {600, 1200, 1000}, {-800, 800, 100},   {1300, 1300, 900},
+		{5, 10, 3000},     {0, 900, 300},     {1500, 1500, 2000},
+	};
+
+	(void)state;
+	uncertainty_init(&u, &cfg);
+	heading_rad = 0;
+	for (size_t m = 0; m < sizeof(moves) / sizeof(moves[0]); m++)
+		for (long i = 0; i < (long)moves[m][2]; i += 10) {
+			drive(&u, moves[m][0], moves[m][1], 10, TRACK_UM);
+			assert_true(uncertainty_get_radius_mm(&u) >= last);
+			last = uncertainty_get_radius_mm(&u);
+		}
+	print_message("path: radius %u mm, heading %.2Lf rad\n", last, heading_rad);
+	assert_true(last > 5);
+}
+
+static void test_resets(void **state)
+{
+	struct uncertainty u, v;
+	uint8_t before;
+	long double sigma = 2000 * 256.0L / 776;
+
+	(void)state;
+	uncertainty_init(&u, &cfg_noise);
+	uncertainty_reset(&u, 10000, 0);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 10);
+	uncertainty_reset(&u, 10001, 0);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 11);
+
+	/* Along x for 3 m: y is the uncertain one. Knowing y again leaves x's variance. */
+	uncertainty_reset(&u, 0, 0);
+	heading_rad = 0;
+	drive(&u, 1000, 1000, 3000, TRACK_UM);
+	before = uncertainty_get_radius_mm(&u);
+	uncertainty_reset_axis(&u, UNCERTAINTY_AXIS_Y, 2000);
+	assert_true(absl(u.yy / 65536.0L - (long double)(long long)sigma * (long long)sigma) <= 1);
+	assert_int_equal(u.xy, 0);
+	assert_int_equal(u.yt, 0);
+	assert_true(uncertainty_get_radius_mm(&u) < before);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 2);
+
+	/* Knowing the heading again slows the growth of the lateral error. */
+	v = u;
+	uncertainty_reset_heading(&v, 0);
+	assert_int_equal(v.tt, 0);
+	drive(&u, 1000, 1000, 1000, TRACK_UM);
+	heading_rad = 0;
+	drive(&v, 1000, 1000, 1000, TRACK_UM);
+	assert_true(v.yy < u.yy);
+	assert_true(uncertainty_get_radius_mm(&v) <= uncertainty_get_radius_mm(&u));
+
+	/* A full reset with a heading bound: sigma_theta = bound / k. 2^20 turn32 is 1.534e-3
+	 * rad, i.e. 1608.5 units of 2^-20 rad, sigma 530.6 units. */
+	uncertainty_reset(&u, 0, 1u << 20);
+	assert_true(absl(u.tt / 65536.0L - 530.0L * 530.0L) <= 1);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
+	/* ... which adds (sigma_theta d)^2 to the lateral variance: after 1 m (111 whole
+	 * batches), 506 um^2 + 922 um^2 from the wheels' noise: k sigma = 3.19 mm -> 4. */
+	heading_rad = 0;
+	drive(&u, 1000, 1000, 111 * BATCH, TRACK_UM);
+	{
+		long double len = 111 * BATCH * 1000.0L, st = 530.0L / 1048576;
+		long double want = st * st * len * len + k_of(cfg_noise.noise_left_mm2_per_m_q16) *
+								 2 * len * len * len /
+								 (3.0L * TRACK_UM * TRACK_UM);
+
+		print_message("heading residual then 1 m: var %.0Lf (%.0Lf), radius %u\n",
+			      u.yy / 65536.0L, want, uncertainty_get_radius_mm(&u));
+		assert_true(absl(u.yy / 65536.0L / want - 1) <= 0.02L);
+	}
+	assert_int_equal(uncertainty_get_radius_mm(&u), 4);
+}
+
+static void test_saturation(void **state)
+{
+	struct uncertainty_config cfg = cfg_noise;
+	struct uncertainty u;
+
+	(void)state;
+	cfg.noise_left_mm2_per_m_q16 = UNCERTAINTY_NOISE_Q16_MAX;
+	cfg.noise_right_mm2_per_m_q16 = UNCERTAINTY_NOISE_Q16_MAX;
+	assert_int_equal(uncertainty_init(&u, &cfg), 0);
+	heading_rad = 0;
+	/* 16 mm^2/m per wheel: after 1 m the lateral sigma is 11.7 mm (radius 36 mm), after
+	 * 16 m 750 mm. */
+	drive(&u, 1000, 1000, 1000, TRACK_UM);
+	assert_true(uncertainty_get_radius_mm(&u) < 255);
+	drive(&u, 1500, 1500, 10000, TRACK_UM);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 255);
+	drive(&u, 1500, 1500, 20000, TRACK_UM);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 255);
+	assert_int_equal(u.saturated, 1);
+	uncertainty_reset(&u, 5000, 0);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 5);
+	uncertainty_reset(&u, 300000, 0);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 255);
+	uncertainty_reset(&u, 254000, 0);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 254);
+}
+
+static void test_config_checks(void **state)
+{
+	struct uncertainty_config cfg = cfg_noise;
+	struct uncertainty u;
+
+	(void)state;
+	cfg.batch_ticks = 0;
+	assert_int_equal(uncertainty_init(&u, &cfg), -EDOM);
+	cfg = cfg_noise;
+	cfg.k_q8 = 0;
+	assert_int_equal(uncertainty_init(&u, &cfg), -EDOM);
+	cfg = cfg_noise;
+	cfg.track_error_um = TRACK_UM + 1;
+	assert_int_equal(uncertainty_init(&u, &cfg), -EDOM);
+	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	assert_int_equal(uncertainty_set_config(&u, &cfg), -EDOM);
+	assert_int_equal(u.cfg.track_error_um, 0);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_straight_lateral_sigma),
+		cmocka_unit_test(test_straight_any_heading),
+		cmocka_unit_test(test_rotation_in_place_grows),
+		cmocka_unit_test(test_systematic_ratio),
+		cmocka_unit_test(test_systematic_track),
+		cmocka_unit_test(test_radius_monotonic),
+		cmocka_unit_test(test_resets),
+		cmocka_unit_test(test_saturation),
+		cmocka_unit_test(test_config_checks),
+	};
+
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}
