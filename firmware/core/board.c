@@ -111,7 +111,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	    faults_init(&b->faults, &cfg->faults, in->motor_count))
 		return -1;
 	odometry_set_pose(&b->odometry, &cfg->start);
-	uncertainty_reset(&b->uncertainty, 0, cfg->start.heading_turn32);
+	uncertainty_reset(&b->uncertainty, 0, 0); /* the start pose is the reference: no error */
 	b->heading_unwrapped_turn32 = 0;
 	b->free_ratio_q16 = (int32_t)fx_div_round64((int64_t)cfg->orders.drive_track_um << 16,
 						    cfg->odometry.track_um);
@@ -290,10 +290,11 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	struct orders_measure m;
 	struct faults_inputs fi;
 	struct proto_msg msg;
-	uint8_t reason;
+	uint8_t reason, event;
+	int encoder_fault;
 
-	/* 1. Encoders -> odometry. */
-	odometry_update(&b->odometry, in->free_count[0], in->free_count[1]);
+	/* 1. Encoders -> odometry (a wheel that jumps more than a tick can travel is a fault). */
+	encoder_fault = odometry_update(&b->odometry, in->free_count[0], in->free_count[1]) != 0;
 	step = odometry_get_step(&b->odometry);
 	b->heading_unwrapped_turn32 += step.dtheta_turn32;
 
@@ -323,7 +324,8 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	fi.angle_err_um = b->orders.sp_angle.pos_um - m.angle_um;
 	fi.moving = (uint8_t)orders_busy(&b->orders);
 	fi.pushing = b->orders.state == ORDER_STATE_PUSH;
-	react(b, faults_check(&b->faults, &fi), &m);
+	event = faults_check(&b->faults, &fi);
+	react(b, encoder_fault ? FAULTS_GRAVE : event, &m);
 
 	/* 6. Orders -> profiles -> setpoints of both axes. */
 	reason = orders_update(&b->orders, &m);

@@ -300,6 +300,41 @@ static void test_goto_panier(void **state)
 	assert_true(fabs(p.x_um / 1000.0 - tx) < 3.0);
 }
 
+/* GOTO_PANIER with no basket ahead: the push gives up after its maximum travel, DONE without
+ * CHOC_PANIER, and the estimate is not recalibrated. */
+static void test_goto_panier_finds_nothing(void **state)
+{
+	struct sim_field f;
+	double tx, ty, th;
+
+	(void)state;
+	setup_field(&f);
+	f.obstacle_count = 0;
+	start(&f);
+	send((const uint8_t[]){PROTO_GOTO_PANIER, 0}, 2);
+	run_until_idle(30000);
+	truth(&tx, &ty, &th);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+	assert_int_equal(status() & (STATUS_CHOC_PANIER | STATUS_BUSY_TRAJET), 0);
+	assert_true(fabs(tx - (-1300.0 + 500.0)) < 2.0);
+}
+
+/* A drive wheel on a slippery patch spins: PB_MOTEUR by slip (motor encoders vs free wheels). */
+static void test_slip_is_a_motor_problem(void **state)
+{
+	struct sim_field f;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 100, 200}, 3);
+	sim_set_friction_scale(&h.sim, SIM_LEFT, 0.05);
+	goto_mm(0, 0);
+	run_until_idle(20000);
+	assert_int_equal(status() & STATUS_PB_MOTEUR, STATUS_PB_MOTEUR);
+	assert_int_equal(h.board.faults.cause, FAULTS_CAUSE_SLIP);
+}
+
 /* A stalled motor: the order is abandoned with PB_MOTEUR; the next order may run. */
 static void test_stuck_motor(void **state)
 {
@@ -406,6 +441,8 @@ int main(void)
 		cmocka_unit_test(test_replace_is_smooth),
 		cmocka_unit_test(test_shock_stops),
 		cmocka_unit_test(test_goto_panier),
+		cmocka_unit_test(test_goto_panier_finds_nothing),
+		cmocka_unit_test(test_slip_is_a_motor_problem),
 		cmocka_unit_test(test_stuck_motor),
 		cmocka_unit_test(test_encoder_cut_is_grave),
 		cmocka_unit_test(test_set_new_pos),
