@@ -65,10 +65,12 @@ void board_default_config(struct board_config *c)
 	c->orders.tick_hz = 1000;
 	c->orders.jerk_um_s3 = 0;
 
-	/* The specification: x 0, at the end of the field (the 3 m field's left border is at
-	 * x -1500 mm; the robot's axis 200 mm in), angle 0. */
-	c->start.x_um = -1300000;
-	c->start.y_um = 0;
+	/* The specification's initial position "0, bout du terrain", angle 0: x 0 on the field's
+	 * centre line, against the end of the field (its border at y -1050 mm, 2100 mm wide), the
+	 * robot facing +X along that border with its 300 mm wide outline touching it. Teams set
+	 * their own with the configuration or SET_NEW_POS. */
+	c->start.x_um = 0;
+	c->start.y_um = -900000;
 	c->start.heading_turn32 = 0;
 }
 

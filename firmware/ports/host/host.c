@@ -88,6 +88,12 @@ void host_board_config(const struct sim_config *sc, const struct sim_field *f,
 		n++;
 	}
 	bc->orders.n_baskets = n;
+	/* The board believes the robot is where the simulator's configuration puts it (before
+	 * any start error a benchmark adds to the truth). */
+	bc->start.x_um = (int32_t)lround(sc->start.x_mm * 1000.0);
+	bc->start.y_um = (int32_t)lround(sc->start.y_mm * 1000.0);
+	bc->start.heading_turn32 =
+		(uint32_t)(int64_t)llround(sc->start.heading_rad * (4294967296.0 / two_pi));
 }
 
 static void read_sensors(struct host *h)

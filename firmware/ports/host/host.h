@@ -16,8 +16,8 @@ struct host {
 };
 
 /* The board configuration that matches a simulated robot: encoder wheels, tracks, motor
- * encoders and baskets taken from the simulator's configuration and field (calibrated board:
- * nominal values, not the robot's hidden errors). */
+ * encoders, baskets and start pose taken from the simulator's configuration and field
+ * (calibrated board: nominal values, not the robot's hidden errors). */
 void host_board_config(const struct sim_config *sc, const struct sim_field *f,
 		       struct board_config *bc);
 
