@@ -7,7 +7,7 @@ BUILD="$ROOT/build-bench"
 cmake -S "$ROOT" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DASSERV_TESTS=OFF >/dev/null
 cmake --build "$BUILD" --target bench_tick >/dev/null
 command -v valgrind >/dev/null || { echo "tick_instructions: valgrind is not installed" >&2; exit 1; }
-echo "board_tick() instructions per control tick, x86-64 -O2 (callgrind):"
+echo "board_tick() instructions per control tick, x86-64, CMake Release -O3 (callgrind):"
 for scenario in idle goto rotate; do
 	out=$(mktemp)
 	# Wait for valgrind to exit (and write its file) before reading either output.

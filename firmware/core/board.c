@@ -12,7 +12,7 @@ void board_default_config(struct board_config *c)
 	/* Reference robot: 25 mm free wheels, 2000 counts/rev, 280 mm apart; drive wheels 160 mm
 	 * apart; motors reaching ~1.64 m/s at full duty (Maxon RE25 24 V, 20.25:1, 32.5 mm
 	 * wheels: ../shared/notes/physics.md). */
-	const uint32_t um_per_count_q16 = 5146970; /* 2 pi 25 mm / 2000 = 78.54 um, * 2^16 */
+	const uint32_t um_per_count_q16 = 5147185; /* 2 pi 25 mm / 2000 = 78.540 um, * 2^16 */
 
 	c->tick_hz = 1000;
 	c->odometry.left_um_per_count_q16 = um_per_count_q16;
@@ -44,7 +44,7 @@ void board_default_config(struct board_config *c)
 	c->faults.current_max_ma = 6000;
 	c->faults.current_ticks = 50;
 	c->faults.motor_encoders = 1;
-	c->faults.motor_um_per_count_q16 = 322717; /* 2 pi 32.5 mm / (2048 * 20.25), * 2^16 */
+	c->faults.motor_um_per_count_q16 = 322692; /* 2 pi 32.5 mm / (2048 * 20.25), * 2^16 */
 	c->faults.slip_max_um = 10000;
 	c->faults.slip_shift = 7;
 	c->faults.lost_min_um = 5000;
@@ -52,7 +52,7 @@ void board_default_config(struct board_config *c)
 	c->faults.repeat_window_ticks = 10000;
 
 	c->orders.drive_track_um = 160000;
-	c->orders.heading_window_turn32 = 0x00E38E39u * 5u; /* 5 degrees */
+	c->orders.heading_window_turn32 = fx_deg_to_turn32(5);
 	c->orders.freeze_radius_um = 30000;
 	c->orders.arrive_window_um = 500;
 	c->orders.arrive_speed_um_s = 5000;

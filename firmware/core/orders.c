@@ -139,6 +139,19 @@ static void remaining(const struct orders *o, const struct odometry_pose *p, int
 	*proj_um = fx_sat32(fx_shr_round64((int64_t)dx * c + (int64_t)dy * s, 30));
 }
 
+/* Too close to aim: no spinning on the spot, a straight correction along the current heading
+ * (backwards if the target is just behind), the angle braking where it is. */
+static void straight_correction(struct orders *o, const struct orders_measure *m)
+{
+	int32_t dist, proj;
+
+	remaining(o, &m->pose, &dist, &proj);
+	o->frozen = 1;
+	enter(o, ORDER_STATE_TRANSLATE);
+	profile_set_target(&o->dist, m->dist_um + proj);
+	profile_stop(&o->angle);
+}
+
 void orders_goto(struct orders *o, const struct orders_measure *m, int32_t x_um, int32_t y_um,
 		 uint8_t options)
 {
@@ -150,12 +163,7 @@ void orders_goto(struct orders *o, const struct orders_measure *m, int32_t x_um,
 	o->target_y_um = y_um;
 	remaining(o, &m->pose, &dist, &proj);
 	if (dist <= o->cfg.freeze_radius_um) {
-		/* Too close to aim: no spinning on the spot, a straight correction along the
-		 * current heading (backwards if the target is just behind). */
-		o->frozen = 1;
-		enter(o, ORDER_STATE_TRANSLATE);
-		profile_set_target(&o->dist, m->dist_um + proj);
-		profile_set_target(&o->angle, o->angle.out.pos_um);
+		straight_correction(o, m);
 		return;
 	}
 	enter(o, ORDER_STATE_ROTATE);
@@ -255,8 +263,16 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 
 	switch (o->state) {
 	case ORDER_STATE_ROTATE:
-		if (o->designation == PROTO_GOTO)
+		if (o->designation == PROTO_GOTO) {
 			step_goto(o, m);
+			if (o->frozen) {
+				/* Carried within the freeze radius while still turning (a GOTO
+				 * that replaced a fast move): the bearing is meaningless this
+				 * close, finish with a straight correction along the heading. */
+				straight_correction(o, m);
+				break;
+			}
+		}
 		heading_err = (uint32_t)abs32(fx_angle_diff(o->designation == PROTO_GOTO
 								    ? bearing(o, &m->pose)
 								    : o->target_heading_turn32,

@@ -231,6 +231,36 @@ static void test_replace_is_smooth(void **state)
 	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
 }
 
+/* A GOTO to a point the robot is about to pass, given at full speed: it ends (no endless
+ * turning near the target) and settles on the point. */
+static void test_replace_near_target_at_speed(void **state)
+{
+	struct sim_field f;
+	uint32_t ticks;
+	double tx, ty, th;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 150, 150}, 3);
+	goto_mm(1000, 0);
+	for (ticks = 0; ticks < 20000; ticks++) {
+		struct odometry_pose p = odometry_get_pose(&h.board.odometry);
+
+		host_tick(&h);
+		if (p.x_um > -200000)
+			break;
+	}
+	goto_mm(-100, 20); /* 100 mm ahead, 20 mm aside at about 1.5 m/s: it turns, then passes */
+	ticks = run_until_idle(20000);
+	truth(&tx, &ty, &th);
+	print_message("replaced at speed: %u ticks, truth (%.2f, %.2f)\n", ticks, tx, ty);
+	assert_true(ticks < 20000);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+	/* A straight correction along the heading: on the target's abscissa. */
+	assert_true(fabs(tx + 100.0) < 2.0);
+}
+
 /* A shock sensor stops the trajectory in the tick it closes: CHOC_BORD, motors no longer
  * driving forward. */
 static void test_shock_stops(void **state)
@@ -439,6 +469,7 @@ int main(void)
 		cmocka_unit_test(test_goto_reverse),
 		cmocka_unit_test(test_stop),
 		cmocka_unit_test(test_replace_is_smooth),
+		cmocka_unit_test(test_replace_near_target_at_speed),
 		cmocka_unit_test(test_shock_stops),
 		cmocka_unit_test(test_goto_panier),
 		cmocka_unit_test(test_goto_panier_finds_nothing),
