@@ -92,8 +92,7 @@ static void measure(const struct board *b, const struct board_inputs *in, struct
 	m->dist_um = odometry_get_distance_um(&b->odometry);
 	m->angle_um = angle_axis_um(b);
 	m->dist_speed_um_s = st.ds_um * b->cfg.tick_hz;
-	m->angle_speed_um_s =
-		fx_mul_shr(st.dtheta_turn32, b->orders.pi_track_um, 32) * b->cfg.tick_hz;
+	m->angle_speed_um_s = orders_arc_um(&b->orders, st.dtheta_turn32) * b->cfg.tick_hz;
 	m->basket_contact = in->basket;
 	m->basket_shock = (in->shocks & b->cfg.faults.shock_basket_mask) != 0;
 }
@@ -144,8 +143,9 @@ static void set_new_pos(struct board *b, const struct proto_msg *msg)
 	p.x_um -= msg->arg[ARG_SET_NEW_POS_ERR_X_MM] * UM_PER_MM;
 	p.y_um -= msg->arg[ARG_SET_NEW_POS_ERR_Y_MM] * UM_PER_MM;
 	p.heading_turn32 -= fx_deg_to_turn32(msg->arg[ARG_SET_NEW_POS_ERR_ANGLE_DEG]);
+	/* Only the estimate moves, not the axes: the robot stays put, and a running GOTO re-aims
+	 * from the corrected estimate at its next update (a frozen one keeps its targets). */
 	odometry_set_pose(&b->odometry, &p);
-	orders_pose_changed(&b->orders);
 }
 
 static void apply(struct board *b, const struct proto_msg *msg, struct orders_measure *m)

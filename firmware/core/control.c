@@ -10,7 +10,8 @@ static int32_t per_um_q20(int32_t per_m)
 	return (int32_t)fx_div_round64((int64_t)per_m << 20, 1000000);
 }
 
-static int pid_with(struct pid *p, const struct control_config *cfg, const struct control_gains *g)
+static struct pid_config pid_config_of(const struct control_config *cfg,
+				       const struct control_gains *g)
 {
 	struct pid_config pc;
 
@@ -19,7 +20,7 @@ static int pid_with(struct pid *p, const struct control_config *cfg, const struc
 	pc.d = g->d;
 	pc.out_limit_q15 = cfg->duty_max_q15;
 	pc.tick_hz = cfg->tick_hz;
-	return pid_set_config(p, &pc);
+	return pc;
 }
 
 int control_init(struct control *c, const struct control_config *cfg)
@@ -36,11 +37,7 @@ int control_init(struct control *c, const struct control_config *cfg)
 	c->k_accel_q20 = per_um_q20(cfg->ff_accel_q15_per_m_s2);
 	c->k_angle_accel_q20 = per_um_q20(cfg->ff_angle_accel_q15_per_m_s2);
 	c->gains = cfg->presets[FILTRE_STD];
-	pc.p = c->gains.p;
-	pc.i = c->gains.i;
-	pc.d = c->gains.d;
-	pc.out_limit_q15 = cfg->duty_max_q15;
-	pc.tick_hz = cfg->tick_hz;
+	pc = pid_config_of(cfg, &c->gains);
 	if (pid_init(&c->dist, &pc) || pid_init(&c->angle, &pc))
 		return -1;
 	c->dist_err_um = 0;
@@ -52,9 +49,11 @@ int control_init(struct control *c, const struct control_config *cfg)
 
 void control_set_gains(struct control *c, const struct control_gains *g)
 {
+	struct pid_config pc = pid_config_of(&c->cfg, g);
+
 	c->gains = *g;
-	pid_with(&c->dist, &c->cfg, g);
-	pid_with(&c->angle, &c->cfg, g);
+	pid_set_config(&c->dist, &pc);
+	pid_set_config(&c->angle, &pc);
 }
 
 int control_set_preset(struct control *c, uint8_t preset)

@@ -11,8 +11,7 @@ static int32_t abs32(int32_t v)
 	return v < 0 ? -v : v;
 }
 
-/* Heading difference [turn * 2^32] -> arc at the drive wheels [um]. */
-static int32_t arc_um(const struct orders *o, int32_t dheading_turn32)
+int32_t orders_arc_um(const struct orders *o, int32_t dheading_turn32)
 {
 	return fx_mul_shr(dheading_turn32, o->pi_track_um, 32);
 }
@@ -118,7 +117,7 @@ static void aim(struct orders *o, const struct orders_measure *m, uint32_t headi
 {
 	int32_t d = fx_angle_diff(heading_turn32, m->pose.heading_turn32);
 
-	profile_set_target(&o->angle, m->angle_um + arc_um(o, d));
+	profile_set_target(&o->angle, m->angle_um + orders_arc_um(o, d));
 }
 
 static uint32_t bearing(const struct orders *o, const struct odometry_pose *p)
@@ -212,14 +211,6 @@ void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_
 {
 	hold_measured(o, m);
 	end(o, end_reason);
-}
-
-void orders_pose_changed(struct orders *o)
-{
-	/* A frozen GOTO keeps its targets: the correction is smaller than the freeze radius in
-	 * any sensible use, and re-aiming there would spin the robot. Otherwise the next update
-	 * re-aims from the corrected estimate by itself. */
-	(void)o;
 }
 
 static int settled(struct orders *o, const struct orders_measure *m)

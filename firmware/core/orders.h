@@ -99,9 +99,8 @@ void orders_stop(struct orders *o);
  * position with zero velocity, so the controller stops driving in the same tick. */
 void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_reason);
 
-/* The estimate was moved (SET_NEW_POS, recalibration): the axes are not, so nothing moves
- * physically; a running GOTO re-aims at its target from the new estimate. */
-void orders_pose_changed(struct orders *o);
+/* A heading change [turn * 2^32] as an arc on the angle axis [um]. Interrupt-safe: yes. */
+int32_t orders_arc_um(const struct orders *o, int32_t dheading_turn32);
 
 /* One tick: advance the state machine and the profiles; fills sp_dist and sp_angle.
  * Returns END_REASON_NONE, or the reason when the order ended during this tick (for

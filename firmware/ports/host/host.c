@@ -6,10 +6,10 @@
 #include "hal.h"
 #include "port.h"
 
-/* The HAL has no instance argument, as on the real board; the host being single-threaded, the
- * instance whose tick runs is the one the HAL answers for. */
-static struct host *current;
+/* The HAL has no instance argument, as on the real board; the host being single-threaded, it
+ * answers for the host whose tick runs: read_sensors() fills it, host_tick() applies the duties. */
 static struct sim_sensors sensors;
+static int16_t duty[2];
 
 uint16_t hal_encoder_free(enum hal_side side)
 {
@@ -30,10 +30,7 @@ int16_t hal_motor_current_ma(enum hal_side side)
 
 void hal_motor_set(enum hal_side side, int16_t duty_q15)
 {
-	int16_t left = side == HAL_LEFT ? duty_q15 : current->board.last_out.duty_q15[0];
-	int16_t right = side == HAL_RIGHT ? duty_q15 : current->board.last_out.duty_q15[1];
-
-	sim_set_duty(&current->sim, left, right);
+	duty[side] = duty_q15;
 }
 
 uint8_t hal_shock_read(void)
@@ -98,7 +95,6 @@ void host_board_config(const struct sim_config *sc, const struct sim_field *f,
 
 static void read_sensors(struct host *h)
 {
-	current = h;
 	sim_read_sensors(&h->sim, &sensors);
 }
 
@@ -124,6 +120,7 @@ void host_tick(struct host *h)
 {
 	read_sensors(h);
 	port_control_tick(&h->board);
+	sim_set_duty(&h->sim, duty[HAL_LEFT], duty[HAL_RIGHT]);
 	sim_advance_ns(&h->sim, h->tick_ns);
 	h->ticks++;
 }
