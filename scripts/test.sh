@@ -4,15 +4,16 @@
 
 step() { printf '\n== %s\n' "$*"; }
 
-step "protocol: generated C and Python match protocol/messages.toml"
+step "generated files: C and Python match protocol/messages.toml and field/default.toml"
 python protocol/gen.py --check
+python field/gen_field.py --check
 
 step "style: clang-format, ruff, mypy"
 mapfile -t c_files < <(git ls-files -co --exclude-standard '*.c' '*.h' |
-	grep -v -e '_gen\.h$' -e 'protocol_defs\.h$' -e 'protocol_table\.c$')
+	grep -v -e '_gen\.h$' -e 'protocol_defs\.h$' -e 'field_defs\.h$' -e 'protocol_table\.c$')
 clang-format --dry-run --Werror "${c_files[@]}"
-ruff check python protocol bench
-ruff format --check python protocol bench
+ruff check python protocol field bench
+ruff format --check python protocol field bench
 mypy
 
 step "C: build (AddressSanitizer + UndefinedBehaviorSanitizer) and ctest"
@@ -22,3 +23,11 @@ ctest --test-dir build --output-on-failure
 
 step "Python: pytest"
 python -m pytest
+
+step "AVR: build the firmware, print its size, run it in simavr (and the core's Cortex-M4 size)"
+cmake -S . -B build-avr -G Ninja -DASSERV_AVR_HARNESS=ON -DASSERV_TESTS=OFF >/dev/null
+cmake --build build-avr
+cmake -S cmake/cortex-m4 -B build-avr/m4 -G Ninja -DCMAKE_TOOLCHAIN_FILE="$ROOT/cmake/arm-none-eabi.cmake" >/dev/null
+cmake --build build-avr/m4
+build-avr/harness/avr/bench_avr build-avr/harness/avr/firmware/asserv_avr.elf
+ctest --test-dir build-avr -L avr --output-on-failure

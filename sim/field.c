@@ -4,40 +4,11 @@
 #include <string.h>
 
 #include "field.h"
+#include "field_default_gen.h"
 
 void sim_field_defaults(struct sim_field *f)
 {
-	static const double line_x[3] = {-750.0, 0.0, 750.0};
-	int i;
-
-	memset(f, 0, sizeof(*f));
-	f->length_mm = 3000.0;
-	f->width_mm = 2100.0;
-	f->borders = true;
-
-	/* two example baskets; the real layout will come from the shared field file */
-	f->obstacle_count = 2;
-	for (i = 0; i < 2; i++) {
-		f->obstacles[i].shape = SIM_SHAPE_CIRCLE;
-		f->obstacles[i].kind = SIM_OBSTACLE_BASKET;
-		f->obstacles[i].radius_mm = 125.0;
-	}
-	f->obstacles[0].x_mm = -1200.0;
-	f->obstacles[0].y_mm = 750.0;
-	f->obstacles[1].x_mm = 1200.0;
-	f->obstacles[1].y_mm = -750.0;
-
-	f->line_count = 4;
-	for (i = 0; i < 3; i++) {
-		f->lines[i].x0_mm = line_x[i];
-		f->lines[i].y0_mm = -1050.0;
-		f->lines[i].x1_mm = line_x[i];
-		f->lines[i].y1_mm = 1050.0;
-		f->lines[i].width_mm = 20.0;
-	}
-	f->lines[3].x0_mm = -1500.0;
-	f->lines[3].x1_mm = 1500.0;
-	f->lines[3].width_mm = 20.0;
+	*f = sim_field_default_gen; /* field/default.toml, through field/gen_field.py */
 }
 
 static unsigned kind_mask(const struct sim_obstacle *o)
@@ -92,19 +63,40 @@ double field_distance(const struct sim_field *f, double x, double y, unsigned ma
 	return d;
 }
 
-bool field_on_line(const struct sim_field *f, double x, double y)
+void field_line_boxes(const struct sim_field *f, double *box)
 {
 	int i;
 
 	for (i = 0; i < f->line_count; i++) {
 		const struct sim_line *l = &f->lines[i];
 		double hw = 0.5 * l->width_mm;
-		double ax, ay, px, py, len2, t, ex, ey;
 
-		/* most lines are far: reject on the bounding box before dividing */
-		if (x < fmin2(l->x0_mm, l->x1_mm) - hw || x > fmax2(l->x0_mm, l->x1_mm) + hw ||
-		    y < fmin2(l->y0_mm, l->y1_mm) - hw || y > fmax2(l->y0_mm, l->y1_mm) + hw)
+		box[4 * i] = fmin2(l->x0_mm, l->x1_mm) - hw;
+		box[4 * i + 1] = fmax2(l->x0_mm, l->x1_mm) + hw;
+		box[4 * i + 2] = fmin2(l->y0_mm, l->y1_mm) - hw;
+		box[4 * i + 3] = fmax2(l->y0_mm, l->y1_mm) + hw;
+	}
+}
+
+bool field_on_line(const struct sim_field *f, const double *box, double x, double y, double *margin)
+{
+	double m = 1e9;
+	bool on = false;
+	int i;
+
+	for (i = 0; i < f->line_count; i++) {
+		const struct sim_line *l = &f->lines[i];
+		double hw = 0.5 * l->width_mm;
+		const double *b = &box[4 * i];
+		double out = fmax2(fmax2(b[0] - x, x - b[1]), fmax2(b[2] - y, y - b[3]));
+		double ax, ay, px, py, len2, t, ex, ey, d;
+
+		/* most lines are far: outside the bounding box by out, the point is at least that
+		 * far from the line */
+		if (out > 0.0) {
+			m = fmin2(m, out);
 			continue;
+		}
 		ax = l->x1_mm - l->x0_mm;
 		ay = l->y1_mm - l->y0_mm;
 		px = x - l->x0_mm;
@@ -113,10 +105,13 @@ bool field_on_line(const struct sim_field *f, double x, double y)
 		t = len2 > 0.0 ? clamp((px * ax + py * ay) / len2, 0.0, 1.0) : 0.0;
 		ex = px - t * ax;
 		ey = py - t * ay;
-		if (ex * ex + ey * ey <= hw * hw)
-			return true;
+		d = sqrt(ex * ex + ey * ey);
+		if (d <= hw)
+			on = true;
+		m = fmin2(m, fabs(d - hw));
 	}
-	return false;
+	*margin = m;
+	return on;
 }
 
 static int add_contact(struct field_contact *out, int n, double px, double py, double nx, double ny,

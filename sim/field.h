@@ -34,8 +34,14 @@ struct field_contact {
  * < 0 inside a border or an obstacle. Returns a large positive value if nothing is selected. */
 double field_distance(const struct sim_field *f, double x, double y, unsigned mask);
 
-/* True if (x, y) is on a painted line. */
-bool field_on_line(const struct sim_field *f, double x, double y);
+/* The bounding box of each painted line, widened by its half width [mm], for field_on_line():
+ * x min, x max, y min, y max of line i at box[4 i] .. box[4 i + 3]. */
+void field_line_boxes(const struct sim_field *f, double *box);
+
+/* True if (x, y) is on a painted line; box from field_line_boxes(). *margin [mm]: how far the
+ * point can move before the answer may change (0 on the edge of a line). */
+bool field_on_line(const struct sim_field *f, const double *box, double x, double y,
+		   double *margin);
 
 /* Contacts of the rectangle with the borders and obstacles; returns their number
  * (0..FIELD_MAX_CONTACTS). Small penetrations are handled exactly for corners pressed into a

@@ -43,41 +43,43 @@
 #define G_M_S2 9.80665
 #define PI 3.14159265358979323846
 #define RESYNC_MASK 1023u
-#define NOISE_MASK 15u
+#define NOISE_SHIFT 4 /* a noise draw every 16 substeps */
 /* Coulomb friction of the motor is regularised below this motor speed [rad/s] */
 #define MOTOR_FRICTION_W_EPS 2.0
 
-/* Draws the accumulated encoder noise (see sim_step). */
+/* Draws the accumulated encoder noise (see add_travel()) into the encoder positions: variance
+ * k |ds| [mm^2] for |ds| = noise_cnt / enc_cnt_per_m [m] rolled, noise_var_cnt * noise_cnt
+ * [counts^2]. */
 static void add_noise(struct sim *s)
 {
 	int i;
 
 	for (i = 0; i < 2; i++) {
-		double k = s->cfg.enc_noise_mm2_per_m[i]; /* [mm^2/m] */
-
-		if (k > 0.0 && s->noise_ds[i] > 0.0 && !s->enc_cut[i]) {
-			double sigma_mm = sqrt(k * s->noise_ds[i]);
-
-			s->enc_pos[i] +=
-				1e-3 * sigma_mm * sim_rng_gauss(&s->rng) * s->enc_cnt_per_m[i];
-		}
-		s->noise_ds[i] = 0.0;
+		if (s->noise_var_cnt[i] > 0.0 && s->noise_cnt[i] > 0.0 && !s->enc_cut[i])
+			s->enc_pos[i] += sqrt(s->noise_var_cnt[i] * s->noise_cnt[i]) *
+					 sim_rng_gauss(&s->rng);
+		s->noise_cnt[i] = 0.0;
 	}
 }
 
-/* Refreshes the clearance: distance from the drive axis midpoint to the nearest border or
+/* The clearance at (x, y) [m]: distance from the drive axis midpoint to the nearest border or
  * obstacle, less the reach of the outline and switches (<= 0: contacts must be computed). */
-static void update_clearance(struct sim *s)
+static double clearance_at(struct sim *s, double x, double y)
 {
-	s->clearance_m = 1e-3 * field_distance(&s->field, 1000.0 * s->x, 1000.0 * s->y, FIELD_ALL) -
-			 s->reach_m;
-	if (s->clearance_m > 0.0)
+	double clear =
+		1e-3 * field_distance(&s->field, 1000.0 * x, 1000.0 * y, FIELD_ALL) - s->reach_m;
+
+	if (clear > 0.0)
 		s->contact_force = 0.0;
+	return clear;
 }
 
+/* v clamped to [lo, hi], written as a max then a min so that it compiles to two instructions. */
 static double clampd(double v, double lo, double hi)
 {
-	return v < lo ? lo : (v > hi ? hi : v);
+	double t = v > lo ? v : lo;
+
+	return t < hi ? t : hi;
 }
 
 static double wrap_pi(double a)
@@ -151,6 +153,25 @@ static int check_stability(const struct sim *s)
 	return 0;
 }
 
+/* The coefficients of one wheel in run_substeps(), from the constants of sim_init() and the
+ * fault settings: a stuck motor has no inertia to give (and its wheel does not turn), a cut
+ * encoder counts nothing. */
+static void derive_wheel(struct sim *s, int i)
+{
+	int st = s->motor_stuck[i];
+	double inv_j = st ? 0.0 : s->inv_j_wheel;
+
+	s->px_per_tau[i] = s->dt_s * s->r_m * inv_j;
+	s->f_per_tau[i] = s->px_per_tau[i] * s->c_eff * s->inv_den_long[st];
+	s->w_per_tau[i] = s->dt_s * inv_j;
+	s->f_per_tread_long[i] = s->cfg.tyre_stiffness_N_m * s->inv_den_long[st];
+	s->f_per_slip_long[i] = s->c_eff * s->inv_den_long[st];
+	s->motor_cnt_per_w[i] = s->motor_enc_cut[i] ? 0.0 : s->motor_cnt_per_wheel_step;
+	s->enc_cnt_per_u[i] = s->enc_cut[i] ? 0.0 : s->dt_s * s->enc_cnt_per_m[i];
+	s->enc_cnt_per_omega[i] = s->enc_cnt_per_u[i] * s->enc_y_m[i];
+	s->noise_var_cnt[i] = 1e-6 * s->cfg.enc_noise_mm2_per_m[i] * s->enc_cnt_per_m[i];
+}
+
 int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field *field)
 {
 	const struct sim_motor_config *m = &cfg->motor;
@@ -208,6 +229,7 @@ int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field
 	s->motor_cnt_per_wheel_step = s->dt_s * n * m->encoder_cpr / (2.0 * PI);
 	s->enc_offset_x_m = cfg->enc_offset_x_mm * 1e-3;
 
+	field_line_boxes(&s->field, &s->line_box[0][0]);
 	hl = 0.5 * cfg->outline_length_mm;
 	hw = 0.5 * cfg->outline_width_mm;
 	ox = cfg->outline_offset_x_mm;
@@ -233,11 +255,25 @@ int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field
 	if (err)
 		return err;
 
+	/* i' = i_ss + (i - i_ss) decay with i_ss = (u - Ke w) / R, as i decay + in - w per_w */
+	s->cur_decay = s->i_decay;
+	s->cur_per_w = s->ke_wheel * s->inv_resistance * (1.0 - s->i_decay);
+	s->f_per_tread_lat = cfg->tyre_stiffness_N_m * s->inv_den_lat;
+	s->f_per_slip_lat = s->c_eff * s->inv_den_lat;
+	s->v_per_f = s->dt_s * s->inv_mass;
+	s->omega_per_torque = s->dt_s * s->inv_inertia;
+	s->omega_per_dfx = s->half_track_m * s->omega_per_torque;
+	s->friction_per_w = s->friction_wheel * s->inv_friction_w_eps;
+	for (i = 0; i < 2; i++)
+		derive_wheel(s, i);
+
 	sim_set_battery_V(s, cfg->battery_V);
 	sim_rng_seed(&s->rng, cfg->seed);
 	sim_set_pose(s, &cfg->start);
 	return 0;
 }
+
+static void update_lines(struct sim *s);
 
 void sim_set_pose(struct sim *s, const struct sim_pose *pose)
 {
@@ -254,13 +290,19 @@ void sim_set_pose(struct sim *s, const struct sim_pose *pose)
 	s->slip[0] = s->slip[1] = 0.0;
 	memset(s->tread_m, 0, sizeof(s->tread_m));
 	s->contact_force = 0.0;
-	s->clearance_m = 0.0; /* look again */
+	s->clearance_m = 0.0;    /* look again */
+	s->line_margin_mm = 0.0; /* likewise */
+	update_lines(s);
 }
 
 static void update_volts(struct sim *s)
 {
-	s->volts[SIM_LEFT] = s->duty_q15[SIM_LEFT] * s->volts_per_q15;
-	s->volts[SIM_RIGHT] = s->duty_q15[SIM_RIGHT] * s->volts_per_q15;
+	int i;
+
+	for (i = 0; i < 2; i++) {
+		s->volts[i] = s->duty_q15[i] * s->volts_per_q15;
+		s->cur_in[i] = s->volts[i] * s->inv_resistance * (1.0 - s->i_decay);
+	}
 }
 
 void sim_set_duty(struct sim *s, int16_t left_q15, int16_t right_q15)
@@ -270,19 +312,22 @@ void sim_set_duty(struct sim *s, int16_t left_q15, int16_t right_q15)
 	update_volts(s);
 }
 
-/* Adds the forces of the borders and obstacles on the outline to the field-frame force and the
- * torque about the drive axis midpoint. */
-static void contact_forces(struct sim *s, double *fx, double *fy, double *torque)
+/* Adds the forces of the borders and obstacles on the outline to the body-frame force f[0],
+ * f[1] [N] and the yaw rate step f[2] [rad/s] of a substep. The body is at (x, y) [m], heading
+ * (c, sn), moving at (u, v) [m/s] in its own frame, turning at omega [rad/s]. */
+static void contact_forces(struct sim *s, double x, double y, double c, double sn, double u,
+			   double v, double omega, double f[3])
 {
 	struct field_contact ct[FIELD_MAX_CONTACTS];
 	struct field_rect r;
 	const struct sim_config *cfg = &s->cfg;
-	double c = s->cos_h, sn = s->sin_h, ox = cfg->outline_offset_x_mm;
-	double oy = cfg->outline_offset_y_mm, total = 0.0;
+	double ox = cfg->outline_offset_x_mm, oy = cfg->outline_offset_y_mm;
+	double vx = c * u - sn * v, vy = sn * u + c * v;
+	double fx = 0.0, fy = 0.0, torque = 0.0, total = 0.0;
 	int i, n;
 
-	r.cx = 1000.0 * s->x + ox * c - oy * sn;
-	r.cy = 1000.0 * s->y + ox * sn + oy * c;
+	r.cx = 1000.0 * x + ox * c - oy * sn;
+	r.cy = 1000.0 * y + ox * sn + oy * c;
 	r.ux = c;
 	r.uy = sn;
 	r.half_len = 0.5 * cfg->outline_length_mm;
@@ -290,8 +335,8 @@ static void contact_forces(struct sim *s, double *fx, double *fy, double *torque
 	r.bound = 1000.0 * s->bound_radius_m;
 	n = field_collide(&s->field, &r, ct);
 	for (i = 0; i < n; i++) {
-		double rx = 1e-3 * ct[i].px - s->x, ry = 1e-3 * ct[i].py - s->y;
-		double vpx = s->vx - s->omega * ry, vpy = s->vy + s->omega * rx;
+		double rx = 1e-3 * ct[i].px - x, ry = 1e-3 * ct[i].py - y;
+		double vpx = vx - omega * ry, vpy = vy + omega * rx;
 		double nx = ct[i].nx, ny = ct[i].ny;
 		double vn = vpx * nx + vpy * ny, vt = -vpx * ny + vpy * nx;
 		double fn =
@@ -304,135 +349,262 @@ static void contact_forces(struct sim *s, double *fx, double *fy, double *torque
 		ft = clampd(-cfg->wall_damping_N_s_m * vt, -lim, lim);
 		px = fn * nx - ft * ny;
 		py = fn * ny + ft * nx;
-		*fx += px;
-		*fy += py;
-		*torque += rx * py - ry * px;
+		fx += px;
+		fy += py;
+		torque += rx * py - ry * px;
 		total += fn;
 	}
+	f[0] += c * fx + sn * fy;
+	f[1] += -sn * fx + c * fy;
+	f[2] += torque * s->omega_per_torque;
 	s->contact_force = total;
+}
+
+/* Steps 1 and 3 for one wheel: the current, exact for the frozen speed, and the motor torque at
+ * the wheel [N m]. */
+static double motor_torque(const struct sim *s, int i, double w, double *cur)
+{
+	*cur = *cur * s->cur_decay + (s->cur_in[i] - w * s->cur_per_w);
+	return s->gain_wheel * *cur -
+	       clampd(w * s->friction_per_w, -s->friction_wheel, s->friction_wheel);
+}
+
+/* The wheel and motor encoder travel of a call, added once at its end [counts]. The free wheel
+ * noise is drawn every NOISE_MASK + 1 substeps for the distance rolled meanwhile (its variance
+ * k |ds| adds up, so the statistics are those of a draw per substep, at a fraction of the
+ * cost); a call's travel counts toward the draw its last substep falls in. */
+static void add_travel(struct sim *s, uint64_t steps_before, double sum_u, double sum_omega,
+		       const double sum_w[2])
+{
+	int i;
+
+	for (i = 0; i < 2; i++) {
+		double inc = sum_u * s->enc_cnt_per_u[i] - sum_omega * s->enc_cnt_per_omega[i];
+
+		s->enc_pos[i] += inc;
+		s->noise_cnt[i] += fabs(inc);
+		s->motor_pos[i] += sum_w[i] * s->motor_cnt_per_w[i];
+	}
+	if ((steps_before >> NOISE_SHIFT) != (s->steps >> NOISE_SHIFT))
+		add_noise(s);
+}
+
+/* The line sensors depend on their position only: the mask is kept with the positions it was
+ * computed at and a margin that none of them can move without the answer changing, and only
+ * computed again when a sensor moved farther than that (every few centimetres of travel,
+ * instead of every read). */
+static void update_lines(struct sim *s)
+{
+	const struct sim_config *cfg = &s->cfg;
+	double xm = 1000.0 * s->x, ym = 1000.0 * s->y, p[SIM_MAX_LINE_SENSORS][2];
+	double m2 = s->line_margin_mm * s->line_margin_mm;
+	bool moved = false;
+	int i;
+
+	for (i = 0; i < cfg->line_sensor_count; i++) {
+		const struct sim_point *q = &cfg->line_sensor[i];
+		double dx, dy;
+
+		p[i][0] = xm + q->x_mm * s->cos_h - q->y_mm * s->sin_h;
+		p[i][1] = ym + q->x_mm * s->sin_h + q->y_mm * s->cos_h;
+		dx = p[i][0] - s->line_ref_mm[i][0];
+		dy = p[i][1] - s->line_ref_mm[i][1];
+		moved |= !(dx * dx + dy * dy < m2);
+	}
+	if (!moved)
+		return;
+	s->line_mask = 0;
+	s->line_margin_mm = 1e9;
+	for (i = 0; i < cfg->line_sensor_count; i++) {
+		double margin;
+
+		if (field_on_line(&s->field, &s->line_box[0][0], p[i][0], p[i][1], &margin))
+			s->line_mask |= (uint8_t)(1u << i);
+		if (margin < s->line_margin_mm)
+			s->line_margin_mm = margin;
+		s->line_ref_mm[i][0] = p[i][0];
+		s->line_ref_mm[i][1] = p[i][1];
+	}
+}
+
+/* n substeps of a robot on a stand: the wheels turn freely, nothing else moves. */
+static void run_lifted(struct sim *s, uint64_t n)
+{
+	double sum_w[2] = {0.0, 0.0};
+	uint64_t steps = s->steps;
+	int i;
+
+	for (; n > 0; n--) {
+		for (i = 0; i < 2; i++) {
+			double tau = motor_torque(s, i, s->wheel_w[i], &s->current[i]);
+
+			s->wheel_w[i] += tau * s->w_per_tau[i];
+			sum_w[i] += s->wheel_w[i];
+		}
+		s->steps++;
+	}
+	add_travel(s, steps, 0.0, 0.0, sum_w);
+}
+
+/* n substeps on the ground (the numbered steps of the method at the top of this file). The
+ * state lives in local variables for the whole call, so that it stays in registers, and is
+ * written back at the end. The body's velocity is kept in the body frame (u forward, v to the
+ * left) during the call: the semi-implicit step adds the force in the old frame, p, q = u, v +
+ * dt F / m, moves the position by R(heading) (p, q) dt, and turns p, q by -dth into the new
+ * frame: the same step as in the field frame, but the speeds the tyres need come out of it
+ * directly, which keeps the chain of dependent operations from one substep to the next short.
+ * The heading's cosine and sine are carried times dt (cdt, sdt), as the position step uses
+ * them. What a substep computes for the next (the slip of each wheel) is carried. A stuck motor
+ * or a cut encoder is a zero coefficient (derive_wheel()), not a branch. */
+static void run_ground(struct sim *s, uint64_t n)
+{
+	const double dt = s->dt_s, r = s->r_m, ht = s->half_track_m;
+	double x = s->x, y = s->y, cdt = s->cos_h * dt, sdt = s->sin_h * dt, omega = s->omega;
+	double u = s->vx * s->cos_h + s->vy * s->sin_h, v = -s->vx * s->sin_h + s->vy * s->cos_h;
+	double clear = s->clearance_m, dheading = 0.0, sum_u = 0.0;
+	double w0 = s->wheel_w[0], w1 = s->wheel_w[1], cur0 = s->current[0], cur1 = s->current[1];
+	double z00 = s->tread_m[0][0], z01 = s->tread_m[0][1];
+	double z10 = s->tread_m[1][0], z11 = s->tread_m[1][1];
+	double sx0 = (r * w0 + omega * ht) - u, sx1 = (r * w1 - omega * ht) - u;
+	double sum_w0 = 0.0, sum_w1 = 0.0, sum_w[2];
+	uint64_t steps = s->steps;
+
+	for (; n > 0; n--) {
+		/* 1. motor currents and torques */
+		double tau0 = motor_torque(s, 0, w0, &cur0);
+		double tau1 = motor_torque(s, 1, w1, &cur1);
+		/* 2. tyre forces, linearly implicit, capped by the friction circle */
+		double vlat = v * s->f_per_slip_lat;
+		double fx0 = (z00 * s->f_per_tread_long[0] + tau0 * s->f_per_tau[0]) +
+			     sx0 * s->f_per_slip_long[0];
+		double fx1 = (z10 * s->f_per_tread_long[1] + tau1 * s->f_per_tau[1]) +
+			     sx1 * s->f_per_slip_long[1];
+		double fy0 = z01 * s->f_per_tread_lat - vlat;
+		double fy1 = z11 * s->f_per_tread_lat - vlat;
+		double fxb, fyb, domega, p, q, dx, dy, dth, dth2, cd, sd, nc, hw;
+		int slide0 = fx0 * fx0 + fy0 * fy0 > s->grip2_N2[0];
+		int slide1 = fx1 * fx1 + fy1 * fy1 > s->grip2_N2[1];
+
+		if (slide0) {
+			/* sliding: the tread stays at its elastic limit along the force */
+			double k = s->grip_N[0] / sqrt(fx0 * fx0 + fy0 * fy0);
+
+			fx0 *= k;
+			fy0 *= k;
+			z00 = fx0 * s->inv_tyre_k;
+			z01 = fy0 * s->inv_tyre_k;
+		}
+		if (slide1) {
+			double k = s->grip_N[1] / sqrt(fx1 * fx1 + fy1 * fy1);
+
+			fx1 *= k;
+			fy1 *= k;
+			z10 = fx1 * s->inv_tyre_k;
+			z11 = fy1 * s->inv_tyre_k;
+		}
+		/* 3. wheel speeds */
+		w0 += tau0 * s->w_per_tau[0] - fx0 * s->px_per_tau[0];
+		w1 += tau1 * s->w_per_tau[1] - fx1 * s->px_per_tau[1];
+		sum_w0 += w0;
+		sum_w1 += w1;
+
+		/* 4. contacts, only within reach of something */
+		fxb = fx0 + fx1;
+		fyb = fy0 + fy1;
+		domega = (fx1 - fx0) * s->omega_per_dfx;
+		if (clear <= 0.0) {
+			clear = clearance_at(s, x, y);
+			if (clear <= 0.0) {
+				/* (through copies: the addresses of the hot variables would keep
+				 * them out of registers) */
+				double f[3] = {fxb, fyb, domega};
+
+				contact_forces(s, x, y, cdt / dt, sdt / dt, u, v, omega, f);
+				fxb = f[0];
+				fyb = f[1];
+				domega = f[2];
+			}
+		}
+		/* 5. body: velocities, then positions with the new velocities, then the new frame:
+		 * the heading's cosine and sine turned by the exact rotation to 4th order */
+		p = u + fxb * s->v_per_f;
+		q = v + fyb * s->v_per_f;
+		omega += domega;
+		dx = cdt * p - sdt * q;
+		dy = sdt * p + cdt * q;
+		x += dx;
+		y += dy;
+		clear -= fabs(dx) + fabs(dy);
+		dth = dt * omega;
+		dheading += dth;
+		dth2 = dth * dth;
+		cd = (1.0 - 0.5 * dth2) + dth2 * dth2 * (1.0 / 24.0);
+		sd = dth * (1.0 - dth2 * (1.0 / 6.0));
+		nc = cdt * cd - sdt * sd;
+		sdt = sdt * cd + cdt * sd;
+		cdt = nc;
+		u = cd * p + sd * q;
+		v = cd * q - sd * p;
+		if ((++steps & RESYNC_MASK) == 0) {
+			cdt = cos(s->heading + dheading) * dt;
+			sdt = sin(s->heading + dheading) * dt;
+		}
+		sum_u += u;
+		/* 6. the tread deflects by the slip that really happened (the implicit force only
+		 * predicted it without the walls and the other wheel): no creep under a steady
+		 * push */
+		hw = omega * ht;
+		sx0 = (r * w0 + hw) - u;
+		sx1 = (r * w1 - hw) - u;
+		if (!slide0) {
+			z00 += dt * sx0;
+			z01 -= dt * v;
+		}
+		if (!slide1) {
+			z10 += dt * sx1;
+			z11 -= dt * v;
+		}
+	}
+
+	s->x = x;
+	s->y = y;
+	s->heading = wrap_pi(s->heading + dheading);
+	s->cos_h = cdt / dt;
+	s->sin_h = sdt / dt;
+	s->vx = s->cos_h * u - s->sin_h * v;
+	s->vy = s->sin_h * u + s->cos_h * v;
+	s->omega = omega;
+	s->clearance_m = clear;
+	s->wheel_w[0] = w0;
+	s->wheel_w[1] = w1;
+	s->current[0] = cur0;
+	s->current[1] = cur1;
+	s->tread_m[0][0] = z00;
+	s->tread_m[0][1] = z01;
+	s->tread_m[1][0] = z10;
+	s->tread_m[1][1] = z11;
+	s->slip[0] = sx0;
+	s->slip[1] = sx1;
+	n = s->steps;
+	s->steps = steps;
+	sum_w[0] = sum_w0;
+	sum_w[1] = sum_w1;
+	add_travel(s, n, sum_u, dheading / dt, sum_w);
+	update_lines(s);
+}
+
+static void run_substeps(struct sim *s, uint64_t n)
+{
+	s->time_ns += n * s->cfg.substep_ns;
+	if (s->cfg.lifted)
+		run_lifted(s, n);
+	else
+		run_ground(s, n);
 }
 
 void sim_step(struct sim *s)
 {
-	const struct sim_config *cfg = &s->cfg;
-	/* the state is copied to locals so that the compiler keeps it in registers */
-	double dt = s->dt_s, r = s->r_m, ce = s->c_eff, k_tyre = cfg->tyre_stiffness_N_m;
-	double c = s->cos_h, sn = s->sin_h, vx = s->vx, vy = s->vy, omega = s->omega;
-	double u = vx * c + vy * sn;  /* forward speed */
-	double v = -vx * sn + vy * c; /* lateral speed */
-	double fxb = 0.0, fyb = 0.0, torque = 0.0, fx, fy, dth, dth2, cd, sd, w_new[2];
-	bool sliding[2] = {false, false};
-	int i;
-
-	for (i = 0; i < 2; i++) {
-		double yi = i == SIM_LEFT ? s->half_track_m : -s->half_track_m;
-		double w = s->wheel_w[i];
-		double i_ss = (s->volts[i] - s->ke_wheel * w) * s->inv_resistance;
-		double cur = i_ss + (s->current[i] - i_ss) * s->i_decay;
-		double tau = s->gain_wheel * cur -
-			     s->friction_wheel * clampd(w * s->inv_friction_w_eps, -1.0, 1.0);
-		int st = s->motor_stuck[i];
-		double inv_j = st ? 0.0 : s->inv_j_wheel;
-		double ffx = 0.0, ffy = 0.0;
-
-		s->current[i] = cur;
-		if (!cfg->lifted) {
-			double sx = r * w - (u - omega * yi), sy = -v;
-			double *z = s->tread_m[i], f2, px;
-
-			px = sx +
-			     dt * r * tau * inv_j; /* slip the wheel's torque alone would give */
-			ffx = (k_tyre * z[0] + ce * px) * s->inv_den_long[st];
-			ffy = (k_tyre * z[1] + ce * sy) * s->inv_den_lat;
-			f2 = ffx * ffx + ffy * ffy;
-			if (f2 > s->grip_N[i] * s->grip_N[i]) {
-				/* sliding: the tread stays at its elastic limit along the force */
-				double k = s->grip_N[i] / sqrt(f2);
-
-				ffx *= k;
-				ffy *= k;
-				z[0] = ffx * s->inv_tyre_k;
-				z[1] = ffy * s->inv_tyre_k;
-				sliding[i] = true;
-			}
-			s->slip[i] = sx;
-		}
-		w_new[i] = st ? 0.0 : w + dt * (tau - r * ffx) * inv_j;
-		s->wheel_w[i] = w_new[i];
-		if (!s->motor_enc_cut[i])
-			s->motor_pos[i] += s->motor_cnt_per_wheel_step * w_new[i];
-		fxb += ffx;
-		fyb += ffy;
-		torque -= yi * ffx;
-	}
-
-	if (!cfg->lifted) {
-		double x = s->x, y = s->y;
-
-		fx = fxb * c - fyb * sn;
-		fy = fxb * sn + fyb * c;
-		if (s->clearance_m <= 0.0) {
-			update_clearance(s);
-			if (s->clearance_m <= 0.0)
-				contact_forces(s, &fx, &fy, &torque);
-		}
-		vx += dt * fx * s->inv_mass;
-		vy += dt * fy * s->inv_mass;
-		omega += dt * torque * s->inv_inertia;
-		x += dt * vx;
-		y += dt * vy;
-		s->clearance_m -= dt * (fabs(vx) + fabs(vy));
-		dth = dt * omega;
-		s->heading += dth;
-		if (s->heading > PI)
-			s->heading -= 2.0 * PI;
-		else if (s->heading <= -PI)
-			s->heading += 2.0 * PI;
-		dth2 = dth * dth;
-		cd = 1.0 - dth2 * (0.5 - dth2 * (1.0 / 24.0));
-		sd = dth * (1.0 - dth2 * (1.0 / 6.0));
-		fx = c * cd - sn * sd; /* new cosine, sine */
-		fy = sn * cd + c * sd;
-		c = fx;
-		sn = fy;
-		s->x = x;
-		s->y = y;
-		s->vx = vx;
-		s->vy = vy;
-		s->omega = omega;
-		s->cos_h = c;
-		s->sin_h = sn;
-
-		u = vx * c + vy * sn;
-		v = -vx * sn + vy * c;
-		for (i = 0; i < 2; i++) {
-			double yi = i == SIM_LEFT ? s->half_track_m : -s->half_track_m;
-			double ds = dt * (u - omega * s->enc_y_m[i]); /* [m] */
-
-			/* the tread deflects by the slip that really happened (the implicit force
-			 * only predicted it without the walls and the other wheel): no creep under
-			 * a steady push */
-			if (!sliding[i]) {
-				s->tread_m[i][0] += dt * (r * w_new[i] - (u - omega * yi));
-				s->tread_m[i][1] -= dt * v;
-			}
-			s->noise_ds[i] += fabs(ds);
-			if (!s->enc_cut[i])
-				s->enc_pos[i] += ds * s->enc_cnt_per_m[i];
-		}
-		/* The noise of variance k |ds| adds up over substeps, so it is drawn once per
-		 * NOISE_MASK + 1 substeps for the distance rolled meanwhile: same statistics, a
-		 * fraction of the cost (its steps are ~0.01 mm, far below a count). */
-		if ((s->steps & NOISE_MASK) == NOISE_MASK)
-			add_noise(s);
-	}
-
-	s->time_ns += cfg->substep_ns;
-	s->steps++;
-	if ((s->steps & RESYNC_MASK) == 0) {
-		s->cos_h = cos(s->heading);
-		s->sin_h = sin(s->heading);
-	}
+	run_substeps(s, 1);
 }
 
 void sim_advance_ns(struct sim *s, uint64_t duration_ns)
@@ -441,8 +613,8 @@ void sim_advance_ns(struct sim *s, uint64_t duration_ns)
 	uint64_t n = total / s->cfg.substep_ns;
 
 	s->carry_ns = total % s->cfg.substep_ns;
-	while (n--)
-		sim_step(s);
+	if (n > 0)
+		run_substeps(s, n);
 }
 
 static int64_t counts(double pos)
@@ -483,11 +655,7 @@ void sim_read_sensors(const struct sim *s, struct sim_sensors *out)
 		to_field(s, &cfg->basket_sensor_pos, &x, &y);
 		out->basket = field_distance(&s->field, x, y, FIELD_BASKETS) <= cfg->shock_range_mm;
 	}
-	for (i = 0; i < cfg->line_sensor_count; i++) {
-		to_field(s, &cfg->line_sensor[i], &x, &y);
-		if (field_on_line(&s->field, x, y))
-			out->line_mask |= (uint8_t)(1u << i);
-	}
+	out->line_mask = s->line_mask; /* kept up to date by update_lines() */
 }
 
 void sim_get_truth(const struct sim *s, struct sim_truth *out)
@@ -530,6 +698,7 @@ void sim_set_friction_scale(struct sim *s, int wheel, double scale)
 	if ((wheel == SIM_LEFT || wheel == SIM_RIGHT) && scale >= 0.0) {
 		s->mu_scale[wheel] = scale;
 		s->grip_N[wheel] = s->cfg.friction_coeff * scale * s->n_wheel_N;
+		s->grip2_N2[wheel] = s->grip_N[wheel] * s->grip_N[wheel];
 	}
 }
 
@@ -539,17 +708,22 @@ void sim_set_motor_stuck(struct sim *s, int wheel, bool stuck)
 		s->motor_stuck[wheel] = stuck;
 		if (stuck)
 			s->wheel_w[wheel] = 0.0;
+		derive_wheel(s, wheel);
 	}
 }
 
 void sim_set_encoder_cut(struct sim *s, int wheel, bool cut)
 {
-	if (wheel == SIM_LEFT || wheel == SIM_RIGHT)
+	if (wheel == SIM_LEFT || wheel == SIM_RIGHT) {
 		s->enc_cut[wheel] = cut;
+		derive_wheel(s, wheel);
+	}
 }
 
 void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut)
 {
-	if (wheel == SIM_LEFT || wheel == SIM_RIGHT)
+	if (wheel == SIM_LEFT || wheel == SIM_RIGHT) {
 		s->motor_enc_cut[wheel] = cut;
+		derive_wheel(s, wheel);
+	}
 }

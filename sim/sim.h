@@ -230,13 +230,22 @@ struct sim {
 	double inv_den_long[2], inv_den_lat;
 	double enc_y_m[2], enc_cnt_per_m[2], motor_cnt_per_wheel_step, enc_offset_x_m;
 	double corner_m[4][2], bound_radius_m, reach_m;
+	/* coefficients of a substep, from the constants above and the fault settings */
+	double cur_decay, cur_per_w, cur_in[2], px_per_tau[2], w_per_tau[2], f_per_tau[2];
+	double f_per_tread_long[2], f_per_slip_long[2], f_per_tread_lat, f_per_slip_lat;
+	double grip2_N2[2], v_per_f, omega_per_torque, omega_per_dfx, friction_per_w;
+	double motor_cnt_per_w[2], enc_cnt_per_u[2], enc_cnt_per_omega[2], noise_var_cnt[2];
+	double line_box[SIM_MAX_LINES][4]; /* each line's bounding box [mm] (field_line_boxes) */
 	/* state, SI */
 	double x, y, heading, cos_h, sin_h, vx, vy, omega;
 	double wheel_w[2], current[2], slip[2], contact_force;
 	double tread_m[2][2];            /* tyre deflection [m]: [wheel][along, across] */
 	double enc_pos[2], motor_pos[2]; /* [counts], continuous */
-	double noise_ds[2];              /* |ds| not yet given its noise [m] */
+	double noise_cnt[2];             /* |ds| not yet given its noise [counts] */
 	double clearance_m;              /* the outline touches nothing before moving this far */
+	uint8_t line_mask;               /* the line sensors (update_lines() in robot.c) ... */
+	double line_ref_mm[SIM_MAX_LINE_SENSORS][2]; /* ... computed with them here, field frame */
+	double line_margin_mm; /* ... and valid until one moves this far from there */
 	int16_t duty_q15[2];
 	double battery_V, volts_per_q15, volts[2], mu_scale[2], grip_N[2];
 	bool motor_stuck[2], enc_cut[2], motor_enc_cut[2];

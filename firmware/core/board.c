@@ -1,8 +1,11 @@
 /* The board: one tick function that runs the control period's steps in order (see board.h). */
 #include "board.h"
 
+#include "field_defs.h"
 #include "fixmath.h"
 #include "protocol_defs.h"
+
+typedef char board_field_baskets_fit[(FIELD_N_BASKETS <= ORDERS_MAX_BASKETS) ? 1 : -1];
 
 #define UM_PER_MM 1000
 #define STATUS_END_BITS (STATUS_CHOC_PANIER | STATUS_CHOC_BORD | STATUS_PB_MOTEUR)
@@ -19,7 +22,7 @@ void board_default_config(struct board_config *c)
 	c->odometry.right_um_per_count_q16 = um_per_count_q16;
 	c->odometry.track_um = 280000;
 
-	c->uncertainty.noise_left_mm2_per_m_q16 = 10 << 16; /* 0.1 mm^2/m, mid-range */
+	c->uncertainty.noise_left_mm2_per_m_q16 = (uint32_t)10 << 16; /* 0.1 mm^2/m, mid-range */
 	c->uncertainty.noise_left_mm2_per_m_q16 /= 100;
 	c->uncertainty.noise_right_mm2_per_m_q16 = c->uncertainty.noise_left_mm2_per_m_q16;
 	c->uncertainty.track_um = 280000;
@@ -61,16 +64,25 @@ void board_default_config(struct board_config *c)
 	c->orders.push_speed_um_s = 150000;
 	c->orders.push_max_um = 500000;
 	c->orders.basket_contact_um = 150000;
-	c->orders.n_baskets = 0;
+	{
+		/* the baskets of field/default.toml */
+		static const struct orders_basket baskets[] = FIELD_BASKETS;
+
+		c->orders.n_baskets = FIELD_N_BASKETS;
+		for (uint8_t i = 0; i < FIELD_N_BASKETS; i++)
+			c->orders.baskets[i] = baskets[i];
+	}
 	c->orders.tick_hz = 1000;
 	c->orders.jerk_um_s3 = 0;
 
 	/* The specification's initial position "0, bout du terrain", angle 0: x 0 on the field's
-	 * centre line, against the end of the field (its border at y -1050 mm, 2100 mm wide), the
-	 * robot facing +X along that border with its 300 mm wide outline touching it. Teams set
-	 * their own with the configuration or SET_NEW_POS. */
+	 * centre line, at the end of the field (its border at y -1050 mm, 2100 mm wide), the robot
+	 * facing +X along that border. The reference robot's 250 x 300 mm outline sweeps a circle
+	 * of 195 mm radius when it turns in place, so the start leaves it 200 mm from the border:
+	 * its first GOTO begins with a turn. Teams set their own with the configuration or
+	 * SET_NEW_POS. */
 	c->start.x_um = 0;
-	c->start.y_um = -900000;
+	c->start.y_um = -850000;
 	c->start.heading_turn32 = 0;
 }
 
@@ -90,7 +102,7 @@ static void measure(const struct board *b, const struct board_inputs *in, struct
 
 	m->pose = odometry_get_pose(&b->odometry);
 	m->dist_um = odometry_get_distance_um(&b->odometry);
-	m->angle_um = angle_axis_um(b);
+	m->angle_um = b->angle_um;
 	m->dist_speed_um_s = st.ds_um * b->cfg.tick_hz;
 	m->angle_speed_um_s = orders_arc_um(&b->orders, st.dtheta_turn32) * b->cfg.tick_hz;
 	m->basket_contact = in->basket;
@@ -114,6 +126,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	odometry_set_pose(&b->odometry, &cfg->start);
 	uncertainty_reset(&b->uncertainty, 0, 0); /* the start pose is the reference: no error */
 	b->heading_unwrapped_turn32 = 0;
+	b->angle_um = 0;
 	b->free_ratio_q16 = (int32_t)fx_div_round64((int64_t)cfg->orders.drive_track_um << 16,
 						    cfg->odometry.track_um);
 	if (orders_init(&b->orders, &cfg->orders, odometry_get_distance_um(&b->odometry), 0))
@@ -298,11 +311,16 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	/* 1. Encoders -> odometry (a wheel that jumps more than a tick can travel is a fault). */
 	encoder_fault = odometry_update(&b->odometry, in->free_count[0], in->free_count[1]) != 0;
 	step = odometry_get_step(&b->odometry);
-	b->heading_unwrapped_turn32 += step.dtheta_turn32;
+	if (step.dtheta_turn32 != 0) {
+		/* The angle axis only moves with the heading (a 64-bit product: skipped when
+		 * still). */
+		b->heading_unwrapped_turn32 += step.dtheta_turn32;
+		b->angle_um = angle_axis_um(b);
+	}
 
 	/* 2. Error radius. */
 	uncertainty_update(&b->uncertainty, step.left_q16, step.right_q16,
-			   odometry_get_pose(&b->odometry).heading_turn32);
+			   b->odometry.heading_turn32);
 
 	/* 3. The two polar axes and the pose, measured; the switches. */
 	measure(b, in, &m);

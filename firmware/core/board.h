@@ -47,6 +47,7 @@ struct board {
 	struct control control;
 	struct faults faults;
 	int64_t heading_unwrapped_turn32; /* exact sum of the odometry's heading steps */
+	int32_t angle_um;                 /* the angle axis, from heading_unwrapped_turn32 */
 	int32_t free_ratio_q16;           /* drive track / encoder track [2^-16] */
 	uint16_t tick;
 	uint8_t shocks; /* this tick's shock sensors */

@@ -13,48 +13,6 @@ static const int32_t sin_table_q30[33] = {
 	1053110176, 1062120190, 1068571464, 1072448455, 1073741824,
 };
 
-/* atan(2^-i) [turn * 2^32], the CORDIC rotation angles. */
-#define FX_CORDIC_STEPS 22
-static const uint32_t cordic_atan_turn32[FX_CORDIC_STEPS] = {
-	536870912, 316933406, 167458907, 85004756, 42667331, 21354465, 10679838, 5340245,
-	2670163,   1335087,   667544,    333772,   166886,   83443,    41722,    20861,
-	10430,     5215,      2608,      1304,     652,      326,
-};
-
-int32_t fx_shr_round(int32_t v, uint8_t n)
-{
-	return (int32_t)fx_shr_round64(v, n);
-}
-
-int64_t fx_shr_round64(int64_t v, uint8_t n)
-{
-	uint64_t mag;
-
-	if (n == 0)
-		return v;
-	/* Work on the magnitude in unsigned arithmetic: shifting a negative value right is
-	 * implementation-defined, and -INT64_MIN overflows. */
-	if (v >= 0) {
-		mag = (uint64_t)v;
-		return (int64_t)((mag + ((uint64_t)1 << (n - 1))) >> n);
-	}
-	mag = (uint64_t)0 - (uint64_t)v;
-	mag = (mag + ((uint64_t)1 << (n - 1))) >> n;
-	/* mag <= 2^62 + 1 here since n >= 1, so the negation stays in range. */
-	return -(int64_t)mag;
-}
-
-int32_t fx_mul_shr(int32_t a, int32_t b, uint8_t n)
-{
-	return fx_sat32(fx_shr_round64((int64_t)a * b, n));
-}
-
-int32_t fx_div_round(int32_t num, int32_t den)
-{
-	/* In 64 bits, INT32_MIN / -1 is representable; the result is then saturated. */
-	return fx_sat32(fx_div_round64(num, den));
-}
-
 int64_t fx_div_round64(int64_t num, int64_t den)
 {
 	uint64_t un = num >= 0 ? (uint64_t)num : (uint64_t)0 - (uint64_t)num;
@@ -74,43 +32,58 @@ int64_t fx_div_round64(int64_t num, int64_t den)
 	return (int64_t)q;
 }
 
-int32_t fx_sat32(int64_t v)
+/* floor(sqrt(v)) for a 32-bit v: digit-by-digit, shifts and adds only, one step per bit of the
+ * root (no multiply, which is slow on the AVR). Each step's choice is applied through a mask
+ * (all ones when the bit belongs to the root) rather than a branch: the choices are as good as
+ * random, and a mispredicted branch costs a PC more than the two extra operations. */
+static uint32_t isqrt32(uint32_t v)
 {
-	if (v > INT32_MAX)
-		return INT32_MAX;
-	if (v < INT32_MIN)
-		return INT32_MIN;
-	return (int32_t)v;
-}
-
-int16_t fx_sat16(int32_t v)
-{
-	if (v > INT16_MAX)
-		return INT16_MAX;
-	if (v < INT16_MIN)
-		return INT16_MIN;
-	return (int16_t)v;
-}
-
-uint32_t fx_isqrt64(uint64_t v)
-{
-	/* Digit-by-digit method: shifts and adds only, 32 fixed iterations (no multiply, which
-	 * is slow on the AVR). */
-	uint64_t res = 0;
-	uint64_t bit = (uint64_t)1 << 62;
+	uint32_t res = 0;
+	uint32_t bit = v < ((uint32_t)1 << 16) ? (uint32_t)1 << 14 : (uint32_t)1 << 30;
 
 	while (bit > v)
 		bit >>= 2;
 	while (bit != 0) {
-		if (v >= res + bit) {
-			v -= res + bit;
-			res = (res >> 1) + bit;
-		} else {
-			res >>= 1;
-		}
+		uint32_t t = res + bit;
+		uint32_t m = (uint32_t)0 - (uint32_t)(v >= t);
+
+		v -= t & m;
+		res = (res >> 1) + (bit & m);
 		bit >>= 2;
 	}
-	return (uint32_t)res;
+	return res;
+}
+
+uint32_t fx_isqrt64(uint64_t v)
+{
+	uint64_t r, q;
+	uint8_t m = 0;
+
+	if ((v >> 32) == 0)
+		return isqrt32((uint32_t)v);
+	/* The root of the top bits, then one Newton step: with v / 4^m in [2^30, 2^32), m in
+	 * 1..16, r0 = isqrt32(v / 4^m) 2^m is below sqrt(v) by less than 2^m, and the step
+	 * (r0 + v / r0) / 2, at least sqrt(v) (the mean of r0 and v / r0), is above it by less
+	 * than (2^m)^2 / (2 r0) <= 2^m / 2^16 <= 1: floor(sqrt(v)) or one more. One 64-bit
+	 * division instead of 16 more steps of 64-bit shifts. */
+	if ((v >> 48) != 0)
+		m = 8;
+	if ((v >> (2 * m + 40)) != 0)
+		m += 4;
+	if ((v >> (2 * m + 36)) != 0)
+		m += 2;
+	if ((v >> (2 * m + 34)) != 0)
+		m += 1;
+	if ((v >> (2 * m + 32)) != 0)
+		m += 1;
+	r = (uint64_t)isqrt32((uint32_t)(v >> (2 * m))) << m;
+	q = v / r;
+	r = (r + q) >> 1;
+	if (r > 0xffffffffu)
+		r = 0xffffffffu;
+	if (r * r > v)
+		r--;
+	return (uint32_t)r;
 }
 
 void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30)
@@ -166,39 +139,89 @@ void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30)
 	}
 }
 
-/* The angle of (x, y) with x >= y >= 0, x > 0, in 0..1/8 turn [turn * 2^32]. */
+/* atan(2^-i) [turn * 2^32], the CORDIC rotation angles. */
+#define FX_CORDIC_STEPS 10
+static const uint32_t cordic_atan_turn32[FX_CORDIC_STEPS] = {
+	536870912, 316933406, 167458907, 85004756, 42667331,
+	21354465,  10679838,  5340245,   2670163,  1335087,
+};
+
+/* 2^32 / (2 pi), turn * 2^32 per rad. */
+#define FX_TURN32_PER_RAD 683565276u
+
+/* The angle of (x, y) with x >= y >= 0, x > 0, in 0..1/8 turn [turn * 2^32].
+ * CORDIC vectoring in 32 bits (an AVR has no 64-bit registers, and a 64-bit shift by a variable
+ * count is a loop over eight bytes there), ten steps, then the residual angle phi from one
+ * division, phi = atan(y / x) ~ y / x.
+ * Bounds: the larger component is scaled to [2^28, 2^29), so |(x, y)| < 2^29.5; the CORDIC gain
+ * (1.647) keeps both components of the rotated vector below 2^30.3, in int32_t.
+ * Error: after ten steps |phi| <= atan(2^-9) rad, so |y| <= 2^30.3 * 2^-9 = 2^21.3, and
+ * atan(y / x) - y / x is below phi^3 / 3 = 2^-27 / 3 rad, 2 units. The ratio is taken as
+ * (|y| 2^10) / (x / 2^12), both in 32 bits (|y| 2^10 < 2^31.3, x / 2^12 >= 2^16), rounded: a
+ * ratio in units of 2^-22, within half a unit, 81 units of angle; x / 2^12 drops below 2^-16 of
+ * x, which moves phi by under 2^-16 phi, 2 units. Rounding the shifts (half a unit on a vector
+ * longer than 2^28) turns it by at most 2^-28 rad per step, under 30 units over ten steps; the
+ * table adds 5. In all well within the documented 4096 units (2^-20 turn). */
 static uint32_t atan_octant(uint32_t x, uint32_t y)
 {
-	uint8_t len = 0;
-	int64_t cx, cy;
-	uint32_t z = 0;
+	uint32_t cx, z, my, d, q;
+	int32_t cy;
 	uint8_t i;
 
 	if (y == 0)
 		return 0;
-	/* Scale the larger component to [2^40, 2^41) so that the shifts below lose nothing that
-	 * matters whatever the size of the inputs. */
-	while ((x >> len) > 1)
-		len++;
-	cx = (int64_t)x * ((int64_t)1 << (40 - len));
-	cy = (int64_t)y * ((int64_t)1 << (40 - len));
-	/* CORDIC vectoring: after 22 steps the residual angle is below atan(2^-21) rad, 326
-	 * units, well within the documented 4096 units (2^-20 turn). */
-	for (i = 0; i < FX_CORDIC_STEPS; i++) {
-		int64_t sx = fx_shr_round64(cx, i);
-		int64_t sy = fx_shr_round64(cy, i);
+	/* x <= 2^31: at most three halvings; rounding both keeps y <= x. */
+	while (x >= ((uint32_t)1 << 29)) {
+		x = (x + 1) >> 1;
+		y = (y + 1) >> 1;
+	}
+	/* The left shift that brings x into [2^28, 2^29), found by halves (16, 8, 4, 2, 1). */
+	if (x < ((uint32_t)1 << 13)) {
+		x <<= 16;
+		y <<= 16;
+	}
+	if (x < ((uint32_t)1 << 21)) {
+		x <<= 8;
+		y <<= 8;
+	}
+	if (x < ((uint32_t)1 << 25)) {
+		x <<= 4;
+		y <<= 4;
+	}
+	if (x < ((uint32_t)1 << 27)) {
+		x <<= 2;
+		y <<= 2;
+	}
+	if (x < ((uint32_t)1 << 28)) {
+		x <<= 1;
+		y <<= 1;
+	}
+	/* Step 0 rotates by 1/8 turn; then step i shifts by i. x stays positive (it only grows),
+	 * so its shift rounds with a bias; y is shifted as a magnitude (rounded half away from
+	 * zero like fx_shr_round) and, whatever its sign, the magnitude is added to x. */
+	cx = x + y;
+	cy = (int32_t)y - (int32_t)x;
+	z = cordic_atan_turn32[0];
+	for (i = 1; i < FX_CORDIC_STEPS; i++) {
+		uint32_t half = (uint32_t)1 << (i - 1);
+		uint32_t sx = (cx + half) >> i;
 
+		my = cy >= 0 ? (uint32_t)cy : (uint32_t)0 - (uint32_t)cy;
+		cx += (my + half) >> i;
 		if (cy >= 0) {
-			cx += sy;
-			cy -= sx;
+			cy -= (int32_t)sx;
 			z += cordic_atan_turn32[i];
 		} else {
-			cx -= sy;
-			cy += sx;
+			cy += (int32_t)sx;
 			z -= cordic_atan_turn32[i];
 		}
 	}
-	return z;
+	/* The residual: phi [2^-22 rad] = round(|y| 2^10 / (x / 2^12)), then to turn * 2^32. */
+	my = cy >= 0 ? (uint32_t)cy : (uint32_t)0 - (uint32_t)cy;
+	d = (cx + ((uint32_t)1 << 11)) >> 12;
+	q = ((my << 10) + (d >> 1)) / d;
+	q = (uint32_t)(((uint64_t)q * FX_TURN32_PER_RAD + ((uint64_t)1 << 21)) >> 22);
+	return cy >= 0 ? z + q : z - q;
 }
 
 uint32_t fx_atan2(int32_t y, int32_t x)
@@ -235,15 +258,4 @@ int32_t fx_turn32_to_cdeg(uint32_t angle_turn32)
 	int32_t a = fx_angle_diff(angle_turn32, 0);
 
 	return (int32_t)fx_shr_round64((int64_t)a * 36000, 32);
-}
-
-int32_t fx_angle_diff(uint32_t b_turn32, uint32_t a_turn32)
-{
-	uint32_t d = b_turn32 - a_turn32;
-
-	/* Converting an out-of-range unsigned value to int32_t is implementation-defined, so
-	 * the upper half is mapped by hand. */
-	if (d < FX_HALF_TURN32)
-		return (int32_t)d;
-	return (int32_t)(d - FX_HALF_TURN32) - INT32_MAX - 1;
 }

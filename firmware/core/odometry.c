@@ -54,7 +54,7 @@ static uint32_t heading_of_acc(const struct odometry *o, int64_t acc)
 {
 	uint64_t a = (uint64_t)acc;
 	uint64_t hi = (a >> 20) * o->turn_inv;
-	uint64_t lo = ((a & 0xfffffu) * o->turn_inv + (1u << 19)) >> 20;
+	uint64_t lo = ((a & 0xfffffu) * o->turn_inv + ((uint64_t)1 << 19)) >> 20;
 	uint8_t shift = (uint8_t)(o->turn_bits - 12);
 
 	return (uint32_t)((hi + lo + ((uint64_t)1 << (shift - 1))) >> shift);
@@ -115,6 +115,7 @@ int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_
 	o->step.right_q16 = 0;
 	o->step.ds_um = 0;
 	o->step.dtheta_turn32 = 0;
+	o->trig_valid = 0;
 	return 0;
 }
 
@@ -150,22 +151,37 @@ int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_coun
 
 	/* The heading is a function of an exact integer sum, so returning to the same counts
 	 * returns to the same heading bit for bit. |right - left| <= 2^32 and the period is
-	 * above 2^32, so one correction each way is enough. */
-	o->turn_acc_q16 += right - left;
-	if (o->turn_acc_q16 >= o->turn_period_q16)
-		o->turn_acc_q16 -= o->turn_period_q16;
-	if (o->turn_acc_q16 < 0)
-		o->turn_acc_q16 += o->turn_period_q16;
-	o->heading_turn32 = o->heading_base_turn32 + heading_of_acc(o, o->turn_acc_q16);
+	 * above 2^32, so one correction each way is enough. When right == left the sum, hence the
+	 * heading, is unchanged: the conversion is skipped (the same bits, fewer cycles). */
+	if (right != left) {
+		o->turn_acc_q16 += right - left;
+		if (o->turn_acc_q16 >= o->turn_period_q16)
+			o->turn_acc_q16 -= o->turn_period_q16;
+		if (o->turn_acc_q16 < 0)
+			o->turn_acc_q16 += o->turn_period_q16;
+		o->heading_turn32 = o->heading_base_turn32 + heading_of_acc(o, o->turn_acc_q16);
+	}
 	dtheta = fx_angle_diff(o->heading_turn32, before);
 
-	/* Exact arc: the chord, ds * sin(dtheta/2) / (dtheta/2), along the mean heading. */
-	chord_q17 = fx_shr_round64(both * half_sinc_q30(dtheta), 30);
-	mid = before + (uint32_t)fx_shr_round(dtheta, 1);
-	fx_sincos(mid, &s, &c);
-	o->x_q16 += fx_shr_round64(chord_q17 * c, 31);
-	o->y_q16 += fx_shr_round64(chord_q17 * s, 31);
-	o->distance_q17 += both;
+	/* Exact arc: the chord, ds * sin(dtheta/2) / (dtheta/2), along the mean heading. With no
+	 * travel of the midpoint (standing still, or turning on the spot) the chord is 0 and the
+	 * position does not move: the sine and cosine are skipped. sinc(0) is exactly 1. */
+	if (both != 0) {
+		chord_q17 = dtheta != 0 ? fx_shr_round64(both * half_sinc_q30(dtheta), 30) : both;
+		mid = before + (uint32_t)fx_shr_round(dtheta, 1);
+		/* While the robot goes straight the mean heading repeats from tick to tick: the
+		 * last sine and cosine are kept with their angle (same input, same output). */
+		if (mid != o->trig_turn32 || !o->trig_valid) {
+			fx_sincos(mid, &o->trig_sin_q30, &o->trig_cos_q30);
+			o->trig_turn32 = mid;
+			o->trig_valid = 1;
+		}
+		s = o->trig_sin_q30;
+		c = o->trig_cos_q30;
+		o->x_q16 += fx_shr_round64(chord_q17 * c, 31);
+		o->y_q16 += fx_shr_round64(chord_q17 * s, 31);
+		o->distance_q17 += both;
+	}
 
 	o->step.left_q16 = (int32_t)left;
 	o->step.right_q16 = (int32_t)right;

@@ -58,6 +58,11 @@ struct odometry {
 	int64_t y_q16;        /* [um * 2^16] */
 	int64_t distance_q17; /* signed travel of the midpoint since init [um * 2^17], exact */
 	struct odometry_step step;
+	/* The last mean heading the pose was advanced along, and its sine and cosine [2^-30]. */
+	uint8_t trig_valid;
+	uint32_t trig_turn32;
+	int32_t trig_sin_q30;
+	int32_t trig_cos_q30;
 };
 
 /* Start from the current counter values (so the first update does not jump), at pose (0, 0, 0).

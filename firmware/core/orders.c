@@ -45,6 +45,8 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	if (profile_init(&o->dist, &pc, dist_um) || profile_init(&o->angle, &pc, angle_um))
 		return -1;
 	o->designation = 0xFFu;
+	o->bearing_valid = 0;
+	o->trig_valid = 0;
 	o->state = ORDER_STATE_IDLE;
 	o->end_reason = END_REASON_NONE;
 	o->ended = 0;
@@ -102,6 +104,7 @@ static void begin(struct orders *o, uint8_t designation)
 	o->designation = designation;
 	o->frozen = 0;
 	o->ended = 0;
+	o->bearing_valid = 0; /* a new target */
 }
 
 static void end(struct orders *o, uint8_t reason)
@@ -120,48 +123,72 @@ static void aim(struct orders *o, const struct orders_measure *m, uint32_t headi
 	profile_set_target(&o->angle, m->angle_um + orders_arc_um(o, d));
 }
 
-static uint32_t bearing(const struct orders *o, const struct odometry_pose *p)
+/* The bearing of the target from the estimate. fx_atan2 is a CORDIC (22 steps, a few thousand
+ * cycles on an AVR), so its result is kept with the position it was computed from: turning on
+ * the spot moves the estimated position little or not at all (the two wheel travels cancel), a
+ * second call in the same tick finds it too, and the same inputs give the same output. */
+static uint32_t bearing(struct orders *o, const struct odometry_pose *p)
 {
-	return fx_atan2(o->target_y_um - p->y_um, o->target_x_um - p->x_um);
+	if (!o->bearing_valid || p->x_um != o->bearing_x_um || p->y_um != o->bearing_y_um) {
+		o->bearing_turn32 = fx_atan2(o->target_y_um - p->y_um, o->target_x_um - p->x_um);
+		o->bearing_x_um = p->x_um;
+		o->bearing_y_um = p->y_um;
+		o->bearing_valid = 1;
+	}
+	return o->bearing_turn32;
 }
 
-/* Distance to the target [um] and its projection on the heading [um], for GOTO. */
-static void remaining(const struct orders *o, const struct odometry_pose *p, int32_t *dist_um,
-		      int32_t *proj_um)
+/* The target within the freeze radius of the estimate: floor(|(dx, dy)|) <= R exactly, as
+ * dx^2 + dy^2 < (R + 1)^2 (no square root), and a component beyond R decides without a
+ * multiplication, which is the case for all but the last few centimetres of a GOTO. With
+ * |dx|, |dy| <= R < 2^31 the sum of the squares is below 2^63. */
+static int within_freeze(const struct orders *o, const struct odometry_pose *p)
 {
 	int32_t dx = o->target_x_um - p->x_um;
 	int32_t dy = o->target_y_um - p->y_um;
-	int32_t s, c;
+	int32_t r = o->cfg.freeze_radius_um;
+	int64_t r1 = (int64_t)r + 1;
 
-	fx_sincos(p->heading_turn32, &s, &c);
-	*dist_um = (int32_t)fx_isqrt64((uint64_t)((int64_t)dx * dx + (int64_t)dy * dy));
-	*proj_um = fx_sat32(fx_shr_round64((int64_t)dx * c + (int64_t)dy * s, 30));
+	if (dx > r || dx < -r || dy > r || dy < -r)
+		return 0;
+	return (int64_t)dx * dx + (int64_t)dy * dy < r1 * r1;
+}
+
+/* The projection of the target on the heading [um], for GOTO's distance axis. The sine and
+ * cosine of the heading are kept with it: going straight, the estimated heading often does not
+ * change from one tick to the next. */
+static int32_t projection(struct orders *o, const struct odometry_pose *p)
+{
+	int32_t dx = o->target_x_um - p->x_um;
+	int32_t dy = o->target_y_um - p->y_um;
+
+	if (!o->trig_valid || p->heading_turn32 != o->trig_turn32) {
+		fx_sincos(p->heading_turn32, &o->trig_sin_q30, &o->trig_cos_q30);
+		o->trig_turn32 = p->heading_turn32;
+		o->trig_valid = 1;
+	}
+	return fx_sat32(
+		fx_shr_round64((int64_t)dx * o->trig_cos_q30 + (int64_t)dy * o->trig_sin_q30, 30));
 }
 
 /* Too close to aim: no spinning on the spot, a straight correction along the current heading
  * (backwards if the target is just behind), the angle braking where it is. */
 static void straight_correction(struct orders *o, const struct orders_measure *m)
 {
-	int32_t dist, proj;
-
-	remaining(o, &m->pose, &dist, &proj);
 	o->frozen = 1;
 	enter(o, ORDER_STATE_TRANSLATE);
-	profile_set_target(&o->dist, m->dist_um + proj);
+	profile_set_target(&o->dist, m->dist_um + projection(o, &m->pose));
 	profile_stop(&o->angle);
 }
 
 void orders_goto(struct orders *o, const struct orders_measure *m, int32_t x_um, int32_t y_um,
 		 uint8_t options)
 {
-	int32_t dist, proj;
-
 	begin(o, PROTO_GOTO);
 	o->options = options;
 	o->target_x_um = x_um;
 	o->target_y_um = y_um;
-	remaining(o, &m->pose, &dist, &proj);
-	if (dist <= o->cfg.freeze_radius_um) {
+	if (within_freeze(o, &m->pose)) {
 		straight_correction(o, m);
 		return;
 	}
@@ -234,18 +261,15 @@ static int settled(struct orders *o, const struct orders_measure *m)
 
 static void step_goto(struct orders *o, const struct orders_measure *m)
 {
-	int32_t dist, proj;
-
 	if (o->frozen)
 		return;
-	remaining(o, &m->pose, &dist, &proj);
-	if (dist <= o->cfg.freeze_radius_um) {
+	if (within_freeze(o, &m->pose)) {
 		o->frozen = 1;
 		return;
 	}
 	aim(o, m, bearing(o, &m->pose));
 	if (o->state == ORDER_STATE_TRANSLATE)
-		profile_set_target(&o->dist, m->dist_um + proj);
+		profile_set_target(&o->dist, m->dist_um + projection(o, &m->pose));
 }
 
 static uint8_t update_state(struct orders *o, const struct orders_measure *m)

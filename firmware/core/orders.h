@@ -73,6 +73,16 @@ struct orders {
 	uint16_t settle_count;
 	uint16_t settle_time;
 	uint8_t frozen; /* GOTO within the freeze radius: targets no longer follow the estimate */
+	/* The last bearing of the target and the estimated position it was computed from. */
+	uint8_t bearing_valid;
+	int32_t bearing_x_um;
+	int32_t bearing_y_um;
+	uint32_t bearing_turn32;
+	/* The last estimated heading projected on, and its sine and cosine [2^-30]. */
+	uint8_t trig_valid;
+	uint32_t trig_turn32;
+	int32_t trig_sin_q30;
+	int32_t trig_cos_q30;
 	struct orders_axis sp_dist;
 	struct orders_axis sp_angle;
 };

@@ -45,20 +45,30 @@ static int64_t g_at_step(int64_t a, int64_t n, uint16_t h)
 	return a * (n * (n + 2 * (int64_t)h + 1) / 2);
 }
 
-/* The largest velocity v >= 0 [um/tick * 2^16] such that moving v this tick, cruising h ticks
- * and then braking by a per tick (the last step a fraction of a) covers at most r.
- * With v = n a + f, 0 <= f < a, that distance is g_h(n a) + (n + h + 1) f: piecewise linear and
- * increasing, so its inverse is exact up to the floor of f, and the remainder is carried to the
- * next tick by the position itself: braking from g_h^-1(r) lands exactly on r. */
-static int64_t max_velocity(const struct profile_params *prm, int64_t r, uint16_t h)
+/* The largest n >= 0 with g_h(n a) <= r: from the square root of a n^2 + a k n = 2 r, then the
+ * exact test settles the last unit. hint is the n found last time for this h: on a braking ramp
+ * n drops by one per tick, and while a small correction is held it stays, so the last n and its
+ * neighbours are tried first (each try is the exact test) and the 64-bit square root and
+ * division are only needed when the target or the limits jumped. */
+static int64_t step_count(const struct profile_params *prm, int64_t r, uint16_t h, int64_t *hint)
 {
 	int64_t a = prm->a_q16;
 	int64_t k = 2 * (int64_t)h + 1;
-	int64_t n;
+	int64_t n = *hint;
 
-	if (r >= prm->r_far_q16)
-		return (int64_t)prm->v_max_q16 + a;
-	/* Root of a n^2 + a k n = 2 r, then the exact test settles the last unit. */
+	if (n >= 0) {
+		if (g_at_step(a, n, h) <= r) {
+			if (g_at_step(a, n + 1, h) > r)
+				return n;
+			if (g_at_step(a, n + 2, h) > r) {
+				*hint = n + 1;
+				return n + 1;
+			}
+		} else if (n >= 1 && g_at_step(a, n - 1, h) <= r) {
+			*hint = n - 1;
+			return n - 1;
+		}
+	}
 	n = ((int64_t)fx_isqrt64((uint64_t)(k * k + 8 * (r / a))) - k) / 2;
 	if (n < 0)
 		n = 0;
@@ -66,7 +76,32 @@ static int64_t max_velocity(const struct profile_params *prm, int64_t r, uint16_
 		n--;
 	while (g_at_step(a, n + 1, h) <= r)
 		n++;
-	return n * a + (r - g_at_step(a, n, h)) / (n + h + 1);
+	*hint = n;
+	return n;
+}
+
+/* The largest velocity v >= 0 [um/tick * 2^16] such that moving v this tick, cruising h ticks
+ * and then braking by a per tick (the last step a fraction of a) covers at most r.
+ * With v = n a + f, 0 <= f < a, that distance is g_h(n a) + (n + h + 1) f: piecewise linear and
+ * increasing, so its inverse is exact up to the floor of f, and the remainder is carried to the
+ * next tick by the position itself: braking from g_h^-1(r) lands exactly on r.
+ * The remainder r - g_h(n a) is below g_h((n + 1) a) - g_h(n a) = a (n + h + 1), about v_max
+ * (below 2^31): when it and the divisor fit in 32 bits, which only extreme limits prevent, the
+ * division is done in 32 bits (the same quotient, a fraction of the cost on an AVR). */
+static int64_t max_velocity(struct profile *p, int64_t r, uint16_t h)
+{
+	const struct profile_params *prm = &p->prm;
+	int64_t a = prm->a_q16;
+	int64_t n, rem, den;
+
+	if (r >= prm->r_far_q16)
+		return (int64_t)prm->v_max_q16 + a;
+	n = step_count(prm, r, h, &p->n_hint[h != 0]);
+	rem = r - g_at_step(a, n, h);
+	den = n + h + 1;
+	if (rem <= (int64_t)UINT32_MAX && den <= (int64_t)UINT32_MAX)
+		return n * a + (int64_t)((uint32_t)rem / (uint32_t)den);
+	return n * a + rem / den;
 }
 
 /* Beyond r_far, braking cannot limit the velocity (max_velocity() >= v_max + a for any h up to
@@ -114,6 +149,13 @@ static void choose_window(struct profile *p, int64_t dist_q16)
 	struct profile_params *prm = &p->prm;
 	int64_t n = 1;
 
+	/* A trapezoid already set up for the same limits: at rest the filter is already empty
+	 * (one slot, zero velocity, the position sum equal to the position) and r_far is that of
+	 * these limits, so there is nothing to redo. This is the common case of a GOTO re-aiming
+	 * a resting angle axis every tick, and it spares the division of params_update_far(). */
+	if (prm->lim.j_max_um_s3 == 0 && prm->j_um_s3 == 0 && prm->n_filt == 1 &&
+	    prm->hold_len == 0 && prm->a_q16 == prm->a_full_q16 && p->far_ready)
+		return;
 	if (prm->lim.j_max_um_s3 == 0) {
 		prm->j_um_s3 = 0;
 		prm->a_q16 = prm->a_full_q16;
@@ -146,6 +188,7 @@ static void choose_window(struct profile *p, int64_t dist_q16)
 	}
 	prm->n_filt = (uint16_t)n;
 	params_update_far(prm);
+	p->far_ready = 1;
 	for (uint16_t i = 0; i < prm->n_filt; i++)
 		p->hist_q16[i] = 0;
 	p->idx = 0;
@@ -165,6 +208,9 @@ int profile_init(struct profile *p, const struct profile_config *cfg, int32_t po
 	p->prm.tick_hz = cfg->tick_hz;
 	params_set_limits(&p->prm, &cfg->limits);
 	p->prm.n_filt = 1;
+	p->far_ready = 0;
+	p->n_hint[0] = -1;
+	p->n_hint[1] = -1;
 	profile_reset(p, pos_um);
 	return 0;
 }
@@ -174,6 +220,7 @@ int profile_set_limits(struct profile *p, const struct profile_limits *lim)
 	if (!limits_valid(lim))
 		return -1;
 	params_set_limits(&p->prm, lim);
+	p->far_ready = 0; /* new limits: r_far is computed again */
 	if (at_rest(p)) {
 		choose_window(p, p->target_q16 - p->pos_in_q16 >= 0
 					 ? p->target_q16 - p->pos_in_q16
@@ -247,7 +294,7 @@ void profile_reset(struct profile *p, int32_t pos_um)
  * directions. In S-curve mode, after an acceleration of one sign none of the other sign is
  * allowed for hold_len ticks: the moving average then never sees +a and -a in one window, which
  * bounds its jerk by a / n_filt. */
-static int64_t next_velocity(const struct profile *p)
+static int64_t next_velocity(struct profile *p)
 {
 	const struct profile_params *prm = &p->prm;
 	int64_t r = p->target_q16 - p->pos_in_q16;
@@ -267,12 +314,12 @@ static int64_t next_velocity(const struct profile *p)
 		int64_t up = min64(vm + a, cap);
 
 		if (up > vm) {
-			int64_t v1 = max_velocity(prm, rm, prm->hold_len);
+			int64_t v1 = max_velocity(p, rm, prm->hold_len);
 
 			/* A residual below hold_len + 1 units (< 0.004 um) cannot be moved with
 			 * the hold: move it without. */
 			if (v1 == 0 && vm == 0 && rm > 0)
-				v1 = max_velocity(prm, rm, 0);
+				v1 = max_velocity(p, rm, 0);
 			if (v1 > vm) {
 				vn = min64(up, v1);
 				return s * vn;
@@ -282,7 +329,7 @@ static int64_t next_velocity(const struct profile *p)
 	/* Moving away without leave to turn yet, or not allowed to brake yet: keep going. */
 	if (vm <= 0 || hs > 0)
 		return s * vm;
-	vb = max_velocity(prm, rm, 0);
+	vb = max_velocity(p, rm, 0);
 	if (vm <= prm->v_max_q16 && vb >= vm)
 		return s * vm;
 	/* Brake: the largest feasible velocity, not below what a allows. Below lo only when the

@@ -25,14 +25,22 @@ static int64_t mul_shr_any(int64_t a, int64_t b, uint8_t n, int up)
 	int neg = (a < 0) != (b < 0);
 	uint64_t ua = a >= 0 ? (uint64_t)a : (uint64_t)0 - (uint64_t)a;
 	uint64_t ub = b >= 0 ? (uint64_t)b : (uint64_t)0 - (uint64_t)b;
-	uint64_t ll = (ua & m32) * (ub & m32);
-	uint64_t lh = (ua & m32) * (ub >> 32);
-	uint64_t hl = (ua >> 32) * (ub & m32);
-	uint64_t hh = (ua >> 32) * (ub >> 32);
-	uint64_t mid = (ll >> 32) + (lh & m32) + (hl & m32);
-	uint64_t lo = (ll & m32) | (mid << 32);
-	uint64_t hi = hh + (lh >> 32) + (hl >> 32) + (mid >> 32);
-	uint64_t res;
+	uint64_t lo, hi, res;
+
+	if (((ua | ub) >> 32) == 0) {
+		/* Both below 2^32: the product fits in 64 bits (one multiplication, not four). */
+		lo = ua * ub;
+		hi = 0;
+	} else {
+		uint64_t ll = (ua & m32) * (ub & m32);
+		uint64_t lh = (ua & m32) * (ub >> 32);
+		uint64_t hl = (ua >> 32) * (ub & m32);
+		uint64_t hh = (ua >> 32) * (ub >> 32);
+		uint64_t mid = (ll >> 32) + (lh & m32) + (hl & m32);
+
+		lo = (ll & m32) | (mid << 32);
+		hi = hh + (lh >> 32) + (hl >> 32) + (mid >> 32);
+	}
 
 	if (n > 0) {
 		uint64_t bias = up ? ((uint64_t)1 << n) - 1 : (uint64_t)1 << (n - 1);
@@ -332,6 +340,12 @@ void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q
 	if (u->batch_n < u->cfg.batch_ticks && u->batch_abs_left_q16 + u->batch_abs_right_q16 <
 						       ((int64_t)UNCERTAINTY_BATCH_PATH_UM << 16))
 		return;
+	if (u->batch_abs_left_q16 == 0 && u->batch_abs_right_q16 == 0) {
+		/* A batch without travel propagates nothing (the steps and the noise are zero,
+		 * Fp is the identity) and the radius is already that of the current state. */
+		clear_batch(u);
+		return;
+	}
 	propagate(u, heading_turn32);
 	clear_batch(u);
 	refresh_radius(u);

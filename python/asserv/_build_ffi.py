@@ -1,5 +1,6 @@
-"""cffi build script of asserv._core: the board's C sources compiled into the Python package,
-so that Python drives exactly the code the board runs (run by setup.py at install time)."""
+"""cffi build script of asserv._core: the board's C sources (control core, protocol layer, host
+port) and the physics simulator compiled into the Python package, so that Python drives exactly
+the code the board runs (run by setup.py at install time, i.e. by ``pip install -e .``)."""
 
 from pathlib import Path
 
@@ -7,13 +8,32 @@ from cffi import FFI
 
 ROOT = Path(__file__).resolve().parents[2]
 CORE = ROOT / "firmware" / "core"
+SIM = ROOT / "sim"
+PORTS = ROOT / "firmware" / "ports"
 
-SOURCES = [CORE / "protocol.c", CORE / "protocol_table.c"]
+SOURCES = [
+    *sorted(CORE.glob("*.c")),
+    *(SIM / n for n in ("config.c", "field.c", "rng.c", "robot.c")),
+    PORTS / "common" / "port.c",
+    PORTS / "host" / "host.c",
+]
+INCLUDES = [CORE, ROOT / "firmware" / "hal", PORTS / "common", PORTS / "host", SIM]
 
+# Only what Python touches is declared; "...;" lets the C compiler fill in the rest of a struct,
+# and a mismatch with the headers is a build error (cffi API mode).
 CDEF = """
 #define PROTO_MAX_PARAMS ...
 #define PROTO_MAX_REPLY ...
+#define SIM_MAX_SHOCK ...
+#define SIM_MAX_LINE_SENSORS ...
+#define SIM_MAX_OBSTACLES ...
+#define SIM_MAX_LINES ...
+#define SIM_SHAPE_CIRCLE ...
+#define SIM_SHAPE_BOX ...
+#define SIM_OBSTACLE_BASKET ...
+#define SIM_OBSTACLE_OTHER ...
 
+/* ---- protocol layer (firmware/core/protocol.h) ---- */
 struct proto_msg {
     uint8_t designation;
     uint8_t n_args;
@@ -59,16 +79,169 @@ void proto_on_abort(struct proto *p);
 int proto_poll(struct proto *p, struct proto_msg *out);
 void proto_publish(struct proto *p, const struct proto_snapshot *s);
 uint8_t proto_status(const struct proto *p);
+
+/* ---- physics (sim/sim.h) ---- */
+struct sim_obstacle {
+    uint8_t shape;
+    uint8_t kind;
+    double x_mm;
+    double y_mm;
+    double radius_mm;
+    double half_x_mm;
+    double half_y_mm;
+};
+
+struct sim_line {
+    double x0_mm;
+    double y0_mm;
+    double x1_mm;
+    double y1_mm;
+    double width_mm;
+};
+
+struct sim_field {
+    double length_mm;
+    double width_mm;
+    bool borders;
+    uint8_t obstacle_count;
+    struct sim_obstacle obstacles[...];
+    uint8_t line_count;
+    struct sim_line lines[...];
+};
+
+struct sim_point { double x_mm; double y_mm; };
+struct sim_pose { double x_mm; double y_mm; double heading_rad; };
+
+struct sim_motor_config {
+    double kv_rpm_per_V;
+    double kt_mNm_per_A;
+    double resistance_ohm;
+    double inductance_mH;
+    double rotor_inertia_g_cm2;
+    double friction_mNm;
+    double gear_ratio;
+    double gear_efficiency;
+    uint32_t encoder_cpr;
+};
+
+struct sim_config {
+    double mass_kg;
+    double yaw_inertia_kg_m2;
+    double drive_weight_share;
+    double friction_coeff;
+    double tyre_stiffness_N_m;
+    double slip_damping_N_s_m;
+    double drive_radius_mm;
+    double drive_track_mm;
+    double wheel_inertia_g_cm2;
+    struct sim_motor_config motor;
+    double battery_V;
+    bool lifted;
+    double enc_radius_mm;
+    double enc_track_mm;
+    double enc_offset_x_mm;
+    double enc_radius_error[2];
+    double enc_track_error_mm;
+    double enc_noise_mm2_per_m[2];
+    uint32_t enc_cpr;
+    double outline_length_mm;
+    double outline_width_mm;
+    double outline_offset_x_mm;
+    double outline_offset_y_mm;
+    uint8_t shock_count;
+    struct sim_point shock[...];
+    double shock_range_mm;
+    bool basket_sensor;
+    struct sim_point basket_sensor_pos;
+    uint8_t line_sensor_count;
+    struct sim_point line_sensor[...];
+    double wall_stiffness_N_m;
+    double wall_damping_N_s_m;
+    double wall_friction_coeff;
+    uint32_t substep_ns;
+    struct sim_pose start;
+    uint64_t seed;
+};
+
+struct sim_truth {
+    struct sim_pose pose;
+    struct sim_pose odo_pose;
+    double vx_mm_s;
+    double vy_mm_s;
+    double v_mm_s;
+    double v_lateral_mm_s;
+    double omega_rad_s;
+    double wheel_speed_mm_s[2];
+    double slip_mm_s[2];
+    double current_A[2];
+    double contact_force_N;
+    uint64_t time_ns;
+};
+
+struct sim { ...; };
+
+void sim_field_defaults(struct sim_field *f);
+void sim_config_defaults(struct sim_config *cfg);
+void sim_config_randomize(struct sim_config *cfg, uint64_t seed);
+void sim_get_truth(const struct sim *s, struct sim_truth *out);
+void sim_set_pose(struct sim *s, const struct sim_pose *pose);
+void sim_set_battery_V(struct sim *s, double volts);
+void sim_set_friction_scale(struct sim *s, int wheel, double scale);
+void sim_set_motor_stuck(struct sim *s, int wheel, bool stuck);
+void sim_set_encoder_cut(struct sim *s, int wheel, bool cut);
+void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut);
+
+/* ---- the board on the simulator (firmware/ports/host/host.h) ---- */
+struct odometry_pose { int32_t x_um; int32_t y_um; uint32_t heading_turn32; };
+struct board_config { uint16_t tick_hz; struct odometry_pose start; ...; };
+struct board { struct board_config cfg; struct proto proto; uint8_t status; ...; };
+
+struct host {
+    struct sim sim;
+    struct board board;
+    uint64_t tick_ns;
+    uint64_t ticks;
+    uint64_t now_ns;
+    ...;
+};
+
+struct host_sample {
+    double t_s;
+    double x_mm, y_mm;
+    double heading_deg;
+    double est_x_mm, est_y_mm;
+    double est_heading_deg;
+    double radius_mm;
+    double v_mm_s;
+    double omega_deg_s;
+    double v_set_mm_s;
+    double omega_set_deg_s;
+    double duty_left, duty_right;
+    double current_left_A, current_right_A;
+    double contact_force_N;
+    double status;
+    double order_state;
+    double shocks;
+};
+
+void board_default_config(struct board_config *cfg);
+void host_board_config(const struct sim_config *sc, const struct sim_field *f,
+                       struct board_config *bc);
+int host_init(struct host *h, const struct board_config *bc, const struct sim_config *sc,
+              const struct sim_field *f);
+uint64_t host_advance_ns(struct host *h, uint64_t duration_ns, struct host_sample *buf,
+                         uint32_t cap, uint32_t *n_out);
 """
 
 ffibuilder = FFI()
 ffibuilder.cdef(CDEF)
 ffibuilder.set_source(
     "asserv._core",
-    '#include "protocol.h"\n',
+    '#include "protocol.h"\n#include "sim.h"\n#include "host.h"\n',
     sources=[str(s.relative_to(ROOT)) for s in SOURCES],
-    include_dirs=[str(CORE.relative_to(ROOT))],
-    extra_compile_args=["-std=c99", "-Wall", "-Wextra"],
+    include_dirs=[str(i) for i in INCLUDES],
+    # As the CMake build: C99, and no fused multiply-add so the physics gives the same bits.
+    extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-ffp-contract=off"],
 )
 
 if __name__ == "__main__":

@@ -1,11 +1,11 @@
-"""The ``asserv`` command line: demonstrations and protocol tools."""
+"""The ``asserv`` command line: the annex demonstration, simulated scenarios, protocol tools."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from . import codec
+from . import cli_bus, codec
 
 
 def _parse_bytes(words: list[str]) -> bytes:
@@ -31,10 +31,35 @@ def _parse_ints(name: str, words: list[str]) -> list[int]:
     return out
 
 
+def _sim_run(path: str, png: str | None) -> int:
+    from . import plots, scenario
+
+    try:
+        scn = scenario.load(path)
+    except scenario.ScenarioError as e:
+        print(f"asserv sim run: {e}", file=sys.stderr)
+        return 2
+    res = scenario.play(scn)
+    scenario.summary(res)
+    if png:
+        out = plots.plot_run(res.sim.trace, scn.field, png, title=path, targets=res.targets)
+        print(f"plot: {out}")
+    return 0 if res.ok else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="asserv", description=__doc__)
     sub = ap.add_subparsers(dest="command", required=True)
-    sub.add_parser("demo", help="the specification's annex session through the board's C layer")
+    demo_p = sub.add_parser(
+        "demo", help="the specification's annex session on the simulated board (frames, poses, PNG)"
+    )
+    demo_p.add_argument("--png", default="asserv-demo.png", help="plot file (default %(default)s)")
+    demo_p.add_argument("--no-png", action="store_true", help="do not write the plot")
+    sim = sub.add_parser("sim", help="the simulated board")
+    simsub = sim.add_subparsers(dest="sim_command", required=True)
+    run_p = simsub.add_parser("run", help="play a scenario file (orders, waits) on the simulator")
+    run_p.add_argument("scenario", help="scenario file, e.g. scenarios/annex.txt")
+    run_p.add_argument("--png", help="also write a plot of the run to this file")
     enc = sub.add_parser("encode", help="print the bytes of a write, e.g. encode GOTO 200 100 0")
     enc.add_argument("message")
     enc.add_argument("params", nargs="*")
@@ -43,12 +68,17 @@ def main(argv: list[str] | None = None) -> int:
         "decode", help="explain the bytes of a write, e.g. decode 00 00 c8 00 64 00"
     )
     dec.add_argument("bytes", nargs="+")
+    cli_bus.add_bus_arguments(ap, sub)
     args = ap.parse_args(argv)
+    if cli_bus.is_bus_command(args):
+        return cli_bus.run_bus_command(args)
 
     if args.command == "demo":
-        from . import protodemo
+        from . import demo
 
-        return protodemo.run()
+        return demo.run(png=None if args.no_png else args.png)
+    if args.command == "sim":
+        return _sim_run(args.scenario, args.png)
     try:
         if args.command == "encode":
             frame = codec.encode(

@@ -111,6 +111,7 @@ int host_init(struct host *h, const struct board_config *bc, const struct sim_co
 		return err;
 	h->tick_ns = 1000000000u / bc->tick_hz;
 	h->ticks = 0;
+	h->now_ns = 0;
 	read_sensors(h);
 	port_sample(&in);
 	return board_init(&h->board, bc, &in);
@@ -123,6 +124,7 @@ void host_tick(struct host *h)
 	sim_set_duty(&h->sim, duty[HAL_LEFT], duty[HAL_RIGHT]);
 	sim_advance_ns(&h->sim, h->tick_ns);
 	h->ticks++;
+	h->now_ns += h->tick_ns; /* same clock as host_advance_ns(): call it on a tick boundary */
 }
 
 void host_i2c_write(struct host *h, const uint8_t *data, uint8_t n, int stop)
@@ -140,4 +142,72 @@ void host_i2c_read(struct host *h, uint8_t *out, uint8_t n)
 	for (uint8_t i = 0; i < n; i++)
 		out[i] = proto_read_byte(&h->board.proto);
 	proto_on_stop(&h->board.proto);
+}
+
+static double turn32_deg(uint32_t heading_turn32)
+{
+	return (double)(int32_t)heading_turn32 * (360.0 / 4294967296.0);
+}
+
+static void record(const struct host *h, struct host_sample *r)
+{
+	const double rad_deg = 57.29577951308232;
+	const struct board *b = &h->board;
+	struct sim_truth t;
+	struct odometry_pose est;
+	double half_track_um = b->cfg.orders.drive_track_um / 2.0;
+
+	sim_get_truth(&h->sim, &t);
+	est = odometry_get_pose(&b->odometry);
+	r->t_s = h->now_ns * 1e-9;
+	r->x_mm = t.odo_pose.x_mm;
+	r->y_mm = t.odo_pose.y_mm;
+	r->heading_deg = t.odo_pose.heading_rad * rad_deg;
+	r->est_x_mm = est.x_um * 1e-3;
+	r->est_y_mm = est.y_um * 1e-3;
+	r->est_heading_deg = turn32_deg(est.heading_turn32);
+	r->radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
+	r->v_mm_s = t.v_mm_s;
+	r->omega_deg_s = t.omega_rad_s * rad_deg;
+	r->v_set_mm_s = b->orders.sp_dist.vel_um_s * 1e-3;
+	r->omega_set_deg_s = b->orders.sp_angle.vel_um_s / half_track_um * rad_deg;
+	r->duty_left = duty[HAL_LEFT] / 32768.0;
+	r->duty_right = duty[HAL_RIGHT] / 32768.0;
+	r->current_left_A = t.current_A[SIM_LEFT];
+	r->current_right_A = t.current_A[SIM_RIGHT];
+	r->contact_force_N = t.contact_force_N;
+	r->status = b->status;
+	r->order_state = b->orders.state;
+	r->shocks = b->shocks;
+}
+
+uint64_t host_advance_ns(struct host *h, uint64_t duration_ns, struct host_sample *buf,
+			 uint32_t cap, uint32_t *n_out)
+{
+	uint64_t end_ns = h->now_ns + duration_ns;
+	uint64_t start_ns = h->now_ns;
+	uint32_t n = 0;
+
+	while (h->now_ns < end_ns) {
+		uint64_t next_ns;
+
+		if (h->now_ns == h->ticks * h->tick_ns) {
+			if (buf && n >= cap)
+				break; /* full: the caller empties buf before this tick runs */
+			read_sensors(h);
+			port_control_tick(&h->board);
+			sim_set_duty(&h->sim, duty[HAL_LEFT], duty[HAL_RIGHT]);
+			h->ticks++;
+			if (buf)
+				record(h, &buf[n++]);
+		}
+		next_ns = h->ticks * h->tick_ns;
+		if (next_ns > end_ns)
+			next_ns = end_ns;
+		sim_advance_ns(&h->sim, next_ns - h->now_ns);
+		h->now_ns = next_ns;
+	}
+	if (n_out)
+		*n_out = n;
+	return h->now_ns - start_ns;
 }

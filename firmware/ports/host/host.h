@@ -13,6 +13,7 @@ struct host {
 	struct board board;
 	uint64_t tick_ns; /* control period */
 	uint64_t ticks;   /* control periods run */
+	uint64_t now_ns;  /* host_advance_ns()'s clock: control tick k runs at k * tick_ns */
 };
 
 /* The board configuration that matches a simulated robot: encoder wheels, tracks, motor
@@ -35,5 +36,36 @@ void host_tick(struct host *h);
  * repeated start), and a read of n bytes ending with a STOP. */
 void host_i2c_write(struct host *h, const uint8_t *data, uint8_t n, int stop);
 void host_i2c_read(struct host *h, uint8_t *out, uint8_t n);
+
+/* One row of the trace host_advance_ns() records at each control tick, after the board's tick
+ * (all doubles, so that Python reads a buffer of them as a structured array; field order and
+ * names are mirrored in python/asserv/sim.py). Truth is the simulator's, estimates the board's. */
+struct host_sample {
+	double t_s;         /* time of the tick */
+	double x_mm, y_mm;  /* true pose of the encoder axis midpoint (the spec's position) */
+	double heading_deg; /* true heading, -180..180 */
+	double est_x_mm, est_y_mm;              /* the board's estimate (odometry) */
+	double est_heading_deg;                 /* -180..180 */
+	double radius_mm;                       /* the board's error radius */
+	double v_mm_s;                          /* true forward speed */
+	double omega_deg_s;                     /* true turn rate */
+	double v_set_mm_s;                      /* distance axis set-point speed */
+	double omega_set_deg_s;                 /* angle axis set-point turn rate */
+	double duty_left, duty_right;           /* -1..1 of the battery */
+	double current_left_A, current_right_A; /* motor currents */
+	double contact_force_N;                 /* border/basket push on the outline */
+	double status;                          /* the board's status byte (STATUS_*) */
+	double order_state;                     /* ORDER_STATE_* */
+	double shocks;                          /* shock switch mask */
+};
+
+/* Runs the simulated board for duration_ns: control ticks at multiples of tick_ns (the first at
+ * now_ns = 0), the physics in between, so that an I2C byte can arrive at any instant between two
+ * ticks (host_i2c_* act at now_ns). Records one host_sample per tick into buf while fewer than
+ * cap are recorded (buf may be NULL with cap 0) and stops early when buf is full, so that the
+ * caller can empty it and call again. Returns the nanoseconds advanced; *n_out receives the
+ * samples written. */
+uint64_t host_advance_ns(struct host *h, uint64_t duration_ns, struct host_sample *buf,
+			 uint32_t cap, uint32_t *n_out);
 
 #endif

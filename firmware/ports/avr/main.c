@@ -1,0 +1,57 @@
+/* The asserv board on an ATmega1284P at 16 MHz: start-up, then the control loop. Pin map:
+ * pinmap.h; build, fuses and flashing: docs/avr.md. */
+#include <avr/interrupt.h>
+#include <avr/io.h>
+#include <avr/wdt.h>
+
+#include "avr_port.h"
+#include "hal.h"
+#include "pinmap.h"
+#include "port.h"
+
+struct board asserv_board;
+
+/* Periods the tick missed because the previous one ran over (a debugger reads it). */
+volatile uint16_t avr_tick_overruns;
+
+/* After a watchdog reset the watchdog stays on: turn it off before anything else. */
+void avr_early_init(void) __attribute__((naked, used, section(".init3")));
+void avr_early_init(void)
+{
+	MCUSR = 0;
+	wdt_disable();
+}
+
+int main(void)
+{
+	struct board_config cfg;
+	struct board_inputs in;
+
+	/* JTAG off so that PC2..PC5 are the free encoders' pins (two writes within 4 cycles). */
+	MCUCR = _BV(JTD);
+	MCUCR = _BV(JTD);
+	avr_sensors_init();
+	avr_motor_init();
+	avr_encoder_init();
+	avr_robot_config(&cfg);
+	port_sample(&in);
+	if (board_init(&asserv_board, &cfg, &in) != 0) {
+		/* A configuration the core refuses: motors off, no bus, wait for a new binary. */
+		for (;;)
+			;
+	}
+	hal_i2c_slave_init(PROTO_ADDRESS);
+	hal_tick_start(cfg.tick_hz);
+	wdt_enable(WDTO_60MS);
+	sei();
+	for (;;) {
+		uint8_t n = avr_tick_wait();
+
+		if (n > 1)
+			avr_tick_overruns += (uint16_t)(n - 1u);
+		PORTD |= _BV(PIN_TICK_BIT);
+		port_control_tick(&asserv_board);
+		PORTD &= (uint8_t)~_BV(PIN_TICK_BIT);
+		wdt_reset();
+	}
+}

@@ -1,0 +1,38 @@
+/* The robot this binary drives: the reference robot of board_default_config() with the motor
+ * encoders an interrupt-decoding 8-bit board can follow, at the control rate CONFIG_AVR_TICK_HZ
+ * (a build option, docs/avr.md). A team edits this file for its robot. Plain C (no register
+ * access): the simavr harness compiles it too, so that its native reference run has the very
+ * same configuration. */
+#include "robot.h"
+
+#ifndef CONFIG_AVR_TICK_HZ
+#define CONFIG_AVR_TICK_HZ 1000
+#endif
+
+/* A duration given in ticks at 1 kHz, in ticks at the build's rate (at least 1). */
+static uint16_t ticks_of(uint32_t ticks_at_1khz)
+{
+	uint32_t t = (ticks_at_1khz * CONFIG_AVR_TICK_HZ + 500u) / 1000u;
+
+	return (uint16_t)(t ? t : 1u);
+}
+
+void avr_robot_config(struct board_config *cfg)
+{
+	board_default_config(cfg);
+	/* Magnetic encoders on the motor shafts, 12 lines (48 counts per motor turn after x4):
+	 * 4760 edges/s per motor at 1 m/s through the 20.25:1 gearbox, which the pin-change
+	 * interrupts follow. A 2048-count encoder would need 200 000 edges/s: a hardware decoder.
+	 * 2 pi 32.5 mm / (48 * 20.25) = 210.08 um per count, * 2^16. */
+	cfg->faults.motor_um_per_count_q16 = 13768191;
+
+	/* The control rate, and the durations the defaults give in ticks at 1 kHz kept in time. */
+	cfg->tick_hz = CONFIG_AVR_TICK_HZ;
+	cfg->control.tick_hz = CONFIG_AVR_TICK_HZ;
+	cfg->orders.tick_hz = CONFIG_AVR_TICK_HZ;
+	cfg->faults.following_ticks = ticks_of(cfg->faults.following_ticks);
+	cfg->faults.current_ticks = ticks_of(cfg->faults.current_ticks);
+	cfg->faults.repeat_window_ticks = ticks_of(cfg->faults.repeat_window_ticks);
+	cfg->orders.settle_ticks = ticks_of(cfg->orders.settle_ticks);
+	cfg->orders.settle_timeout_ticks = ticks_of(cfg->orders.settle_timeout_ticks);
+}

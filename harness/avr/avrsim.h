@@ -1,0 +1,135 @@
+/* The AVR firmware binary run in simavr, in lockstep with the robot physics (sim/): the
+ * harness plays the I2C master at a real bus speed (it models the ATmega's TWI slave itself,
+ * because simavr 1.6's is broken), feeds the quadrature edges of the four encoders at the cycles
+ * the physics gives, drives the switches, line sensors and current-sense inputs, and reads the
+ * PWM duty back from the timer registers. Deterministic: the same binary and inputs give the
+ * same cycles and bits. docs/avr.md describes the lockstep modes. */
+#ifndef ASSERV_HARNESS_AVRSIM_H
+#define ASSERV_HARNESS_AVRSIM_H
+
+#include <stdint.h>
+#include <stdio.h>
+
+#include "avr_layout.h"
+#include "sim.h"
+
+#define AVRSIM_F_CPU 16000000u
+
+enum avrsim_lockstep {
+	/* No physics: the inputs stay as avrsim_open() set them (at rest, nothing pressed). */
+	AVRSIM_NO_PHYSICS = 0,
+	/* The physics follows the cycles: 100 us substeps of 1600 cycles from the first control
+	 * period on, edges interpolated inside each substep, the duty read at each substep's
+	 * start. What the board sees on a robot, latencies included. */
+	AVRSIM_REALTIME,
+	/* The physics stands still from the control timer's compare match until the tick has
+	 * written its duties (the TICK pin falls); the period's 1 ms of physics then runs, with
+	 * that duty, in the cycles left before the next compare match (less a guard). The tick
+	 * therefore samples the sensors of the instant of its compare match and its duty acts
+	 * from that instant: the timing of the native host port, so that both runs can be
+	 * compared bit for bit. */
+	AVRSIM_EXACT,
+};
+
+struct avrsim_count {
+	uint64_t n;      /* occurrences */
+	uint64_t cycles; /* sum */
+	uint64_t max;
+};
+
+struct avrsim_stats {
+	uint64_t cycles;                 /* simulated since the last reset of the stats */
+	uint64_t idle;                   /* of which asleep */
+	struct avrsim_count tick;        /* TICK pin high, rise to fall (interrupts included) */
+	struct avrsim_count period;      /* cycles awake per control period (compare to compare) */
+	struct avrsim_count isr[64];     /* per vector, each with its 4-cycle response */
+	struct avrsim_count twi[32];     /* the TWI interrupt per status (index status >> 3) */
+	struct avrsim_count stretch[32]; /* SCL held low past the master's low half-period,
+					  * per status that held it [cycles] */
+	uint64_t twi_bytes;              /* address and data bytes on the bus */
+	uint64_t edges;                  /* encoder edges delivered */
+	uint64_t stop_pending_at_start;  /* a START waited for the last STOP's interrupt */
+	uint16_t sp_min;                 /* lowest stack pointer seen */
+};
+
+struct avrsim;
+
+/* Loads the ELF (an ATmega1284P at 16 MHz), resets it, drives every input pin to rest (encoders
+ * at count 0, switches open, no line, 0 A) and the bus idle. i2c_hz: SCL frequency of the
+ * master, 100000 or 400000. Returns NULL with a message on stderr. */
+struct avrsim *avrsim_open(const char *elf_path, uint32_t i2c_hz);
+void avrsim_close(struct avrsim *h);
+
+/* Attaches the physics before the first control period (the robot at rest: the board's counts
+ * at reset are the simulator's). sc, f are copied. Returns 0 or -1. */
+int avrsim_physics(struct avrsim *h, const struct sim_config *sc, const struct sim_field *f,
+		   enum avrsim_lockstep mode);
+
+/* Runs until the TICK pin falls (a control period's work is done; its duties are set). */
+int avrsim_run_to_tick_end(struct avrsim *h);
+/* Runs until the firmware sleeps between two ticks (TICK pin low). */
+int avrsim_run_until_idle(struct avrsim *h);
+/* Runs n cycles (at least). */
+int avrsim_run_cycles(struct avrsim *h, uint64_t n);
+
+/* I2C master transactions, blocking: the AVR (and the physics) run while the bus does.
+ * avrsim_i2c_write: S (or Sr if the bus is held) 0x04 [data...], then P if stop, otherwise the
+ * bus stays held for a read by repeated start. n may be 0 (address only). avrsim_i2c_read:
+ * S or Sr, 0x05, n bytes (the last NACKed), P. Return 0, or -1 on a NACK or a timeout. */
+int avrsim_i2c_write(struct avrsim *h, const uint8_t *data, uint8_t n, int stop);
+int avrsim_i2c_read(struct avrsim *h, uint8_t *out, uint8_t n);
+
+/* The 7-bit address the master's next transactions go to (PROTO_ADDRESS after open). */
+void avrsim_i2c_address(struct avrsim *h, uint8_t address);
+
+/* Masks or unmasks the control timer's interrupt (as a debugger would): with it masked, no
+ * tick runs and the protocol's queue and snapshot stay as they are. */
+void avrsim_tick_enable(struct avrsim *h, int on);
+
+/* Without physics: the four encoders (as below) turn at constant rates [counts/s, signed] from
+ * now on, their edges evenly spaced. Returns 0, or -1 with physics attached. */
+int avrsim_encoders_turn(struct avrsim *h, const double counts_per_s[4]);
+
+/* Encoder e (0 free left, 1 free right, 2 motor left, 3 motor right): the count its pins show
+ * now, from the edges delivered so far (the physics' count at the edge). */
+int64_t avrsim_encoder_edges(const struct avrsim *h, int e);
+
+/* The data address of a variable of the binary, by name. Returns 0, or -1 if there is none. */
+int avrsim_symbol(const struct avrsim *h, const char *name, uint16_t *addr);
+
+/* 1 when no interrupt runs and none is pending. */
+int avrsim_interrupts_idle(const struct avrsim *h);
+
+/* The board in the AVR's RAM: its data address and the layout record (avr_layout.h). */
+uint16_t avrsim_board(const struct avrsim *h);
+const struct avr_layout *avrsim_layout(const struct avrsim *h);
+void avrsim_peek(const struct avrsim *h, uint16_t addr, void *buf, uint16_t n);
+void avrsim_poke(struct avrsim *h, uint16_t addr, const void *buf, uint16_t n);
+
+/* The physics the AVR drives (NULL without it), the current cycle, the cycle of the next
+ * compare match of the control timer, and the control periods seen. */
+const struct sim *avrsim_sim(const struct avrsim *h);
+uint64_t avrsim_cycle(const struct avrsim *h);
+uint64_t avrsim_next_compare(const struct avrsim *h);
+uint64_t avrsim_ticks(const struct avrsim *h);
+
+/* Statistics since the last avrsim_stats_reset(). */
+const struct avrsim_stats *avrsim_stats(const struct avrsim *h);
+void avrsim_stats_reset(struct avrsim *h);
+
+/* Per-function profile (slower): cycles attributed to the function whose code runs (self) and
+ * to every function on the call stack (inclusive), interrupts apart from what they preempt.
+ * Only while the TICK pin is high when tick_only. Starts from zero. The report lists the top
+ * functions by inclusive cycles, divided by per: over every tick profiled, or (worst) in the
+ * longest tick alone. */
+void avrsim_profile(struct avrsim *h, int on, int tick_only);
+void avrsim_profile_report(const struct avrsim *h, FILE *out, int top, uint64_t per, int worst);
+
+/* Flash and RAM of the binary (bytes): .text + .data, .data + .bss. */
+void avrsim_sizes(const struct avrsim *h, uint32_t *flash, uint32_t *ram);
+
+/* The duty the physics receives for compare counts and a direction pin (high = backward),
+ * [2^-15]: what the board's hal_motor_set() produces, as the motor sees it. */
+int16_t avrsim_duty_q15(uint16_t counts, int backward);
+
+#endif

@@ -1,0 +1,240 @@
+/* Benchmark of the AVR binary in simavr (prints, asserts nothing).
+ *
+ * The robot drives 2.4 m straight at 1 m/s (1 m/s^2) while a master polls CHECK_BUSY every
+ * 10 ms and reads POSITION every 20 ms over I2C at 100 kHz. The run uses the exact lockstep
+ * (avrsim.h), in which the tick takes no time for the physics: the robot follows its profile
+ * whatever the tick costs, so that the tick's cycles are those of the real motion even when the
+ * binary could not keep up in real time. Interrupts do not preempt the tick there; each is
+ * measured on its own, and the load of a control period in real time is their sum:
+ *     tick + (edges per period x encoder interrupt) + ADC (2) + timer (1) + TWI per period.
+ * Printed: the tick's cycles (mean, worst; over the move and at 1 m/s, i.e. while the true
+ * speed is at least 0.95 m/s), that load in % of the period at the binary's rate, each
+ * interrupt's cycles, the TWI's cycles per bus event and the clock it holds, flash, RAM and
+ * stack, and the functions the tick spends its cycles in (mean, and in the worst tick).
+ *   bench_avr asserv_avr.elf [--no-profile] */
+#include <stdio.h>
+#include <string.h>
+
+#include "avrsim.h"
+#include "m1284p.h"
+#include "robot.h"
+
+#define CRUISE_MM_S 950.0
+
+struct phase {
+	struct avrsim_stats st;
+	uint64_t ticks;
+};
+
+static void add(struct avrsim_count *a, const struct avrsim_count *b)
+{
+	a->n += b->n;
+	a->cycles += b->cycles;
+	if (b->max > a->max)
+		a->max = b->max;
+}
+
+/* Adds the figures of a part of the run to the whole's. */
+static void merge(struct phase *all, const struct avrsim_stats *s, uint64_t ticks)
+{
+	struct avrsim_stats *a = &all->st;
+
+	a->cycles += s->cycles;
+	a->idle += s->idle;
+	add(&a->tick, &s->tick);
+	add(&a->period, &s->period);
+	for (int i = 0; i < 64; i++)
+		add(&a->isr[i], &s->isr[i]);
+	for (int i = 0; i < 32; i++) {
+		add(&a->twi[i], &s->twi[i]);
+		add(&a->stretch[i], &s->stretch[i]);
+	}
+	a->twi_bytes += s->twi_bytes;
+	a->edges += s->edges;
+	if (s->sp_min < a->sp_min)
+		a->sp_min = s->sp_min;
+	all->ticks += ticks;
+}
+
+static double mean(const struct avrsim_count *c)
+{
+	return c->n ? (double)c->cycles / (double)c->n : 0.0;
+}
+
+/* Interrupt cycles per control period [mean, worst], from each interrupt's count per period
+ * and its mean and worst cycles. */
+static void isr_load(const struct phase *p, double *m, double *w)
+{
+	const uint8_t vec[] = {m1284p.vec_pcint0, m1284p.vec_pcint2, m1284p.vec_adc, m1284p.vec_twi,
+			       m1284p.vec_timer3_compa};
+
+	*m = *w = 0.0;
+	for (size_t i = 0; i < sizeof(vec); i++) {
+		const struct avrsim_count *c = &p->st.isr[vec[i]];
+		double per = (double)c->n / (double)p->ticks;
+
+		*m += per * mean(c);
+		*w += per * (double)c->max;
+	}
+}
+
+static void print_phase(const char *title, const struct phase *p, uint32_t tick_hz)
+{
+	const struct avrsim_stats *s = &p->st;
+	uint32_t period = AVRSIM_F_CPU / tick_hz;
+	double seconds = (double)p->ticks / tick_hz, im, iw;
+	const struct {
+		const char *name;
+		uint8_t vec;
+	} isr[] = {{"encoders, free wheels (PCINT2)", m1284p.vec_pcint2},
+		   {"encoders, motors (PCINT0)", m1284p.vec_pcint0},
+		   {"current-sense ADC", m1284p.vec_adc},
+		   {"TWI", m1284p.vec_twi},
+		   {"control timer", m1284p.vec_timer3_compa}};
+
+	isr_load(p, &im, &iw);
+	printf("\n%s: %llu ticks (%.2f s)\n", title, (unsigned long long)p->ticks, seconds);
+	printf("  control tick, computing          %8.0f cycles mean %8llu worst\n", mean(&s->tick),
+	       (unsigned long long)s->tick.max);
+	printf("  interrupts per period            %8.0f cycles mean %8.0f worst\n", im, iw);
+	printf("  CPU load of a period at %4u Hz   %7.1f %% mean    %7.1f %% worst  (of %u "
+	       "cycles; goal at 1 kHz: 40 %% worst)\n",
+	       tick_hz, 100.0 * (mean(&s->tick) + im) / period,
+	       100.0 * ((double)s->tick.max + iw) / period, period);
+	if (tick_hz != 1000)
+		printf("  the same at 1 kHz                %7.1f %% mean    %7.1f %% worst\n",
+		       100.0 * (mean(&s->tick) + im * 1000.0 / tick_hz) / 16000.0,
+		       100.0 * ((double)s->tick.max + iw * 1000.0 / tick_hz) / 16000.0);
+	for (size_t i = 0; i < sizeof(isr) / sizeof(isr[0]); i++) {
+		const struct avrsim_count *c = &s->isr[isr[i].vec];
+
+		printf("  %-32s %8.0f /s  %4.0f cycles mean %4llu max\n", isr[i].name,
+		       (double)c->n / seconds, mean(c), (unsigned long long)c->max);
+	}
+}
+
+static void print_twi(const struct avrsim_stats *s)
+{
+	static const struct {
+		uint8_t status;
+		const char *what;
+	} ev[] = {{0x60, "own address + write"},    {0x80, "data byte received"},
+		  {0xA0, "STOP or repeated start"}, {0xA8, "own address + read"},
+		  {0xB8, "data byte sent, ACK"},    {0xC0, "data byte sent, NACK (last)"}};
+
+	printf("\nTWI interrupt per bus event (the 4-cycle response included); SCL held low "
+	       "past the master's low half-bit (80 cycles at 100 kHz):\n");
+	for (size_t i = 0; i < sizeof(ev) / sizeof(ev[0]); i++) {
+		const struct avrsim_count *c = &s->twi[ev[i].status >> 3];
+		const struct avrsim_count *k = &s->stretch[ev[i].status >> 3];
+
+		printf("  0x%02X %-28s %6llu events %5.0f cycles mean %5llu max; held %llu times, "
+		       "%llu cycles max\n",
+		       ev[i].status, ev[i].what, (unsigned long long)c->n, mean(c),
+		       (unsigned long long)c->max, (unsigned long long)k->n,
+		       (unsigned long long)k->max);
+	}
+}
+
+int main(int argc, char **argv)
+{
+	/* The board starts believing (0, -900); the robot is at (-1300, 0): the master says so
+	 * (error = estimate - truth), then asks for 1 m/s, 1 m/s^2 and 2.4 m along x. */
+	const uint8_t new_pos[] = {PROTO_SET_NEW_POS, 0x05, 0x14, 0xfc, 0x7c, 0, 0};
+	const uint8_t set_speed[] = {PROTO_SET_VITESSE_TRAJ, 100, 100};
+	const uint8_t go[] = {PROTO_GOTO, 0x04, 0x4c, 0, 0, 0}; /* (1100, 0) */
+	struct board_config bc;
+	struct sim_config sc;
+	struct sim_field f;
+	struct avrsim *h;
+	struct phase all, cruise;
+	struct sim_truth t;
+	int profile = !(argc > 2 && !strcmp(argv[2], "--no-profile"));
+	int in_cruise = 0, cruised = 0;
+	uint32_t flash, ram, tick = 0, mark = 0, poll = 0;
+	uint8_t rep[7] = {0};
+
+	if (argc < 2) {
+		fprintf(stderr, "usage: %s asserv_avr.elf [--no-profile]\n", argv[0]);
+		return 2;
+	}
+	avr_robot_config(&bc);
+	sim_config_defaults(&sc);
+	sc.motor.encoder_cpr = 48; /* robot.c */
+	sim_field_defaults(&f);
+	h = avrsim_open(argv[1], 100000);
+	if (!h || avrsim_physics(h, &sc, &f, AVRSIM_EXACT))
+		return 1;
+	if (avrsim_run_to_tick_end(h) || avrsim_i2c_write(h, new_pos, 7, 1) ||
+	    avrsim_run_to_tick_end(h) || avrsim_i2c_write(h, set_speed, 3, 1) ||
+	    avrsim_run_to_tick_end(h) || avrsim_i2c_write(h, go, 6, 1))
+		return 1;
+	memset(&all, 0, sizeof(all));
+	memset(&cruise, 0, sizeof(cruise));
+	all.st.sp_min = 0xFFFF;
+	avrsim_stats_reset(h);
+	avrsim_profile(h, profile, 1);
+	for (;;) {
+		if (avrsim_run_to_tick_end(h))
+			return 1;
+		tick++;
+		sim_get_truth(avrsim_sim(h), &t);
+		if (!in_cruise && !cruised && t.v_mm_s >= CRUISE_MM_S) {
+			in_cruise = 1;
+			merge(&all, avrsim_stats(h), tick - mark);
+			mark = tick;
+			avrsim_stats_reset(h);
+		} else if (in_cruise && t.v_mm_s < CRUISE_MM_S) {
+			in_cruise = 0;
+			cruised = 1;
+			merge(&cruise, avrsim_stats(h), tick - mark);
+			merge(&all, avrsim_stats(h), tick - mark);
+			mark = tick;
+			avrsim_stats_reset(h);
+		}
+		if (tick * 100u % bc.tick_hz == 0) { /* the master, every 10 ms */
+			poll++;
+			if (avrsim_i2c_read(h, rep, 1))
+				return 1;
+			if (!(rep[0] & STATUS_BUSY_TRAJET))
+				break;
+			if (poll % 2 == 0 &&
+			    (avrsim_i2c_write(h, (const uint8_t[]){PROTO_POSITION}, 1, 0) ||
+			     avrsim_i2c_read(h, rep + 1, 6)))
+				return 1;
+		}
+		if (tick > 10u * bc.tick_hz)
+			break;
+	}
+	merge(&all, avrsim_stats(h), tick - mark);
+	avrsim_sizes(h, &flash, &ram);
+
+	printf("asserv_avr.elf on an ATmega1284P at 16 MHz: control at %u Hz, free wheels %u "
+	       "counts/turn, motor encoders %u counts/motor turn\n",
+	       bc.tick_hz, (unsigned)sc.enc_cpr, (unsigned)sc.motor.encoder_cpr);
+	printf("flash %u bytes (.text + .data); RAM %u bytes static (.data + .bss) + %u bytes of "
+	       "stack at most = %u of 16384\n",
+	       flash, ram, (unsigned)(m1284p.ramend - all.st.sp_min),
+	       (unsigned)(ram + m1284p.ramend - all.st.sp_min));
+	print_phase("the whole move", &all, bc.tick_hz);
+	if (cruised)
+		print_phase("at 1 m/s (true speed >= 0.95 m/s)", &cruise, bc.tick_hz);
+	else
+		printf("\nthe robot never reached 0.95 m/s\n");
+	print_twi(&all.st);
+	if (profile) {
+		printf("\nThe tick's cycles by function, mean per tick over the move (inclusive: "
+		       "with what it calls):\n");
+		avrsim_profile_report(h, stdout, 20, all.st.tick.n, 0);
+		printf("\nThe same in the longest tick (%llu cycles):\n",
+		       (unsigned long long)all.st.tick.max);
+		avrsim_profile_report(h, stdout, 16, 1, 1);
+	}
+	sim_get_truth(avrsim_sim(h), &t);
+	printf("\nend after %u ticks: status 0x%02x, last POSITION (%d, %d) mm, truth (%.1f, "
+	       "%.1f) mm\n",
+	       tick, rep[0], (int16_t)(uint16_t)(rep[1] << 8 | rep[2]),
+	       (int16_t)(uint16_t)(rep[3] << 8 | rep[4]), t.odo_pose.x_mm, t.odo_pose.y_mm);
+	avrsim_close(h);
+	return 0;
+}

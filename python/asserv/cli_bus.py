@@ -1,0 +1,324 @@
+"""The ``asserv --bus N ...`` commands: drive a real board (or a virtual bus) from the shell.
+
+``add_bus_arguments(parser, subparsers)`` adds ``--bus``, ``--address``, ``--pec`` and one
+subcommand per message; ``run_bus_command(args)`` runs the parsed command and returns the exit
+code: 0 done, 1 the bus or the board failed (the driver's message on stderr), 2 bad arguments
+(one line on stderr, nothing sent). The options are accepted before or after the subcommand:
+``asserv --bus 1 goto 200 100`` and ``asserv goto 200 100 --bus 1`` are the same.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import enum
+import errno
+import math
+import os
+import sys
+from collections.abc import Callable
+from typing import Protocol
+
+import smbus2
+
+from . import codec
+from ._protocol import ADDRESS, Filtre, Status
+from .driver import AsservError, Board, SMBusLike, _flag_names
+
+__all__ = ["BUS_COMMANDS", "add_bus_arguments", "is_bus_command", "run_bus_command"]
+
+
+class ClosableBus(SMBusLike, Protocol):
+    def close(self) -> None: ...
+
+
+BusFactory = Callable[[int], ClosableBus]
+
+# The subcommands and their help.
+BUS_COMMANDS: dict[str, str] = {
+    "status": "read the status byte (CHECK_BUSY)",
+    "position": "read the estimated pose and error radius (POSITION)",
+    "info-choc": "read the shock sensors (INFO_CHOC)",
+    "goto": "GOTO X Y (mm): turn towards the point, then drive straight to it",
+    "goto-reverse": "GOTO_REVERSE D (mm, 0..255): drive straight backwards",
+    "goto-panier": "GOTO_PANIER ANGLE (degrees): turn, drive forward until the basket",
+    "stop": "STOP: decelerate and hold the position reached",
+    "version": "read the protocol version and capabilities (VERSION)",
+    "last-reject": "why the last rejected write was rejected (LAST_REJECT)",
+    "set-vitesse-traj": "SET_VITESSE_TRAJ SPEED [ACCEL]: straight-line limits, cm/s, cm/s^2",
+    "set-vitesse-rot": "SET_VITESSE_ROT SPEED [ACCEL]: rotation limits, cm/s, cm/s^2",
+    "set-filtre": "SET_FILTRE PRESET: 0/STD, 1/SOUPLE or 2/RAIDE",
+    "set-filtre-raw": "SET_FILTRE_RAW P I D: raw PID gains, 0..65535",
+    "set-new-pos": "SET_NEW_POS X Y ANGLE: error of the estimate (estimate minus truth)",
+    "wait": "poll the status until the trajectory is over (the annex's while (BUSY_TRAJET))",
+    "debug": "read the DEBUG telemetry frame",
+}
+
+
+class _UsageError(Exception):
+    """A bad argument: one line on stderr, exit code 2."""
+
+
+def _bus_options(parser: argparse.ArgumentParser, *, suppress: bool) -> None:
+    def default(value: object) -> object:
+        return argparse.SUPPRESS if suppress else value
+
+    parser.add_argument(
+        "--bus",
+        metavar="N",
+        default=default(None),
+        help="Linux I2C bus number (/dev/i2c-N; 1 on a Raspberry Pi)",
+    )
+    parser.add_argument(
+        "--address",
+        dest="bus_address",
+        metavar="ADDR",
+        default=default(str(ADDRESS)),
+        help=f"7-bit address of the board (default {ADDRESS})",
+    )
+    parser.add_argument(
+        "--pec",
+        dest="bus_pec",
+        action="store_true",
+        default=default(False),
+        help="add a PEC to every write and check the PEC of every reply",
+    )
+
+
+def add_bus_arguments(
+    parser: argparse.ArgumentParser,
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser] | None = None,
+) -> None:
+    """Add ``--bus N``, ``--address``, ``--pec`` to ``parser`` and the bus subcommands to
+    ``subparsers`` (created on ``parser`` when not given; pass the main CLI's own when it has
+    subcommands already, since a parser can have only one set)."""
+    _bus_options(parser, suppress=False)
+    if subparsers is None:
+        subparsers = parser.add_subparsers(dest="command", required=True)
+    common = argparse.ArgumentParser(add_help=False)
+    _bus_options(common, suppress=True)
+
+    def add(name: str) -> argparse.ArgumentParser:
+        p = subparsers.add_parser(name, parents=[common], help=BUS_COMMANDS[name])
+        p.set_defaults(bus_command=name)
+        return p
+
+    for name in ("status", "position", "info-choc", "stop", "version", "last-reject", "debug"):
+        add(name)
+    p = add("goto")
+    p.add_argument("x", metavar="X", help="target X, mm (-32000..32000)")
+    p.add_argument("y", metavar="Y", help="target Y, mm (-32000..32000)")
+    p.add_argument(
+        "--options", default="0", help="option bits: 1 line recalibration, 2 border recalibration"
+    )
+    add("goto-reverse").add_argument("distance", metavar="D", help="distance, mm (0..255)")
+    add("goto-panier").add_argument("angle", metavar="ANGLE", help="heading, degrees (-180..180)")
+    for name in ("set-vitesse-traj", "set-vitesse-rot"):
+        p = add(name)
+        p.add_argument("speed", metavar="SPEED", help="cm/s (1..255)")
+        p.add_argument("accel", metavar="ACCEL", nargs="?", help="cm/s^2 (1..255); kept if absent")
+    add("set-filtre").add_argument("preset", metavar="PRESET", help="0/STD, 1/SOUPLE, 2/RAIDE")
+    p = add("set-filtre-raw")
+    for g in ("p", "i", "d"):
+        p.add_argument(g, metavar=g.upper(), help="0..65535")
+    p = add("set-new-pos")
+    p.add_argument("x", metavar="X", help="error of the estimate in X, mm")
+    p.add_argument("y", metavar="Y", help="error of the estimate in Y, mm")
+    p.add_argument("angle", metavar="ANGLE", help="error of the estimate in angle, degrees")
+    p = add("wait")
+    p.add_argument("--timeout", default="30", help="give up after S seconds (default 30)")
+    p.add_argument("--poll", default="0.01", help="poll period, seconds (default 0.01)")
+
+
+def is_bus_command(args: argparse.Namespace) -> bool:
+    """True if ``args`` was parsed from one of the bus subcommands."""
+    return getattr(args, "bus_command", None) is not None
+
+
+def _int(what: str, text: str) -> int:
+    try:
+        return int(text, 0)
+    except (TypeError, ValueError):
+        raise _UsageError(f"{what} ({text!r}) is not an integer") from None
+
+
+def _float(what: str, text: str) -> float:
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        raise _UsageError(f"{what} ({text!r}) is not a number") from None
+    if not math.isfinite(value):
+        raise _UsageError(f"{what} ({text!r}) is not a finite number")
+    return value
+
+
+def _preset(text: str) -> Filtre:
+    try:
+        return Filtre(int(text, 0))
+    except ValueError:
+        pass
+    name = text.upper()
+    for f in Filtre:
+        if name in (f.name, f.name.removeprefix("FILTRE_")):
+            return f
+    names = ", ".join(f"{f.value}/{f.name.removeprefix('FILTRE_')}" for f in Filtre)
+    raise _UsageError(f"PRESET ({text!r}) is not a filter preset ({names})")
+
+
+def _flags(status: Status) -> str:
+    names = _flag_names(status)
+    return f"status 0x{int(status):02x}: " + (names if status else "(no flag: idle)")
+
+
+Action = Callable[[Board], list[str]]
+
+
+def _action(args: argparse.Namespace) -> Action:
+    """Parse the command's arguments (raising _UsageError) into what to do with the board."""
+    cmd: str = args.bus_command
+
+    def order(call: Callable[[Board], None], label: str) -> Action:
+        def run(board: Board) -> list[str]:
+            call(board)
+            return [f"{label}: accepted" if board.check else f"{label}: sent"]
+
+        return run
+
+    if cmd == "status":
+        return lambda b: [_flags(b.check_busy())]
+    if cmd == "position":
+
+        def position(b: Board) -> list[str]:
+            p = b.position()
+            return [
+                f"x {p.x_mm} mm, y {p.y_mm} mm, angle {p.angle_deg} deg,"
+                f" error radius {p.radius_mm} mm"
+            ]
+
+        return position
+    if cmd == "info-choc":
+
+        def info_choc(b: Board) -> list[str]:
+            s = b.info_choc()
+            pressed = [f"CAPTEUR_{n}" for n in range(8) if s >> n & 1]
+            return [f"sensors 0x{s:02x}: " + (" ".join(pressed) if pressed else "none pressed")]
+
+        return info_choc
+    if cmd == "goto":
+        x, y = _int("X", args.x), _int("Y", args.y)
+        opts = _int("--options", args.options)
+        return order(lambda b: b.goto(x, y, opts), f"GOTO ({x}, {y}) options {opts}")
+    if cmd == "goto-reverse":
+        d = _int("D", args.distance)
+        return order(lambda b: b.goto_reverse(d), f"GOTO_REVERSE {d} mm")
+    if cmd == "goto-panier":
+        a = _float("ANGLE", args.angle)
+        return order(lambda b: b.goto_panier(a), f"GOTO_PANIER {a:g} deg")
+    if cmd == "stop":
+        return order(lambda b: b.stop(), "STOP")
+    if cmd in ("set-vitesse-traj", "set-vitesse-rot"):
+        speed = _int("SPEED", args.speed)
+        accel = None if args.accel is None else _int("ACCEL", args.accel)
+        name = cmd.upper().replace("-", "_")
+        label = f"{name} {speed} cm/s" + (f", {accel} cm/s^2" if accel is not None else "")
+        if cmd == "set-vitesse-traj":
+            return order(lambda b: b.set_vitesse_traj(speed, accel), label)
+        return order(lambda b: b.set_vitesse_rot(speed, accel), label)
+    if cmd == "set-filtre":
+        preset = _preset(args.preset)
+        return order(lambda b: b.set_filtre(preset), f"SET_FILTRE {preset.name}")
+    if cmd == "set-filtre-raw":
+        p, i, d = _int("P", args.p), _int("I", args.i), _int("D", args.d)
+        return order(lambda b: b.set_filtre_raw(p, i, d), f"SET_FILTRE_RAW P={p} I={i} D={d}")
+    if cmd == "set-new-pos":
+        ex, ey, ea = _int("X", args.x), _int("Y", args.y), _int("ANGLE", args.angle)
+        return order(lambda b: b.set_new_pos(ex, ey, ea), f"SET_NEW_POS ({ex}, {ey}, {ea})")
+    if cmd == "version":
+
+        def version(b: Board) -> list[str]:
+            v = b.version()
+            caps = " ".join(f.name for f in type(v.capabilities) if f in v.capabilities and f.name)
+            return [
+                f"protocol {v.major}.{v.minor}, capabilities 0x{int(v.capabilities):04x}:"
+                f" {caps or 'none'}"
+            ]
+
+        return version
+    if cmd == "last-reject":
+
+        def last_reject(b: Board) -> list[str]:
+            r = b.last_reject()
+            if r.count == 0:
+                return ["no write rejected since reset"]
+            m = codec.BY_DESIGNATION.get(r.designation)
+            what = m.name if m else "an unknown message"
+            return [
+                f"{r.reason.name} on {what} (designation 0x{r.designation:02x});"
+                f" {r.count}{'+' if r.count == 255 else ''} writes rejected since reset"
+            ]
+
+        return last_reject
+    if cmd == "wait":
+        timeout = _float("--timeout", args.timeout)
+        poll = _float("--poll", args.poll)
+        if timeout < 0:
+            raise _UsageError(f"--timeout ({args.timeout!r}) must be >= 0")
+        if poll <= 0:
+            raise _UsageError(f"--poll ({args.poll!r}) must be > 0")
+        return lambda b: [_flags(b.wait_idle(timeout, poll))]
+    if cmd == "debug":
+
+        def debug(b: Board) -> list[str]:
+            d = b.debug()
+            values = {f.name: getattr(d, f.name) for f in dataclasses.fields(d)}
+            return [f"{k} {v.name if isinstance(v, enum.Enum) else v}" for k, v in values.items()]
+
+        return debug
+    raise _UsageError(f"unknown command {cmd!r}")  # add_bus_arguments and this list disagree
+
+
+def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory = smbus2.SMBus) -> int:
+    """Run a parsed bus command; return the exit code (0 done, 1 bus or board error, 2 bad
+    arguments). ``bus_factory(N)`` opens bus N: ``smbus2.SMBus``, or a VirtualBus in tests."""
+    cmd = getattr(args, "bus_command", None) or "?"
+    prog = f"asserv {cmd}"
+
+    def fail(code: int, message: str) -> int:
+        print(f"{prog}: {message}", file=sys.stderr)
+        return code
+
+    try:
+        if getattr(args, "bus", None) is None:
+            raise _UsageError("--bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi)")
+        number = _int("--bus", args.bus)
+        if number < 0:
+            raise _UsageError(f"--bus ({args.bus!r}) must be >= 0")
+        address = _int("--address", args.bus_address)
+        if not 0 <= address <= 0x7F:
+            raise _UsageError(f"--address ({args.bus_address!r}) is not a 7-bit address (0..0x7f)")
+        action = _action(args)
+    except _UsageError as e:
+        return fail(2, str(e))
+
+    try:
+        bus = bus_factory(number)
+    except OSError as e:
+        hint = {
+            errno.ENOENT: "; is I2C enabled? (raspi-config, or dtparam=i2c_arm=on)",
+            errno.EACCES: "; add your user to the i2c group",
+        }.get(e.errno or 0, "")
+        reason = os.strerror(e.errno) if e.errno else str(e)
+        return fail(1, f"cannot open /dev/i2c-{number}: {reason}{hint}")
+    try:
+        board = Board(bus, address, pec=bool(args.bus_pec))
+        for line in action(board):
+            print(line)
+    except (codec.FrameError, TypeError) as e:  # an argument outside its range: nothing sent
+        return fail(2, str(e))
+    except AsservError as e:
+        return fail(1, str(e))
+    except KeyboardInterrupt:
+        return fail(130, "interrupted (an order already sent goes on; `stop` stops the robot)")
+    finally:
+        bus.close()
+    return 0

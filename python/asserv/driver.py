@@ -1,0 +1,447 @@
+"""The master driver of the asserv board: one method per I2C message, over an smbus2-like bus.
+
+    from smbus2 import SMBus
+    from asserv import Board
+
+    with SMBus(1) as bus:                      # /dev/i2c-1 on a Raspberry Pi
+        board = Board(bus)                     # address 2; Board(bus, pec=True) adds PECs
+        board.goto(200, 100)                   # raises OrderRejected if the board refuses it
+        end = board.wait_idle(timeout_s=10)    # the 2002 annex's while (BUSY_TRAJET);
+        print(board.position())
+
+Frames are built by ``codec.encode`` and replies decoded by ``codec.decode_reply``: this module
+adds the bus transactions, the acceptance check and the errors. Every transfer is a single
+``i2c_rdwr`` call; an ETAT reply is read after a repeated start (``S 0x04 [d] Sr 0x05 <reply> P``),
+and with ``check=True`` an order or setting is followed, in the same transaction, by a read of the
+status byte (``S 0x04 [frame] Sr 0x05 <status> P``), which says whether the board accepted it.
+docs/driver.md is the user's guide; docs/protocol.md the protocol.
+"""
+
+from __future__ import annotations
+
+import enum
+import errno
+import math
+import operator
+import os
+import time
+from collections.abc import Callable
+from typing import Protocol, SupportsIndex, TypeVar
+
+from smbus2 import i2c_msg
+
+from . import codec
+from ._protocol import ADDRESS, Filtre, Reject, Status
+from .codec import Debug, LastReject, Pose, Version
+
+__all__ = [
+    "AsservError",
+    "Board",
+    "BoardTimeout",
+    "BusError",
+    "GotoOption",
+    "NoAcknowledge",
+    "OrderRejected",
+    "PecMismatch",
+]
+
+
+class SMBusLike(Protocol):
+    """What the driver needs of a bus: ``smbus2.SMBus`` and ``asserv.bus.VirtualBus`` have it.
+
+    A bus that also has ``monotonic()`` and ``sleep(s)`` (VirtualBus) gives ``wait_idle`` its
+    clock, so that polling a simulated board advances simulated time."""
+
+    def i2c_rdwr(self, *i2c_msgs: i2c_msg) -> None: ...
+
+
+class GotoOption(enum.IntFlag):
+    """GOTO's option bits (docs/protocol.md, section 4.1)."""
+
+    RECALAGE_LIGNE = 1  # recalibration on floor lines
+    RECALAGE_BORD = 2  # recalibration by contact with the field border
+
+
+# Errors ------------------------------------------------------------------------------------------
+
+
+class AsservError(Exception):
+    """Base of the driver's errors: something went wrong on the bus or on the board."""
+
+
+class BusError(AsservError):
+    """The bus reported an error (an OSError from the adapter); ``errno`` says which."""
+
+    def __init__(self, message: str, errno_: int | None = None) -> None:
+        super().__init__(message)
+        self.errno = errno_
+
+
+class NoAcknowledge(BusError):  # noqa: N818 (names of the driver's API)
+    """No device acknowledged the board's address: the board is off, not wired, or elsewhere."""
+
+    def __init__(self, message: str, address: int, errno_: int | None) -> None:
+        super().__init__(message, errno_)
+        self.address = address
+
+
+class PecMismatch(AsservError):  # noqa: N818 (names of the driver's API)
+    """A reply's PEC did not match: bytes were corrupted on the bus (or, for an ETAT reply, the
+    designation write was corrupted and the board sent the status byte instead)."""
+
+
+class OrderRejected(AsservError):  # noqa: N818 (names of the driver's API)
+    """The board rejected a write: ``reason`` and ``designation`` come from LAST_REJECT."""
+
+    def __init__(
+        self, message: str, name: str, reason: Reject, designation: int, count: int
+    ) -> None:
+        super().__init__(message)
+        self.name = name
+        self.reason = reason
+        self.designation = designation
+        self.count = count
+
+
+class BoardTimeout(AsservError):  # noqa: N818 (names of the driver's API)
+    """``wait_idle`` gave up: the board was still busy. ``status`` is the last status read."""
+
+    def __init__(self, message: str, status: Status) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+# errno values with which Linux adapters report a NACK of the address: ENXIO is the kernel's
+# documented code; i2c-bcm2835 (Raspberry Pi) gives EREMOTEIO; some give EIO (on i2c-bcm2835, EIO
+# is a clock-stretching timeout instead).
+_NACK_ERRNOS = frozenset({errno.ENXIO, errno.EREMOTEIO, errno.EIO})
+
+_BUS_HINTS = {
+    errno.ETIMEDOUT: "the bus is stuck or a slave stretches the clock; check the wiring",
+    errno.EAGAIN: "arbitration lost: another master on the bus?",
+    errno.EBUSY: "the bus is busy",
+    errno.ENOENT: "no such I2C bus; is I2C enabled (raspi-config, dtparam=i2c_arm=on)?",
+    errno.EACCES: "permission denied; add your user to the i2c group",
+    errno.EBADF: "the bus is closed",
+}
+
+_REJECT_HINTS = {
+    Reject.REFUSED_PB_GRAVE: "the board has an unrecoverable fault (PB_GRAVE); reset it",
+    Reject.QUEUE_FULL: "more than 8 writes within one control tick; send them more slowly",
+    Reject.BAD_PEC: "the frame was corrupted on the bus; it can be sent again",
+    Reject.ABORTED: "a bus error cut the write; it can be sent again",
+    Reject.BAD_LENGTH: "the board does not know this message's length: firmware version?",
+    Reject.UNKNOWN_DESIGNATION: "the board does not know this message: firmware version?",
+    Reject.OUT_OF_RANGE: "the board's ranges differ from the driver's: firmware version?",
+    Reject.RESERVED_BIT: "the board's option bits differ from the driver's: firmware version?",
+}
+
+
+def _errno_name(e: int | None) -> str:
+    return errno.errorcode.get(e, str(e)) if e is not None else "no errno"
+
+
+# The driver --------------------------------------------------------------------------------------
+
+T = TypeVar("T")
+
+
+class Board:
+    """The asserv board at ``address`` on ``bus`` (an ``smbus2.SMBus`` or a ``VirtualBus``).
+
+    ``pec``: append a PEC to every write and check the PEC of every reply (the board always sends
+    one after its reply; the driver then reads one byte more).
+    ``check``: after every order or setting, read the status byte in the same transaction, and
+    if COMMANDE_REJETEE is set, read LAST_REJECT and raise ``OrderRejected``.
+
+    Arguments outside the protocol's ranges raise ``ValueError`` (``codec.FrameError``) before
+    anything is sent; non-integers raise ``TypeError``. Bus problems raise ``NoAcknowledge`` or
+    ``BusError``, corrupted replies ``PecMismatch``.
+    """
+
+    def __init__(
+        self, bus: SMBusLike, address: int = ADDRESS, *, pec: bool = False, check: bool = True
+    ) -> None:
+        if not isinstance(address, int) or not 0 <= address <= 0x7F:
+            raise ValueError(f"I2C address {address!r} is not a 7-bit address (0..0x7f)")
+        self.bus = bus
+        self.address = address
+        self.pec = pec
+        self.check = check
+        monotonic = getattr(bus, "monotonic", None)
+        sleep = getattr(bus, "sleep", None)
+        if callable(monotonic) and callable(sleep):
+            self._monotonic: Callable[[], float] = monotonic
+            self._sleep: Callable[[float], None] = sleep
+        else:
+            self._monotonic, self._sleep = time.monotonic, time.sleep
+
+    def __repr__(self) -> str:
+        return (
+            f"Board(address=0x{self.address:02x}, pec={self.pec}, check={self.check},"
+            f" bus={self.bus!r})"
+        )
+
+    # ORDRE ---------------------------------------------------------------------------------
+
+    def goto(self, x_mm: int, y_mm: int, options: GotoOption | int = 0) -> None:
+        """GOTO: turn towards (x, y), then drive straight to it, forwards.
+
+        x_mm, y_mm: -32000..32000 mm (0, 0 is the centre of the field); options: GotoOption bits.
+        """
+        self._command(
+            "GOTO", _integer("x_mm", x_mm), _integer("y_mm", y_mm), _integer("options", options)
+        )
+
+    def goto_reverse(self, distance_mm: int) -> None:
+        """GOTO_REVERSE: drive straight backwards over 0..255 mm."""
+        self._command("GOTO_REVERSE", _integer("distance_mm", distance_mm))
+
+    def goto_panier(self, angle_deg: float) -> None:
+        """GOTO_PANIER: turn to an absolute heading, drive forwards until the basket is touched.
+
+        angle_deg: -180..180 degrees, sent in 2-degree steps: rounded to the nearest step, a
+        half step going towards zero (45 degrees is sent as 22, that is 44, as in the 2002
+        annex). The expected ending is CHOC_PANIER in the final status."""
+        if isinstance(angle_deg, bool) or not isinstance(angle_deg, int | float):
+            raise TypeError(f"angle_deg must be a number of degrees, got {angle_deg!r}")
+        if not -180 <= angle_deg <= 180:
+            raise codec.FrameError(
+                Reject.OUT_OF_RANGE, f"GOTO_PANIER.angle_deg={angle_deg} is outside -180..180"
+            )
+        steps = math.ceil(abs(angle_deg) / 2 - 0.5)  # nearest, a half step towards zero
+        self._command("GOTO_PANIER", -steps if angle_deg < 0 else steps)
+
+    def stop(self) -> None:
+        """STOP (extension): decelerate at the current limits and hold the position reached."""
+        self._command("STOP")
+
+    # SET -----------------------------------------------------------------------------------
+
+    def set_vitesse_traj(self, speed_cm_s: int, accel_cm_s2: int | None = None) -> None:
+        """SET_VITESSE_TRAJ: straight-line limits, 1..255 cm/s and 1..255 cm/s^2.
+
+        Without ``accel_cm_s2`` the short form is sent and the acceleration is unchanged; with
+        ``pec=True`` the board needs the full form, so the acceleration must be given."""
+        self._set_vitesse("SET_VITESSE_TRAJ", speed_cm_s, accel_cm_s2)
+
+    def set_vitesse_rot(self, speed_cm_s: int, accel_cm_s2: int | None = None) -> None:
+        """SET_VITESSE_ROT: wheel limits during a rotation in place (as set_vitesse_traj)."""
+        self._set_vitesse("SET_VITESSE_ROT", speed_cm_s, accel_cm_s2)
+
+    def set_filtre(self, preset: Filtre | int) -> None:
+        """SET_FILTRE: a preset of PID gains (Filtre.FILTRE_STD, FILTRE_SOUPLE, FILTRE_RAIDE)."""
+        self._command("SET_FILTRE", _integer("preset", preset))
+
+    def set_filtre_raw(self, p: int, i: int, d: int) -> None:
+        """SET_FILTRE_RAW: raw PID gains, 0..65535 each (scales in docs/protocol.md, 5.4)."""
+        self._command("SET_FILTRE_RAW", _integer("p", p), _integer("i", i), _integer("d", d))
+
+    def set_new_pos(self, err_x_mm: int, err_y_mm: int, err_angle_deg: int) -> None:
+        """SET_NEW_POS: the error of the board's estimate (estimate minus truth), which the
+        board subtracts: X, Y within -32000..32000 mm, angle within -180..180 whole degrees.
+        To declare a known pose instead, use ``declare_pose``."""
+        self._command(
+            "SET_NEW_POS",
+            _integer("err_x_mm", err_x_mm),
+            _integer("err_y_mm", err_y_mm),
+            _integer("err_angle_deg", err_angle_deg),
+        )
+
+    def declare_pose(self, x_mm: int, y_mm: int, angle_deg: int) -> None:
+        """Tell the board that the robot truly is at (x_mm, y_mm, angle_deg): read POSITION and
+        DEBUG's fine heading, and send their difference with the truth as SET_NEW_POS
+        (docs/protocol.md, 5.5). The robot should stand still between the reads and the write."""
+        x, y, a = _integer("x_mm", x_mm), _integer("y_mm", y_mm), _integer("angle_deg", angle_deg)
+        pose = self.position()
+        heading_deg = round(self.debug().heading_cdeg / 100)
+        err_angle = (heading_deg - a + 180) % 360 - 180
+        self.set_new_pos(pose.x_mm - x, pose.y_mm - y, err_angle)
+
+    # ETAT ----------------------------------------------------------------------------------
+
+    def check_busy(self) -> Status:
+        """CHECK_BUSY: the status byte, as named flags (Status.BUSY_TRAJET, ...)."""
+        return self._query("CHECK_BUSY", Status)
+
+    def position(self) -> Pose:
+        """POSITION: x_mm, y_mm, angle_2deg (``.angle_deg`` in degrees), radius_mm."""
+        return self._query("POSITION", Pose)
+
+    def info_choc(self) -> int:
+        """INFO_CHOC: the shock sensors, bit n set when CAPTEUR_n is pressed."""
+        return self._query("INFO_CHOC", int)
+
+    def version(self) -> Version:
+        """VERSION (extension): protocol major, minor and capability bits."""
+        return self._query("VERSION", Version)
+
+    def last_reject(self) -> LastReject:
+        """LAST_REJECT (extension): why the last rejected write was rejected, and the count."""
+        return self._query("LAST_REJECT", LastReject)
+
+    def debug(self) -> Debug:
+        """DEBUG: the telemetry frame (units in protocol/messages.toml)."""
+        return self._query("DEBUG", Debug)
+
+    def wait_idle(self, timeout_s: float, poll_s: float = 0.01) -> Status:
+        """Poll CHECK_BUSY every ``poll_s`` until the board is no longer busy; return the final
+        status (look at PB_MOTEUR, CHOC_BORD, CHOC_PANIER, PB_GRAVE to see how the order ended).
+
+        An order the board has accepted but not yet started reads as busy, so calling this right
+        after an order never returns early. Uses the bus's clock when it has one (a simulated
+        bus), the system clock otherwise. Raises BoardTimeout after ``timeout_s`` seconds; the
+        robot is then still moving: ``stop()`` it if that is what you want."""
+        if not timeout_s >= 0:
+            raise ValueError(f"timeout_s={timeout_s} must be >= 0")
+        if not poll_s > 0:
+            raise ValueError(f"poll_s={poll_s} must be > 0")
+        busy = Status.BUSY_TRAJET | Status.BUSY_GOTO_PANIER
+        start = self._monotonic()
+        while True:
+            status = self.check_busy()
+            if not status & busy:
+                return status
+            remaining = timeout_s - (self._monotonic() - start)
+            if remaining <= 1e-9:  # not a sleep of rounding errors more
+                raise BoardTimeout(
+                    f"the board at 0x{self.address:02x} is still busy after {timeout_s:g} s"
+                    f" (status 0x{int(status):02x}: {_flag_names(status)})",
+                    status,
+                )
+            self._sleep(min(poll_s, remaining))
+
+    # Transactions --------------------------------------------------------------------------
+
+    def _set_vitesse(self, name: str, speed: int, accel: int | None) -> None:
+        if accel is None:
+            if self.pec:
+                raise codec.FrameError(
+                    Reject.BAD_LENGTH,
+                    f"{name}: with PEC the board needs the full form; give accel_cm_s2 too"
+                    " (40 cm/s^2 after a reset)",
+                )
+            self._command(name, _integer("speed_cm_s", speed))
+        else:
+            self._command(name, _integer("speed_cm_s", speed), _integer("accel_cm_s2", accel))
+
+    def _rdwr(self, name: str, *msgs: i2c_msg) -> None:
+        try:
+            self.bus.i2c_rdwr(*msgs)
+        except OSError as e:
+            if e.errno in _NACK_ERRNOS:
+                what = (
+                    ", or a clock-stretching timeout on a Raspberry Pi"
+                    if e.errno == errno.EIO
+                    else ""
+                )
+                raise NoAcknowledge(
+                    f"{name}: no acknowledge from address 0x{self.address:02x} on the bus"
+                    f" ({_errno_name(e.errno)}{what}; is the board powered and wired?)",
+                    self.address,
+                    e.errno,
+                ) from e
+            hint = _BUS_HINTS.get(e.errno) if e.errno is not None else None
+            detail = os.strerror(e.errno) if e.errno is not None else str(e)
+            raise BusError(
+                f"{name}: bus error talking to 0x{self.address:02x}:"
+                f" {_errno_name(e.errno)} ({detail})" + (f"; {hint}" if hint else ""),
+                e.errno,
+            ) from e
+
+    def _write_read(self, name: str, frame: bytes, reply: str) -> codec.Reply:
+        """S addr+W [frame] Sr addr+R <reply (+ PEC)> P, decoded as ``reply``."""
+        n = codec.reply_length(reply) + (1 if self.pec else 0)
+        w = i2c_msg.write(self.address, frame)
+        r = i2c_msg.read(self.address, n)
+        self._rdwr(name, w, r)
+        data = bytes(r)
+        prefix = None
+        if self.pec:
+            prefix = bytes(
+                [codec.write_address(self.address), *frame, codec.read_address(self.address)]
+            )
+        try:
+            return codec.decode_reply(reply, data, pec_prefix=prefix)
+        except codec.PecError as e:
+            raise PecMismatch(
+                f"{name}: corrupted reply from 0x{self.address:02x}: {e} (read {data.hex(' ')})"
+            ) from e
+
+    def _query(self, name: str, kind: type[T]) -> T:
+        frame = codec.encode(name, pec=self.pec, address=self.address)
+        try:
+            reply = self._write_read(name, frame, name)
+        except PecMismatch as e:
+            raise PecMismatch(
+                f"{e}; if the designation itself was corrupted, the board sent its status byte"
+                " instead: read again"
+            ) from e
+        return _expect(name, reply, kind)
+
+    def _command(self, name: str, *args: int) -> None:
+        """An ORDRE or SET; with ``check``, confirm in the same transaction that it was taken."""
+        frame = codec.encode(name, *args, pec=self.pec, address=self.address)
+        if not self.check:
+            self._rdwr(name, i2c_msg.write(self.address, frame))
+            return
+        try:
+            status = self._write_read(name, frame, "CHECK_BUSY")
+        except PecMismatch:
+            # The write went out but the status came back corrupted. No designation is selected
+            # after an order or setting, so a plain read gives the status again; it still says
+            # whether the last write (ours) was rejected.
+            status = self._read_status(name)
+        if _expect(name, status, Status) & Status.COMMANDE_REJETEE:
+            raise self._rejected(name, frame[0], args)
+
+    def _read_status(self, name: str) -> Status:
+        r = i2c_msg.read(self.address, 2 if self.pec else 1)
+        self._rdwr(name, r)
+        data = bytes(r)
+        prefix = bytes([codec.read_address(self.address)]) if self.pec else None
+        try:
+            reply = codec.decode_reply("CHECK_BUSY", data, pec_prefix=prefix)
+        except codec.PecError as e:
+            raise PecMismatch(
+                f"{name}: the status after the write was corrupted twice ({e}): the board may or"
+                " may not have taken it; read check_busy() and last_reject().count before"
+                " sending it again"
+            ) from e
+        return _expect(name, reply, Status)
+
+    def _rejected(self, name: str, designation: int, args: tuple[int, ...]) -> OrderRejected:
+        why = self.last_reject()
+        params = codec.message(name).params
+        sent = " ".join(f"{f.name}={v}" for f, v in zip(params, args, strict=False))
+        sent = f" (sent {name}{' ' + sent if sent else ''})"
+        if why.designation != designation:
+            other = codec.BY_DESIGNATION.get(why.designation)
+            label = other.name if other else f"designation 0x{why.designation:02x}"
+            msg = (
+                f"{name} rejected by the board, but LAST_REJECT names another write, {label}:"
+                f" {why.reason.name} (another master on the bus?)"
+            )
+        else:
+            hint = _REJECT_HINTS.get(why.reason)
+            msg = f"{name} rejected by the board: {why.reason.name}" + (f": {hint}" if hint else "")
+        return OrderRejected(msg + sent, name, why.reason, why.designation, why.count)
+
+
+def _integer(name: str, value: object) -> int:
+    """The value as an int, refusing floats and other non-integers (never truncate silently)."""
+    if not isinstance(value, SupportsIndex):
+        raise TypeError(f"{name} must be an integer, got {value!r}")
+    return operator.index(value)
+
+
+def _expect(name: str, reply: codec.Reply, kind: type[T]) -> T:
+    if not isinstance(reply, kind):  # the codec's table and this driver disagree
+        raise TypeError(f"{name}: decoded {reply!r}, not a {kind.__name__}")
+    return reply
+
+
+def _flag_names(status: Status) -> str:
+    """``BUSY_TRAJET BUSY_GOTO_PANIER``, or ``none``."""
+    names = [f.name for f in Status if f in status and f.name]
+    return " ".join(names) if names else "none"

@@ -1,0 +1,354 @@
+"""The simulated board: the firmware core on the physics simulator, behind an smbus2-like bus.
+
+    sim = Simulator(seed=0)
+    board = Board(sim.bus)          # the same driver as for a real board
+    board.goto(200, 100)
+    board.wait_idle(10)             # polls CHECK_BUSY; simulated time advances while it waits
+    print(sim.true_pose(), board.position())
+
+``Simulator`` runs the C sources of the board (``firmware/core``, compiled into
+``asserv._core``) through the host port (``firmware/ports/host``) on the physics of
+``sim/``, in deterministic lockstep: control ticks at 1 kHz, physics substeps of 100 us, and the
+I2C bytes arriving between ticks at the bus bit rate. The traces of every tick (truth, estimate,
+set-points, duties, currents, status) are kept as a numpy structured array.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from . import field as fieldmod
+from ._core import ffi, lib
+from .bus import VirtualBus
+
+#: The columns of ``Simulator.trace``, in the order of ``struct host_sample`` (host.h).
+TRACE_FIELDS = (
+    "t_s",
+    "x_mm",
+    "y_mm",
+    "heading_deg",
+    "est_x_mm",
+    "est_y_mm",
+    "est_heading_deg",
+    "radius_mm",
+    "v_mm_s",
+    "omega_deg_s",
+    "v_set_mm_s",
+    "omega_set_deg_s",
+    "duty_left",
+    "duty_right",
+    "current_left_A",
+    "current_right_A",
+    "contact_force_N",
+    "status",
+    "order_state",
+    "shocks",
+)
+TRACE_DTYPE = np.dtype([(name, "<f8") for name in TRACE_FIELDS])
+
+
+def _check_trace_layout() -> None:
+    # The Python view of struct host_sample must be the C one, field for field.
+    if ffi.sizeof("struct host_sample") != TRACE_DTYPE.itemsize:
+        raise ImportError("asserv._core is stale: struct host_sample changed (pip install -e .)")
+    for i, name in enumerate(TRACE_FIELDS):
+        if ffi.offsetof("struct host_sample", name) != 8 * i:
+            raise ImportError(f"asserv._core: struct host_sample.{name} is not at {8 * i}")
+
+
+_check_trace_layout()
+
+
+def _spec_start() -> tuple[float, float, float]:
+    bc = ffi.new("struct board_config *")
+    lib.board_default_config(bc)
+    s = bc.start
+    heading = (s.heading_turn32 - (2**32 if s.heading_turn32 >= 2**31 else 0)) * 360.0 / 2**32
+    return (s.x_um / 1000.0, s.y_um / 1000.0, heading)
+
+
+#: The board's power-on pose (board_default_config()): the specification's "0, bout du
+#: terrain", angle 0, as docs/control.md places it on the field.
+SPEC_START = _spec_start()
+
+_CHUNK = 4096  # trace rows per call into C
+
+
+class TruePose(NamedTuple):
+    """Ground truth of the encoder axis midpoint (the specification's reference point)."""
+
+    x_mm: float
+    y_mm: float
+    heading_deg: float
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One I2C transaction as the simulated board saw it (for logs and demos)."""
+
+    t_s: float  # when its last byte ended
+    kind: str  # "W" (write), "R" (read)
+    data: bytes
+    stop: bool  # ended by a STOP (False: a repeated start follows)
+
+
+def _set_config(sc: Any, key: str, value: Any) -> None:
+    """Set one struct sim_config member from Python, with a message that names it."""
+    if key == "start":
+        try:
+            x, y, deg = (float(v) for v in value)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"config start must be (x_mm, y_mm, heading_deg), not {value!r}"
+            ) from None
+        sc.start.x_mm, sc.start.y_mm, sc.start.heading_rad = x, y, math.radians(deg)
+        return
+    path = key.split(".")
+    obj = sc
+    try:
+        for p in path[:-1]:
+            obj = getattr(obj, p)
+        current = getattr(obj, path[-1])
+    except AttributeError:
+        raise ValueError(f"config: unknown simulator setting {key!r} (see sim/sim.h)") from None
+    try:
+        if isinstance(current, int | float | bool):
+            setattr(obj, path[-1], value)
+        else:  # an array such as enc_radius_error
+            values = list(value)
+            if len(values) != len(current):
+                raise ValueError(f"config {key} takes {len(current)} values, not {len(values)}")
+            for i, v in enumerate(values):
+                current[i] = v
+    except (TypeError, OverflowError) as e:
+        raise ValueError(f"config {key} = {value!r}: {e}") from None
+
+
+def _fill_field(f: Any, fl: fieldmod.Field) -> None:
+    f.length_mm, f.width_mm, f.borders = fl.length_mm, fl.width_mm, fl.borders
+    obstacles: list[tuple[int, int, float, float, float, float, float]] = [
+        (lib.SIM_SHAPE_CIRCLE, lib.SIM_OBSTACLE_BASKET, b.x_mm, b.y_mm, b.radius_mm, 0.0, 0.0)
+        for b in fl.baskets
+    ]
+    for o in fl.obstacles:
+        shape = lib.SIM_SHAPE_CIRCLE if o.shape == "circle" else lib.SIM_SHAPE_BOX
+        obstacles.append(
+            (shape, lib.SIM_OBSTACLE_OTHER, o.x_mm, o.y_mm, o.radius_mm, o.half_x_mm, o.half_y_mm)
+        )
+    f.obstacle_count = len(obstacles)
+    for i, (shape, kind, x, y, r, hx, hy) in enumerate(obstacles):
+        ob = f.obstacles[i]
+        ob.shape, ob.kind, ob.x_mm, ob.y_mm = shape, kind, x, y
+        ob.radius_mm, ob.half_x_mm, ob.half_y_mm = r, hx, hy
+    f.line_count = len(fl.lines)
+    for i, ln in enumerate(fl.lines):
+        c = f.lines[i]
+        c.x0_mm, c.y0_mm, c.x1_mm, c.y1_mm, c.width_mm = (
+            ln.x0_mm,
+            ln.y0_mm,
+            ln.x1_mm,
+            ln.y1_mm,
+            ln.width_mm,
+        )
+
+
+class Simulator:
+    """One simulated board on one simulated robot on one field.
+
+    ``config`` overrides members of the simulator's ``struct sim_config`` (sim/sim.h) by name,
+    e.g. ``{"enc_radius_error": (0.003, -0.003), "start": (0, -850, 1.0)}``; ``start`` is the
+    true start pose (x mm, y mm, heading degrees) and the board believes it starts at
+    ``board_start`` (default: the true start as configured, before ``randomize``).
+    ``seed`` seeds the encoder noise; ``randomize=True`` also draws a robot off the shelf from it
+    (wheel mismatch, track error, noise, start pose error: ``sim_config_randomize``).
+    ``field`` is a field file path or a ``field.Field`` (default: field/default.toml).
+    ``bus_hz`` is the I2C bit rate: each byte takes 9 bit times of simulated time.
+    """
+
+    def __init__(
+        self,
+        config: Mapping[str, Any] | None = None,
+        seed: int = 0,
+        *,
+        field: str | Path | fieldmod.Field | None = None,
+        randomize: bool = False,
+        board_start: tuple[float, float, float] | None = None,
+        address: int = 2,
+        bus_hz: int = 100_000,
+        record: bool = True,
+    ) -> None:
+        if not 1_000 <= bus_hz <= 1_000_000:
+            raise ValueError(f"bus_hz must be 1000..1000000, not {bus_hz}")
+        if not 0 <= seed < 2**64:
+            raise ValueError(f"seed must be 0..2^64-1, not {seed}")
+        self.field = (
+            field
+            if isinstance(field, fieldmod.Field)
+            else fieldmod.load(fieldmod.DEFAULT if field is None else field)
+        )
+        self._f = ffi.new("struct sim_field *")
+        _fill_field(self._f, self.field)
+        sc = ffi.new("struct sim_config *")
+        lib.sim_config_defaults(sc)
+        _set_config(sc, "start", SPEC_START)
+        for key, value in (config or {}).items():
+            _set_config(sc, key, value)
+        bc = ffi.new("struct board_config *")
+        # The board is configured with the nominal robot: the errors drawn below stay hidden.
+        lib.host_board_config(sc, self._f, bc)
+        if board_start is not None:
+            x, y, deg = board_start
+            bc.start.x_um = round(x * 1000)
+            bc.start.y_um = round(y * 1000)
+            bc.start.heading_turn32 = round(deg / 360.0 * 2**32) % 2**32
+        if randomize:
+            lib.sim_config_randomize(sc, seed)
+        else:
+            sc.seed = seed
+        self._sc = sc
+        self._h = ffi.new("struct host *")
+        err = lib.host_init(self._h, bc, sc, self._f)
+        if err:
+            raise ValueError(
+                f"the simulator refused this configuration (host_init returned {err}): "
+                "a value is out of range (sim/sim.h, firmware/core/board.h)"
+            )
+        self.address = address
+        self._byte_ns = round(9 * 1e9 / bus_hz)
+        self._record = record
+        self._buf = ffi.new("struct host_sample[]", _CHUNK)
+        self._n = ffi.new("uint32_t *")
+        self._chunks: list[np.ndarray] = []
+        self.frames: list[Frame] = []
+        self.on_frame: list[Callable[[Frame], None]] = []
+        self.bus = VirtualBus({address: self}, clock=self)
+
+    # ---- time -------------------------------------------------------------------------------
+    @property
+    def time_s(self) -> float:
+        """Simulated time since power-on."""
+        return int(self._h.now_ns) * 1e-9
+
+    def monotonic(self) -> float:
+        """Clock interface of the bus: the simulated time."""
+        return self.time_s
+
+    def sleep(self, seconds: float) -> None:
+        """Clock interface of the bus: waiting runs the simulation."""
+        self.advance(seconds)
+
+    def advance(self, seconds: float) -> None:
+        """Run the board and the physics for ``seconds`` of simulated time."""
+        if not seconds >= 0:
+            raise ValueError(f"advance: seconds must be >= 0, not {seconds}")
+        self._advance_ns(round(seconds * 1e9))
+
+    def _advance_ns(self, ns: int) -> None:
+        while ns > 0:
+            if self._record:
+                done = lib.host_advance_ns(self._h, ns, self._buf, _CHUNK, self._n)
+                n = int(self._n[0])
+                if n:
+                    raw = ffi.buffer(self._buf, n * TRACE_DTYPE.itemsize)
+                    self._chunks.append(np.frombuffer(raw, dtype=TRACE_DTYPE).copy())
+            else:
+                done = lib.host_advance_ns(self._h, ns, ffi.NULL, 0, ffi.NULL)
+            ns -= int(done)
+
+    # ---- I2C device (asserv.bus.I2CDevice) ----------------------------------------------------
+    def i2c_write(self, data: bytes, stop: bool) -> None:
+        """A write transaction at the bus bit rate: each byte reaches the board's interrupt when
+        its ninth clock ends, while the control ticks go on."""
+        p = ffi.addressof(self._h.board, "proto")
+        self._advance_ns(self._byte_ns)  # START and the address byte
+        lib.proto_on_write_start(p)
+        for b in bytes(data):
+            self._advance_ns(self._byte_ns)
+            lib.proto_on_byte(p, b)
+        if stop:
+            lib.proto_on_stop(p)
+        self._log(Frame(self.time_s, "W", bytes(data), stop))
+
+    def i2c_read(self, n: int) -> bytes:
+        """A read transaction of n bytes, ended by NACK and STOP."""
+        p = ffi.addressof(self._h.board, "proto")
+        self._advance_ns(self._byte_ns)  # (repeated) START and the address byte
+        lib.proto_on_read_start(p)
+        out = bytearray()
+        for _ in range(n):
+            out.append(lib.proto_read_byte(p))
+            self._advance_ns(self._byte_ns)
+        lib.proto_on_stop(p)
+        frame = Frame(self.time_s, "R", bytes(out), True)
+        self._log(frame)
+        return frame.data
+
+    def _log(self, frame: Frame) -> None:
+        self.frames.append(frame)
+        for cb in self.on_frame:
+            cb(frame)
+
+    def describe_robot(self) -> str:
+        """The hidden errors of this robot, in one line (what randomize drew, or the config)."""
+        sc = self._sc
+        b = self._h.board.cfg.start
+        believed = (b.x_um / 1000.0, b.y_um / 1000.0)
+        e, k, st = sc.enc_radius_error, sc.enc_noise_mm2_per_m, sc.start
+        parts = [
+            f"free wheels {e[0] * 100:+.3f} % / {e[1] * 100:+.3f} % in diameter",
+            f"track {sc.enc_track_error_mm:+.2f} mm",
+            f"noise {k[0]:.2f} / {k[1]:.2f} mm^2/m",
+            f"start ({st.x_mm:.1f}, {st.y_mm:.1f}) mm {math.degrees(st.heading_rad):.2f} deg",
+            f"believed ({believed[0]:.1f}, {believed[1]:.1f}) mm",
+        ]
+        return ", ".join(parts)
+
+    # ---- truth, estimate, traces ----------------------------------------------------------------
+    def true_pose(self) -> TruePose:
+        """Where the robot really is (encoder axis midpoint), heading in degrees -180..180."""
+        t = ffi.new("struct sim_truth *")
+        lib.sim_get_truth(ffi.addressof(self._h, "sim"), t)
+        return TruePose(t.odo_pose.x_mm, t.odo_pose.y_mm, math.degrees(t.odo_pose.heading_rad))
+
+    @property
+    def trace(self) -> np.ndarray:
+        """One row per control tick (columns TRACE_FIELDS), as a numpy structured array."""
+        if len(self._chunks) > 1:
+            self._chunks = [np.concatenate(self._chunks)]
+        return self._chunks[0] if self._chunks else np.zeros(0, dtype=TRACE_DTYPE)
+
+    @property
+    def ticks(self) -> int:
+        """Control ticks run since power-on."""
+        return int(self._h.ticks)
+
+    def status(self) -> int:
+        """The board's internal status byte (for tests; a master reads CHECK_BUSY)."""
+        return int(self._h.board.status)
+
+    # ---- disturbances and faults (sim/sim.h) --------------------------------------------------
+    def set_battery_volts(self, volts: float) -> None:
+        lib.sim_set_battery_V(ffi.addressof(self._h, "sim"), volts)
+
+    def set_friction_scale(self, wheel: int, scale: float) -> None:
+        lib.sim_set_friction_scale(ffi.addressof(self._h, "sim"), wheel, scale)
+
+    def set_motor_stuck(self, wheel: int, stuck: bool) -> None:
+        lib.sim_set_motor_stuck(ffi.addressof(self._h, "sim"), wheel, stuck)
+
+    def set_encoder_cut(self, wheel: int, cut: bool) -> None:
+        lib.sim_set_encoder_cut(ffi.addressof(self._h, "sim"), wheel, cut)
+
+    def set_motor_encoder_cut(self, wheel: int, cut: bool) -> None:
+        lib.sim_set_motor_encoder_cut(ffi.addressof(self._h, "sim"), wheel, cut)
+
+    def place(self, x_mm: float, y_mm: float, heading_deg: float) -> None:
+        """Put the robot somewhere by hand (at rest); the board is not told."""
+        pose = ffi.new("struct sim_pose *", (x_mm, y_mm, math.radians(heading_deg)))
+        lib.sim_set_pose(ffi.addressof(self._h, "sim"), pose)

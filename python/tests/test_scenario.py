@@ -1,0 +1,84 @@
+"""Scenario files: checked whole before anything runs, errors name the file and line, and a good
+scenario plays on the simulated board."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from asserv import Status, scenario
+from asserv.cli import main
+
+
+@pytest.mark.parametrize(
+    ("text", "line", "message"),
+    [
+        ("goto 200 100\nfly 3\n", 2, "unknown command 'fly'"),
+        ("goto 200\n", 1, "goto takes goto X_MM Y_MM [OPTIONS], got 1 argument(s)"),
+        ("goto 200 abc\n", 1, "argument 2 of goto ('abc') is not valid"),
+        ("goto 40000 0\n", 1, "goto: "),
+        ("# fine\n\ngoto 0 0 bord+nope\n", 3, "argument 3 of goto"),
+        ("goto_panier 200\n", 1, "outside -180..180"),
+        ("set_vitesse_traj 0\n", 1, "set_vitesse_traj: "),
+        ("goto 0 0\nseed 3\n", 2, "'seed' is a setup line"),
+        ("field nowhere\ngoto 0 0\n", 1, "bad field file"),
+        ("config mass_kgg 3\ngoto 0 0\n", 1, "unknown simulator setting 'mass_kgg'"),
+        ("start 0 0\ngoto 0 0\n", 1, "start takes three numbers"),
+        ("wait -1\n", 1, "positive number of seconds"),
+        ("pec maybe\ngoto 0 0\n", 1, "pec takes on or off"),
+    ],
+)
+def test_bad_lines_are_named(text: str, line: int, message: str) -> None:
+    with pytest.raises(scenario.ScenarioError) as e:
+        scenario.parse(text, "s.txt")
+    assert str(e.value).startswith(f"s.txt:{line}: ")
+    assert message in str(e.value)
+
+
+def test_empty_scenario_is_refused() -> None:
+    with pytest.raises(scenario.ScenarioError, match="no bus command"):
+        scenario.parse("# nothing\nseed 3\n", "s.txt")
+
+
+def test_options_by_name_or_number() -> None:
+    scn = scenario.parse("goto 1 2 ligne+bord\ngoto 1 2 1\nset_filtre souple\n")
+    assert [s.args for s in scn.steps] == [[1, 2, 3], [1, 2, 1], [1]]
+
+
+def test_annex_scenario_plays_to_the_basket() -> None:
+    scn = scenario.load(scenario.SCENARIO_DIR / "annex.txt")
+    lines: list[str] = []
+    res = scenario.play(scn, lines.append)
+    assert res.ok
+    assert res.final_status & Status.CHOC_PANIER
+    assert res.targets == [(200.0, 100.0), (100.0, 50.0)]
+    err = scenario.summary(res, lines.append)
+    assert err <= res.board.position().radius_mm  # the truth lies within the reported radius
+    assert any("GOTO x_mm=100 y_mm=50" in ln for ln in lines)
+
+
+def test_cli_reports_a_bad_scenario_and_runs_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    p = tmp_path / "bad.txt"
+    p.write_text("set_vitesse_traj 100\ngoto 200 100\nwait 5\ngoto 1\n")
+    assert main(["sim", "run", str(p)]) == 2
+    captured = capsys.readouterr()
+    assert f"{p}:4: goto takes" in captured.err
+    assert captured.out == ""  # nothing was played
+
+
+def test_cli_runs_a_scenario_and_plots(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "s.txt"
+    p.write_text("seed 3\nrandomize\nset_vitesse_traj 50 50\ngoto 0 -500\nwait\nposition\n")
+    png = tmp_path / "s.png"
+    assert main(["sim", "run", str(p), "--png", str(png)]) == 0
+    out = capsys.readouterr().out
+    assert "order ended: idle" in out and "POSITION -> Pose(x_mm=0, y_mm=-500" in out
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_cli_missing_scenario(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["sim", "run", "/nonexistent.txt"]) == 2
+    assert "cannot read the scenario" in capsys.readouterr().err
