@@ -3,7 +3,7 @@
 # time): board_tick() inclusive, averaged over the ticks of each scenario. Prints, asserts nothing.
 set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
-BUILD="$ROOT/build-bench"
+BUILD=${BUILD:-$ROOT/build-bench}
 cmake -S "$ROOT" -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=Release -DASSERV_TESTS=OFF >/dev/null
 cmake --build "$BUILD" --target bench_tick >/dev/null
 command -v valgrind >/dev/null || { echo "tick_instructions: valgrind is not installed" >&2; exit 1; }

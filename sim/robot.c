@@ -20,13 +20,18 @@
  *      point (k = 1e6 N/m, c = 2000 N s/m by default: 0.04 mm under a 40 N push), plus a
  *      regularised Coulomb friction along the wall. The wall stops the normal motion; the wheels
  *      then stall or slip, and the motor current shows it.
- *   5. Body: semi-implicit Euler in the field frame (velocities first, then positions with the
- *      new velocities). The heading's cosine and sine are rotated incrementally (a 4th-order
- *      exact rotation) and recomputed from the heading every 1024 substeps, so there is no libm
- *      call in the common path.
+ *   5. Body: semi-implicit Euler (velocities first, then positions with the new velocities),
+ *      the velocity carried in the body frame (run_ground() says why). The heading's cosine and
+ *      sine are rotated incrementally (a 4th-order exact rotation) and recomputed from the
+ *      heading every 1024 substeps, so there is no libm call in the common path.
  *   6. Encoders: each free wheel rolls the ground distance of its contact point along the robot
  *      axis, plus noise of variance k |ds| (Chong & Kleeman 1997), converted with its true radius;
- *      motor encoders integrate the shaft angle. Counts are the floor of the continuous position.
+ *      motor encoders integrate the shaft angle. Both are sums over the substeps, added to the
+ *      positions once per call (add_travel()). Counts are the floor of the continuous position.
+ *
+ * Sensors: the shock and basket switches are only looked at within reach of something (the
+ * clearance, counted down by the distance travelled); the line sensors are computed again only
+ * when one has moved farther than its distance to the nearest edge of a line (update_lines()).
  *
  * Stability limits are checked by sim_init(); with the defaults the largest explicit eigenvalue
  * times dt is about 0.15.
@@ -360,8 +365,8 @@ static void contact_forces(struct sim *s, double x, double y, double c, double s
 	s->contact_force = total;
 }
 
-/* Steps 1 and 3 for one wheel: the current, exact for the frozen speed, and the motor torque at
- * the wheel [N m]. */
+/* Step 1 for one wheel: the current, exact for the frozen speed, and the motor torque at the
+ * wheel [N m] that steps 2 and 3 use. */
 static double motor_torque(const struct sim *s, int i, double w, double *cur)
 {
 	*cur = *cur * s->cur_decay + (s->cur_in[i] - w * s->cur_per_w);
@@ -369,10 +374,11 @@ static double motor_torque(const struct sim *s, int i, double w, double *cur)
 	       clampd(w * s->friction_per_w, -s->friction_wheel, s->friction_wheel);
 }
 
-/* The wheel and motor encoder travel of a call, added once at its end [counts]. The free wheel
- * noise is drawn every NOISE_MASK + 1 substeps for the distance rolled meanwhile (its variance
- * k |ds| adds up, so the statistics are those of a draw per substep, at a fraction of the
- * cost); a call's travel counts toward the draw its last substep falls in. */
+/* The wheel and motor encoder travel of a call, added once at its end [counts]: the sums over
+ * its substeps of the forward speed, yaw rate and wheel speeds, times the counts per unit. The
+ * free wheel noise is drawn once per 2^NOISE_SHIFT substeps for the distance rolled meanwhile
+ * (its variance k |ds| adds up, so the statistics are those of a draw per substep, at a
+ * fraction of the cost); a call's travel counts toward the draw its last substep falls in. */
 static void add_travel(struct sim *s, uint64_t steps_before, double sum_u, double sum_omega,
 		       const double sum_w[2])
 {
@@ -610,9 +616,17 @@ void sim_step(struct sim *s)
 void sim_advance_ns(struct sim *s, uint64_t duration_ns)
 {
 	uint64_t total = s->carry_ns + duration_ns;
-	uint64_t n = total / s->cfg.substep_ns;
+	uint64_t n;
 
-	s->carry_ns = total % s->cfg.substep_ns;
+	/* A lockstep host asks for the same period every time: the 64-bit division (some tens
+	 * of cycles before the first substep can start) is kept with the time it divided. */
+	if (total != s->split_ns) {
+		s->split_ns = total;
+		s->split_n = total / s->cfg.substep_ns;
+		s->split_rest_ns = total % s->cfg.substep_ns;
+	}
+	n = s->split_n;
+	s->carry_ns = s->split_rest_ns;
 	if (n > 0)
 		run_substeps(s, n);
 }

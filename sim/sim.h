@@ -251,6 +251,7 @@ struct sim {
 	bool motor_stuck[2], enc_cut[2], motor_enc_cut[2];
 	struct sim_rng rng;
 	uint64_t time_ns, steps, carry_ns;
+	uint64_t split_ns, split_n, split_rest_ns; /* the last time sim_advance_ns() divided */
 };
 
 /* Sets up s from cfg and field (both copied) at cfg->start, at rest, duties 0, counters 0.

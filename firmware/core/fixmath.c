@@ -252,10 +252,3 @@ uint32_t fx_deg_to_turn32(int32_t deg)
 	/* r * 2^32 / 360 = r * 2^29 / 45, rounded; 45 is odd so there is never a tie. */
 	return (uint32_t)((((uint64_t)r << 29) + 22) / 45);
 }
-
-int32_t fx_turn32_to_cdeg(uint32_t angle_turn32)
-{
-	int32_t a = fx_angle_diff(angle_turn32, 0);
-
-	return (int32_t)fx_shr_round64((int64_t)a * 36000, 32);
-}

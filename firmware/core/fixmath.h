@@ -109,8 +109,7 @@ void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30);
 uint32_t fx_atan2(int32_t y, int32_t x);
 
 /* Conversions at the edges of the core (protocol units); rounded to nearest. */
-uint32_t fx_deg_to_turn32(int32_t deg);           /* any int32 degrees, wrapped */
-int32_t fx_turn32_to_cdeg(uint32_t angle_turn32); /* -18000..18000 [0.01 degree] */
+uint32_t fx_deg_to_turn32(int32_t deg); /* any int32 degrees, wrapped */
 
 /* A relative angle between two headings, b - a, in -1/2..+1/2 turn. Converting an
  * out-of-range unsigned value to int32_t is implementation-defined, so the upper half is mapped
@@ -122,6 +121,14 @@ static inline int32_t fx_angle_diff(uint32_t b_turn32, uint32_t a_turn32)
 	if (d < FX_HALF_TURN32)
 		return (int32_t)d;
 	return (int32_t)(d - FX_HALF_TURN32) - INT32_MAX - 1;
+}
+
+/* A heading as -18000..18000 [0.01 degree], rounded to nearest. */
+static inline int32_t fx_turn32_to_cdeg(uint32_t angle_turn32)
+{
+	int32_t a = fx_angle_diff(angle_turn32, 0);
+
+	return (int32_t)fx_shr_round64((int64_t)a * 36000, 32);
 }
 
 #endif

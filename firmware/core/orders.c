@@ -123,10 +123,11 @@ static void aim(struct orders *o, const struct orders_measure *m, uint32_t headi
 	profile_set_target(&o->angle, m->angle_um + orders_arc_um(o, d));
 }
 
-/* The bearing of the target from the estimate. fx_atan2 is a CORDIC (22 steps, a few thousand
- * cycles on an AVR), so its result is kept with the position it was computed from: turning on
- * the spot moves the estimated position little or not at all (the two wheel travels cancel), a
- * second call in the same tick finds it too, and the same inputs give the same output. */
+/* The bearing of the target from the estimate. fx_atan2 is a CORDIC (ten steps and a division,
+ * a few thousand cycles on an AVR), so its result is kept with the position it was computed
+ * from: turning on the spot moves the estimated position little or not at all (the two wheel
+ * travels cancel), a second call in the same tick finds it too, and the same inputs give the
+ * same output. */
 static uint32_t bearing(struct orders *o, const struct odometry_pose *p)
 {
 	if (!o->bearing_valid || p->x_um != o->bearing_x_um || p->y_um != o->bearing_y_um) {
@@ -149,7 +150,7 @@ static int within_freeze(const struct orders *o, const struct odometry_pose *p)
 	int32_t r = o->cfg.freeze_radius_um;
 	int64_t r1 = (int64_t)r + 1;
 
-	if (dx > r || dx < -r || dy > r || dy < -r)
+	if (r < 0 || dx > r || dx < -r || dy > r || dy < -r)
 		return 0;
 	return (int64_t)dx * dx + (int64_t)dy * dy < r1 * r1;
 }

@@ -149,13 +149,6 @@ static void choose_window(struct profile *p, int64_t dist_q16)
 	struct profile_params *prm = &p->prm;
 	int64_t n = 1;
 
-	/* A trapezoid already set up for the same limits: at rest the filter is already empty
-	 * (one slot, zero velocity, the position sum equal to the position) and r_far is that of
-	 * these limits, so there is nothing to redo. This is the common case of a GOTO re-aiming
-	 * a resting angle axis every tick, and it spares the division of params_update_far(). */
-	if (prm->lim.j_max_um_s3 == 0 && prm->j_um_s3 == 0 && prm->n_filt == 1 &&
-	    prm->hold_len == 0 && prm->a_q16 == prm->a_full_q16 && p->far_ready)
-		return;
 	if (prm->lim.j_max_um_s3 == 0) {
 		prm->j_um_s3 = 0;
 		prm->a_q16 = prm->a_full_q16;
@@ -237,11 +230,23 @@ int profile_set_limits(struct profile *p, const struct profile_limits *lim)
 	return 0;
 }
 
+/* At rest, a trapezoid already set up for the current limits: choose_window() would change
+ * nothing (the filter is one slot, empty, its position sum the position; r_far is that of
+ * these limits). The common case of a GOTO re-aiming a resting angle axis every tick, spared
+ * the division of params_update_far(). */
+static int window_current(const struct profile *p)
+{
+	const struct profile_params *prm = &p->prm;
+
+	return prm->lim.j_max_um_s3 == 0 && prm->j_um_s3 == 0 && prm->n_filt == 1 &&
+	       prm->hold_len == 0 && prm->a_q16 == prm->a_full_q16 && p->far_ready;
+}
+
 void profile_set_target(struct profile *p, int32_t target_um)
 {
 	p->target_q16 = (int64_t)target_um * Q16;
 	p->stopping = 0;
-	if (at_rest(p)) {
+	if (at_rest(p) && !window_current(p)) {
 		int64_t d = p->target_q16 - p->pos_in_q16;
 
 		choose_window(p, d >= 0 ? d : -d);

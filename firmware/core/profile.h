@@ -85,7 +85,7 @@ struct profile {
 	int32_t hist_q16[CONFIG_PROFILE_JERK_TICKS_MAX];
 	struct profile_out out;
 	int64_t n_hint[2]; /* last braking step count found, for h = 0 and h = hold_len (a guess) */
-	uint8_t far_ready; /* prm has been set up by choose_window() at least once */
+	uint8_t far_ready; /* r_far is that of the current limits (set by choose_window()) */
 };
 
 /* Start at rest at pos_um [um] with cfg's limits. Returns 0, or -1 if a setting is out of range
