@@ -261,9 +261,8 @@ class FramePrinter:
     """Prints every I2C transaction with its meaning; runs of identical polls are folded into
     one line that says how many there were and until when."""
 
-    def __init__(self, out: Callable[[str], None], pec: bool = False) -> None:
+    def __init__(self, out: Callable[[str], None]) -> None:
         self.out = out
-        self.pec = pec
         self._pending: Frame | None = None
         self._last: tuple[bytes, bytes] | None = None
         self._repeats = 0
@@ -319,6 +318,11 @@ class FramePrinter:
         self._last = key
         self.out(f"{t:8.3f}  {wire:<34}  {meaning}")
 
+    def end_run(self) -> None:
+        """Print the folded repeats, and fold nothing into what was printed before."""
+        self.flush()
+        self._last = None
+
     def flush(self) -> None:
         if self._repeats:
             self.out(
@@ -342,7 +346,7 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
     """Play a checked scenario on a new simulated board, printing every frame."""
     sim = scn.simulator()
     board = Board(sim.bus, pec=scn.pec)
-    printer = FramePrinter(out, scn.pec)
+    printer = FramePrinter(out)
     sim.on_frame.append(printer)
     out(f"robot: {sim.describe_robot()}")
     out("")
@@ -356,8 +360,7 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
             if step.command == "wait":
                 timeout = step.args[0] if step.args else 30.0
                 status = int(board.wait_idle(timeout))
-                printer.flush()
-                printer._last = None
+                printer.end_run()
                 out(f"{sim.time_s:8.3f}  {'':34}  order ended: {_flags(status)}")
             elif step.command == "sleep":
                 sim.advance(step.args[0])
@@ -367,8 +370,7 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
                 if step.command == "goto":
                     targets.append((float(step.args[0]), float(step.args[1])))
                 if value is not None:
-                    printer.flush()
-                    printer._last = None
+                    printer.end_run()
         except AsservError as e:
             printer.flush()
             out(f"{scn.source}:{step.line}: {e}")

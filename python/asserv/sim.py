@@ -328,10 +328,6 @@ class Simulator:
         """Control ticks run since power-on."""
         return int(self._h.ticks)
 
-    def status(self) -> int:
-        """The board's internal status byte (for tests; a master reads CHECK_BUSY)."""
-        return int(self._h.board.status)
-
     # ---- disturbances and faults (sim/sim.h) --------------------------------------------------
     def set_battery_volts(self, volts: float) -> None:
         lib.sim_set_battery_V(ffi.addressof(self._h, "sim"), volts)

@@ -117,13 +117,20 @@ int host_init(struct host *h, const struct board_config *bc, const struct sim_co
 	return board_init(&h->board, bc, &in);
 }
 
-void host_tick(struct host *h)
+/* The control tick at the current instant: sensors, board_tick(), the new duties held by the
+ * physics until the next tick. */
+static void control_tick(struct host *h)
 {
 	read_sensors(h);
 	port_control_tick(&h->board);
 	sim_set_duty(&h->sim, duty[HAL_LEFT], duty[HAL_RIGHT]);
-	sim_advance_ns(&h->sim, h->tick_ns);
 	h->ticks++;
+}
+
+void host_tick(struct host *h)
+{
+	control_tick(h);
+	sim_advance_ns(&h->sim, h->tick_ns);
 	h->now_ns += h->tick_ns; /* same clock as host_advance_ns(): call it on a tick boundary */
 }
 
@@ -194,10 +201,7 @@ uint64_t host_advance_ns(struct host *h, uint64_t duration_ns, struct host_sampl
 		if (h->now_ns == h->ticks * h->tick_ns) {
 			if (buf && n >= cap)
 				break; /* full: the caller empties buf before this tick runs */
-			read_sensors(h);
-			port_control_tick(&h->board);
-			sim_set_duty(&h->sim, duty[HAL_LEFT], duty[HAL_RIGHT]);
-			h->ticks++;
+			control_tick(h);
 			if (buf)
 				record(h, &buf[n++]);
 		}
