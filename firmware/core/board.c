@@ -340,8 +340,8 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	fi.free_step_q16[0] = step.left_q16;
 	fi.free_step_q16[1] = step.right_q16;
 	fi.free_ratio_q16 = b->free_ratio_q16;
-	fi.dist_err_um = b->orders.sp_dist.pos_um - m.dist_um;
-	fi.angle_err_um = b->orders.sp_angle.pos_um - m.angle_um;
+	fi.dist_err_um = fx_sat32((int64_t)b->orders.sp_dist.pos_um - m.dist_um);
+	fi.angle_err_um = fx_sat32((int64_t)b->orders.sp_angle.pos_um - m.angle_um);
 	fi.moving = (uint8_t)orders_busy(&b->orders);
 	fi.pushing = b->orders.state == ORDER_STATE_PUSH;
 	event = faults_check(&b->faults, &fi);

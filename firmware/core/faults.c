@@ -5,8 +5,11 @@
 
 #define N_FAULT_TIMES 8u
 
-static int32_t abs32(int32_t v)
+/* |v|, with |INT32_MIN| saturated to INT32_MAX. */
+static int32_t mag32(int32_t v)
 {
+	if (v == INT32_MIN)
+		return INT32_MAX;
 	return v < 0 ? -v : v;
 }
 
@@ -61,14 +64,16 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 	/* Slip: the drive wheels' travel against the free wheels', on both polar axes (the
 	 * angle axis scaled from the encoder track to the drive track), summed with a leak so
 	 * that a short disagreement (a seam, backlash) is forgotten. Halves are taken after the
-	 * sum to keep the rounding out of the comparison. */
-	free_a = fx_mul_shr(in->free_step_q16[1] - in->free_step_q16[0], in->free_ratio_q16, 16);
-	diff_d = (m[0] + m[1]) - (in->free_step_q16[0] + in->free_step_q16[1]);
-	diff_a = (m[1] - m[0]) - free_a;
-	f->slip_dist_q16 +=
-		fx_shr_round(diff_d, 1) - fx_shr_round(f->slip_dist_q16, f->cfg.slip_shift);
-	f->slip_angle_q16 +=
-		fx_shr_round(diff_a, 1) - fx_shr_round(f->slip_angle_q16, f->cfg.slip_shift);
+	 * sum to keep the rounding out of the comparison. A glitching counter can make a step
+	 * saturate, so the sums are in 64 bits and saturated. */
+	free_a = fx_mul_shr(fx_sat32((int64_t)in->free_step_q16[1] - in->free_step_q16[0]),
+			    in->free_ratio_q16, 16);
+	diff_d = fx_sat32((int64_t)m[0] + m[1] - in->free_step_q16[0] - in->free_step_q16[1]);
+	diff_a = fx_sat32((int64_t)m[1] - m[0] - free_a);
+	f->slip_dist_q16 = fx_sat32((int64_t)f->slip_dist_q16 + fx_shr_round(diff_d, 1) -
+				    fx_shr_round(f->slip_dist_q16, f->cfg.slip_shift));
+	f->slip_angle_q16 = fx_sat32((int64_t)f->slip_angle_q16 + fx_shr_round(diff_a, 1) -
+				     fx_shr_round(f->slip_angle_q16, f->cfg.slip_shift));
 
 	/* Encoder signal lost: one free wheel stands still while its motor turns and the other
 	 * free wheel counts. Both standing still is a slip (the robot is stuck), not a wire. */
@@ -76,7 +81,7 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 		if (in->free_step_q16[s] != 0)
 			f->lost_um[s] = 0;
 		else if (f->lost_um[s] < INT32_MAX / 2)
-			f->lost_um[s] += fx_shr_round(abs32(m[s]), 16);
+			f->lost_um[s] += fx_shr_round(mag32(m[s]), 16);
 	}
 	for (uint8_t s = 0; s < 2; s++) {
 		if (f->lost_um[s] > f->cfg.lost_min_um && f->lost_um[1 - s] == 0) {
@@ -84,8 +89,8 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 			return FAULTS_GRAVE;
 		}
 	}
-	if (abs32(f->slip_dist_q16) > (f->cfg.slip_max_um << 16) ||
-	    abs32(f->slip_angle_q16) > (f->cfg.slip_max_um << 16)) {
+	if (mag32(f->slip_dist_q16) > (f->cfg.slip_max_um << 16) ||
+	    mag32(f->slip_angle_q16) > (f->cfg.slip_max_um << 16)) {
 		f->cause = FAULTS_CAUSE_SLIP;
 		f->slip_dist_q16 = 0;
 		f->slip_angle_q16 = 0;
@@ -139,15 +144,15 @@ uint8_t faults_check(struct faults *f, const struct faults_inputs *in)
 		return FAULTS_GRAVE;
 	}
 	ev = slip_and_lost(f, in);
-	over = abs32(in->current_ma[0]) > f->cfg.current_max_ma ||
-	       abs32(in->current_ma[1]) > f->cfg.current_max_ma;
+	over = mag32(in->current_ma[0]) > f->cfg.current_max_ma ||
+	       mag32(in->current_ma[1]) > f->cfg.current_max_ma;
 	if (counted(&f->current_count, over, f->cfg.current_ticks) && ev == FAULTS_NONE) {
 		ev = FAULTS_MOTOR;
 		f->cause = FAULTS_CAUSE_OVERCURRENT;
 	}
 	blocked = in->moving && !in->pushing &&
-		  (abs32(in->dist_err_um) > f->cfg.following_max_um ||
-		   abs32(in->angle_err_um) > f->cfg.following_max_um);
+		  (mag32(in->dist_err_um) > f->cfg.following_max_um ||
+		   mag32(in->angle_err_um) > f->cfg.following_max_um);
 	if (counted(&f->following_count, blocked, f->cfg.following_ticks) && ev == FAULTS_NONE) {
 		ev = FAULTS_MOTOR;
 		f->cause = FAULTS_CAUSE_FOLLOWING;

@@ -108,6 +108,24 @@ static void test_encoder_lost(void **state)
 	assert_int_equal(faults_check(&f, &in), FAULTS_GRAVE);
 }
 
+/* Extreme inputs (a counter glitch, a wild following error) saturate instead of overflowing:
+ * the build of the tests stops on any signed overflow (UBSan). Found by fuzz/fuzz_board. */
+static void test_extreme_inputs_saturate(void **state)
+{
+	(void)state;
+	setup();
+	in.motor_count[0] = 0x7FFF; /* both motor counters jump half their range in one tick */
+	in.motor_count[1] = 0x7FFF;
+	in.free_step_q16[0] = INT32_MIN;
+	in.free_step_q16[1] = INT32_MAX;
+	assert_int_equal(faults_check(&f, &in), FAULTS_MOTOR);
+	assert_int_equal(f.cause, FAULTS_CAUSE_SLIP);
+	setup();
+	in.dist_err_um = INT32_MIN;
+	assert_int_equal(ticks_to(FAULTS_MOTOR, 1000), 100);
+	assert_int_equal(f.cause, FAULTS_CAUSE_FOLLOWING);
+}
+
 static void test_repeated_motor_faults_are_grave(void **state)
 {
 	(void)state;
@@ -160,6 +178,7 @@ int main(void)
 		cmocka_unit_test(test_following_error_gated),
 		cmocka_unit_test(test_slip),
 		cmocka_unit_test(test_encoder_lost),
+		cmocka_unit_test(test_extreme_inputs_saturate),
 		cmocka_unit_test(test_repeated_motor_faults_are_grave),
 		cmocka_unit_test(test_shocks_roles_and_gating),
 	};
