@@ -9,7 +9,7 @@ cd "$ROOT"
 
 DEBIAN_PACKAGES=(
 	build-essential cmake ninja-build pkg-config python3 python3-venv python3-dev
-	libcmocka-dev clang-format valgrind
+	libcmocka-dev clang-format valgrind clang libclang-rt-14-dev
 	gcc-avr avr-libc simavr libsimavr-dev libelf-dev bc gcc-arm-none-eabi libnewlib-arm-none-eabi
 )
 

@@ -12,8 +12,8 @@ step "style: clang-format, ruff, mypy"
 mapfile -t c_files < <(git ls-files -co --exclude-standard '*.c' '*.h' |
 	grep -v -e '_gen\.h$' -e 'protocol_defs\.h$' -e 'field_defs\.h$' -e 'protocol_table\.c$')
 clang-format --dry-run --Werror "${c_files[@]}"
-ruff check python protocol field bench
-ruff format --check python protocol field bench
+ruff check python protocol field bench fuzz
+ruff format --check python protocol field bench fuzz
 mypy
 
 step "C: build (AddressSanitizer + UndefinedBehaviorSanitizer) and ctest"
@@ -23,6 +23,9 @@ ctest --test-dir build --output-on-failure
 
 step "Python: pytest"
 python -m pytest
+
+step "fuzz: the protocol layer and the board tick, 30 s each (libFuzzer, ASan + UBSan: fuzz/README.md)"
+bash fuzz/run.sh 30
 
 step "AVR: build the firmware, print its size, run it in simavr (and the core's Cortex-M4 size)"
 cmake -S . -B build-avr -G Ninja -DASSERV_AVR_HARNESS=ON -DASSERV_TESTS=OFF >/dev/null
