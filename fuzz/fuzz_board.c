@@ -5,7 +5,8 @@
  *   - a rejected frame, a read, an aborted transaction change nothing of the motion: A and B
  *     give the same duties, the same published snapshot (pose, status, telemetry) and the same
  *     pose to the micrometre;
- *   - under PB_GRAVE both duties are 0: the motors never keep driving into a fault;
+ *   - under PB_GRAVE or PB_MOTEUR both duties are 0: the motors never keep driving into a
+ *     fault;
  *   - the status is consistent: bit 7 clear, BUSY_GOTO_PANIER only with BUSY_TRAJET, no end bit
  *     and no PB_GRAVE while a trajectory runs, the published status is the core's.
  * TICK (kind 6) runs n control ticks. ENV (kind 7) sets the disturbances of the next ticks from
@@ -112,7 +113,7 @@ static void check_tick(const struct board_outputs *oa, const struct board_output
 	FUZZ_CHECK(pa.x_um == pb.x_um && pa.y_um == pb.y_um &&
 		   pa.heading_turn32 == pb.heading_turn32);
 
-	if (s & STATUS_PB_GRAVE)
+	if (s & (STATUS_PB_GRAVE | STATUS_PB_MOTEUR))
 		FUZZ_CHECK(oa->duty_q15[0] == 0 && oa->duty_q15[1] == 0);
 	FUZZ_CHECK((s & (0x80u | STATUS_COMMANDE_REJETEE)) == 0);
 	if (s & STATUS_BUSY_GOTO_PANIER)

@@ -234,6 +234,12 @@ static void react(struct board *b, uint8_t event, const struct orders_measure *m
 
 	if (event == FAULTS_NONE || ((b->status & STATUS_PB_GRAVE) && event == FAULTS_GRAVE))
 		return;
+	if (event == FAULTS_YIELD) {
+		/* Idle and overloaded: hold where the robot now is, keeping the last end. */
+		orders_abort(&b->orders, m, b->orders.end_reason);
+		control_reset(&b->control);
+		return;
+	}
 	orders_abort(&b->orders, m, reasons[event]);
 	control_reset(&b->control);
 	b->status |= bits[event];
@@ -352,10 +358,14 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	finish(b, reason, &m);
 	update_status(b);
 
-	/* 7. Control: feed-forward + PID on both axes, mixed into the motor duties. */
-	if (b->status & STATUS_PB_GRAVE)
+	/* 7. Control: feed-forward + PID on both axes, mixed into the motor duties. After a
+	 * motor problem the motors stay off until the next order: holding the position would
+	 * drive the same stalled, slipping or overloaded motor again. Nothing holds the robot
+	 * then, so the set points follow it and the next order starts from where it is. */
+	if (b->status & (STATUS_PB_GRAVE | STATUS_PB_MOTEUR)) {
+		orders_abort(&b->orders, &m, b->orders.end_reason);
 		control_off(&b->control);
-	else
+	} else
 		control_update(&b->control, &b->orders.sp_dist, &b->orders.sp_angle, m.dist_um,
 			       m.angle_um);
 

@@ -74,6 +74,12 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 				    fx_shr_round(f->slip_dist_q16, f->cfg.slip_shift));
 	f->slip_angle_q16 = fx_sat32((int64_t)f->slip_angle_q16 + fx_shr_round(diff_a, 1) -
 				     fx_shr_round(f->slip_angle_q16, f->cfg.slip_shift));
+	if (!in->moving) {
+		/* No order to abandon: a robot pushed while it holds its position, or rocking
+		 * after an order was abandoned, is not a motor problem. */
+		f->slip_dist_q16 = 0;
+		f->slip_angle_q16 = 0;
+	}
 
 	/* Encoder signal lost: one free wheel stands still while its motor turns and the other
 	 * free wheel counts. Both standing still is a slip (the robot is stuck), not a wire. */
@@ -147,6 +153,9 @@ uint8_t faults_check(struct faults *f, const struct faults_inputs *in)
 	over = mag32(in->current_ma[0]) > f->cfg.current_max_ma ||
 	       mag32(in->current_ma[1]) > f->cfg.current_max_ma;
 	if (counted(&f->current_count, over, f->cfg.current_ticks) && ev == FAULTS_NONE) {
+		f->current_count = 0;
+		if (!in->moving)
+			return FAULTS_YIELD; /* holding against a push: let go, no order to stop */
 		ev = FAULTS_MOTOR;
 		f->cause = FAULTS_CAUSE_OVERCURRENT;
 	}

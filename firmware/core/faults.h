@@ -1,7 +1,10 @@
 /* Stop conditions other than arrival: shock sensors, motor problems (following error,
  * overcurrent, slip) and the unrecoverable faults (encoder signal lost, repeated motor
  * problems). Every check is gated so that what the robot does on purpose is not a fault: no
- * following-error check while pushing against a basket or a border, none while idle. */
+ * following-error check while pushing against a basket or a border, and no motor problem while
+ * no order runs (a robot pushed while it holds its position, or rocking after an abandoned
+ * order): an overcurrent then only makes the board let go of the position it holds
+ * (FAULTS_YIELD). docs/failure-model.md gives the thresholds and detection times. */
 #ifndef ASSERV_FAULTS_H
 #define ASSERV_FAULTS_H
 
@@ -13,6 +16,7 @@ enum faults_event {
 	FAULTS_SHOCK_PANIER, /* a basket-side shock sensor: CHOC_PANIER */
 	FAULTS_MOTOR,        /* PB_MOTEUR: the order is abandoned, the next one may start */
 	FAULTS_GRAVE,        /* PB_GRAVE: motors off until reset */
+	FAULTS_YIELD,        /* overcurrent with no order running: stop holding, no status bit */
 };
 
 /* Which check fired last (for DEBUG and tests). */

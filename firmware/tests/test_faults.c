@@ -108,6 +108,34 @@ static void test_encoder_lost(void **state)
 	assert_int_equal(faults_check(&f, &in), FAULTS_GRAVE);
 }
 
+/* With no order running there is no trajectory to abandon: a robot pushed while it holds its
+ * position slips without a PB_MOTEUR, and an overcurrent only makes it let go (FAULTS_YIELD),
+ * never counted towards PB_GRAVE. Before, the rocking after one abandoned order gave two more
+ * PB_MOTEUR and a PB_GRAVE within 40 ms. */
+static void test_idle_is_not_a_motor_problem(void **state)
+{
+	(void)state;
+	setup();
+	in.moving = 0;
+	for (uint32_t n = 1; n < 2000; n++) {
+		in.motor_count[0] = (uint16_t)(in.motor_count[0] + 203); /* 1 mm per tick */
+		in.motor_count[1] = (uint16_t)(in.motor_count[1] + 203);
+		in.free_step_q16[0] = in.free_step_q16[1] = 500 << 16; /* the robot: 0.5 mm */
+		assert_int_equal(faults_check(&f, &in), FAULTS_NONE);
+	}
+	in.free_step_q16[0] = in.free_step_q16[1] = 0;
+	in.motor_count[0] = in.motor_count[1] = 0;
+	(void)faults_check(&f, &in);
+	in.current_ma[0] = 7000;
+	for (int k = 0; k < 10; k++)
+		assert_int_equal(ticks_to(FAULTS_YIELD, 1000), 50);
+	assert_int_equal(f.n_motor_faults, 0);
+	/* The same while an order runs is PB_MOTEUR, and the third within the window PB_GRAVE. */
+	in.moving = 1;
+	assert_int_equal(ticks_to(FAULTS_MOTOR, 1000), 50);
+	assert_int_equal(f.cause, FAULTS_CAUSE_OVERCURRENT);
+}
+
 /* Extreme inputs (a counter glitch, a wild following error) saturate instead of overflowing:
  * the build of the tests stops on any signed overflow (UBSan). Found by fuzz/fuzz_board. */
 static void test_extreme_inputs_saturate(void **state)
@@ -178,6 +206,7 @@ int main(void)
 		cmocka_unit_test(test_following_error_gated),
 		cmocka_unit_test(test_slip),
 		cmocka_unit_test(test_encoder_lost),
+		cmocka_unit_test(test_idle_is_not_a_motor_problem),
 		cmocka_unit_test(test_extreme_inputs_saturate),
 		cmocka_unit_test(test_repeated_motor_faults_are_grave),
 		cmocka_unit_test(test_shocks_roles_and_gating),

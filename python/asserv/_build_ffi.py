@@ -180,6 +180,18 @@ struct sim_truth {
 
 struct sim { ...; };
 
+struct sim_sensors {
+    uint16_t enc_count[2];
+    int64_t enc_total[2];
+    uint16_t motor_count[2];
+    int64_t motor_total[2];
+    int32_t current_mA[2];
+    uint8_t shock_mask;
+    bool basket;
+    uint8_t line_mask;
+};
+void sim_read_sensors(const struct sim *s, struct sim_sensors *out);
+
 void sim_field_defaults(struct sim_field *f);
 void sim_config_defaults(struct sim_config *cfg);
 void sim_config_randomize(struct sim_config *cfg, uint64_t seed);
@@ -194,7 +206,16 @@ void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut);
 /* ---- the board on the simulator (firmware/ports/host/host.h) ---- */
 struct odometry_pose { int32_t x_um; int32_t y_um; uint32_t heading_turn32; };
 struct board_config { uint16_t tick_hz; struct odometry_pose start; ...; };
-struct board { struct board_config cfg; struct proto proto; uint8_t status; ...; };
+struct faults { uint8_t cause; int32_t slip_dist_q16; ...; };
+struct orders { uint8_t state; uint8_t end_reason; ...; };
+struct board {
+    struct board_config cfg;
+    struct proto proto;
+    struct orders orders;
+    struct faults faults;
+    uint8_t status;
+    ...;
+};
 
 struct host {
     struct sim sim;
