@@ -25,14 +25,17 @@ int faults_init(struct faults *f, const struct faults_config *cfg, const uint16_
 	f->current_count = 0;
 	f->slip_dist_q16 = 0;
 	f->slip_angle_q16 = 0;
-	f->lost_um[0] = 0;
-	f->lost_um[1] = 0;
+	for (uint8_t s = 0; s < 2; s++) {
+		f->lost_motor_um[s] = 0;
+		f->lost_other_um[s] = 0;
+	}
 	f->now = 0;
 	for (uint8_t i = 0; i < N_FAULT_TIMES; i++)
 		f->motor_fault_at[i] = 0;
 	f->n_motor_faults = 0;
 	f->shock_ignored = 0;
 	f->grave = 0;
+	f->lost_suspect = 0;
 	f->cause = FAULTS_CAUSE_NONE;
 	return 0;
 }
@@ -55,6 +58,7 @@ static int32_t motor_step_q16(struct faults *f, uint8_t side, uint16_t count)
 static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 {
 	int32_t m[2], diff_d, diff_a, free_a;
+	uint8_t lost_pending = 0;
 
 	m[0] = motor_step_q16(f, 0, in->motor_count[0]);
 	m[1] = motor_step_q16(f, 1, in->motor_count[1]);
@@ -81,22 +85,49 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 		f->slip_angle_q16 = 0;
 	}
 
-	/* Encoder signal lost: one free wheel stands still while its motor turns and the other
-	 * free wheel counts. Both standing still is a slip (the robot is stuck), not a wire. */
+	/* Encoder signal lost: while an order drives the motors, a free wheel gives not a single
+	 * count while its motor turns lost_min_um and the other free wheel rolls at least a
+	 * third as far (summed with its sign, so that the twitches of a blocked robot cancel
+	 * out). A robot blocked on one side, pivoting on the contact with that side's drive wheel
+	 * spinning, can look the same for a while, so the first time is a suspicion: the order is
+	 * abandoned (PB_MOTEUR, which that collision deserves anyway). The wheel's next count
+	 * clears it; a cut wire never counts again, and the next order that turns the motor as
+	 * far, whatever the other wheel does, is PB_GRAVE. A dead wheel makes the robot steer
+	 * and slip at once, so while one is on its way to a verdict (at most lost_min_um of
+	 * motor travel) the slip check waits. */
 	for (uint8_t s = 0; s < 2; s++) {
+		uint8_t o = (uint8_t)(1u - s);
+		uint8_t bit = (uint8_t)(1u << s);
+
 		if (in->free_step_q16[s] != 0)
-			f->lost_um[s] = 0;
-		else if (f->lost_um[s] < INT32_MAX / 2)
-			f->lost_um[s] += fx_shr_round(mag32(m[s]), 16);
-	}
-	for (uint8_t s = 0; s < 2; s++) {
-		if (f->lost_um[s] > f->cfg.lost_min_um && f->lost_um[1 - s] == 0) {
-			f->cause = FAULTS_CAUSE_ENCODER_LOST;
-			return FAULTS_GRAVE;
+			f->lost_suspect &= (uint8_t)~bit;
+		if (in->free_step_q16[s] != 0 || !in->moving) {
+			f->lost_motor_um[s] = 0;
+			f->lost_other_um[s] = 0;
+			continue;
 		}
+		if (f->lost_motor_um[s] < INT32_MAX / 2) {
+			f->lost_motor_um[s] += fx_shr_round(mag32(m[s]), 16);
+			f->lost_other_um[s] = fx_sat32((int64_t)f->lost_other_um[s] +
+						       fx_shr_round(in->free_step_q16[o], 16));
+		}
+		if (!(f->lost_suspect & bit) &&
+		    (int64_t)mag32(f->lost_other_um[s]) * 3 < f->lost_motor_um[s])
+			continue;
+		if (f->lost_motor_um[s] > f->cfg.lost_min_um) {
+			f->cause = FAULTS_CAUSE_ENCODER_LOST;
+			f->lost_motor_um[s] = 0;
+			f->lost_other_um[s] = 0;
+			if (f->lost_suspect & bit)
+				return FAULTS_GRAVE;
+			f->lost_suspect |= bit;
+			return FAULTS_MOTOR;
+		}
+		if (f->lost_motor_um[s] > 0)
+			lost_pending = 1;
 	}
-	if (mag32(f->slip_dist_q16) > (f->cfg.slip_max_um << 16) ||
-	    mag32(f->slip_angle_q16) > (f->cfg.slip_max_um << 16)) {
+	if (!lost_pending && (mag32(f->slip_dist_q16) > (f->cfg.slip_max_um << 16) ||
+			      mag32(f->slip_angle_q16) > (f->cfg.slip_max_um << 16))) {
 		f->cause = FAULTS_CAUSE_SLIP;
 		f->slip_dist_q16 = 0;
 		f->slip_angle_q16 = 0;

@@ -39,8 +39,8 @@ struct faults_config {
 	uint32_t motor_um_per_count_q16; /* drive wheel travel per motor count [um * 2^16] */
 	int32_t slip_max_um;             /* drive wheels vs free wheels disagreement ... */
 	uint8_t slip_shift;              /* ... over a window of 2^slip_shift ticks (leaky sum) */
-	int32_t lost_min_um;          /* a motor moved this much while its free wheel counted 0 */
-	uint8_t repeat_max;           /* this many PB_MOTEUR (1..8) ... */
+	int32_t lost_min_um; /* a free wheel counted 0 while its motor turned this much ... */
+	uint8_t repeat_max;  /* this many PB_MOTEUR (1..8) ... */
 	uint16_t repeat_window_ticks; /* ... within this window: PB_GRAVE */
 };
 
@@ -64,7 +64,11 @@ struct faults {
 	uint16_t current_count;
 	int32_t slip_dist_q16; /* leaky sums [um * 2^16] */
 	int32_t slip_angle_q16;
-	int32_t lost_um[2];         /* motor travel since the free wheel last counted */
+	/* Since each free wheel last counted [um]: its motor's travel, and the other free
+	 * wheel's travel with its sign. */
+	int32_t lost_motor_um[2];
+	int32_t lost_other_um[2];
+	uint8_t lost_suspect;       /* bit per side: judged lost once, silent since */
 	uint32_t now;               /* [ticks] since init */
 	uint32_t motor_fault_at[8]; /* [ticks] of the last PB_MOTEUR events, ring */
 	uint8_t n_motor_faults;     /* total, saturating */

@@ -388,7 +388,9 @@ static void test_stuck_motor(void **state)
 	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
 }
 
-/* A cut free-wheel encoder while driving: PB_GRAVE, motors off, orders refused. */
+/* A cut free-wheel encoder while driving: the order is abandoned on suspicion (PB_MOTEUR,
+ * cause ENCODER_LOST, motors off); the wheel never counts again, so the next order is PB_GRAVE:
+ * motors off, orders refused. */
 static void test_encoder_cut_is_grave(void **state)
 {
 	struct sim_field f;
@@ -401,6 +403,12 @@ static void test_encoder_cut_is_grave(void **state)
 	for (int i = 0; i < 500; i++)
 		host_tick(&h);
 	sim_set_encoder_cut(&h.sim, SIM_RIGHT, true);
+	run_until_idle(5000);
+	assert_int_equal(status(), STATUS_PB_MOTEUR);
+	assert_int_equal(h.board.faults.cause, FAULTS_CAUSE_ENCODER_LOST);
+	assert_int_equal(h.board.last_out.duty_q15[0], 0);
+	assert_int_equal(h.board.last_out.duty_q15[1], 0);
+	goto_mm(-300, 0);
 	run_until_idle(5000);
 	print_message("fault cause %u\n", h.board.faults.cause);
 	assert_true(status() & STATUS_PB_GRAVE);

@@ -206,7 +206,14 @@ void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut);
 /* ---- the board on the simulator (firmware/ports/host/host.h) ---- */
 struct odometry_pose { int32_t x_um; int32_t y_um; uint32_t heading_turn32; };
 struct board_config { uint16_t tick_hz; struct odometry_pose start; ...; };
-struct faults { uint8_t cause; int32_t slip_dist_q16; ...; };
+struct faults {
+    uint8_t cause;
+    int32_t slip_dist_q16;
+    int32_t lost_motor_um[2];
+    int32_t lost_other_um[2];
+    uint8_t lost_suspect;
+    ...;
+};
 struct orders { uint8_t state; uint8_t end_reason; ...; };
 struct board {
     struct board_config cfg;

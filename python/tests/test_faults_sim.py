@@ -10,6 +10,7 @@ and the borders, at 1 m/s unless said otherwise.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -159,8 +160,9 @@ INJECTED = [
     # At 30 cm/s no wheel turns, so nothing slips: the current passes 6 A before the
     # following error has lasted its 100 ms.
     injected("both wheels jammed", stuck(0, 1), MOTEUR, "OVERCURRENT", 90, speed=30),  # 78 ms
-    injected("left free encoder wire cut", cut(0), GRAVE, "ENCODER_LOST", 10),  # 7 ms
-    injected("right free encoder wire cut", cut(1), GRAVE, "ENCODER_LOST", 10),  # 7 ms
+    # A suspicion first (PB_MOTEUR): a robot blocked on one side can look the same.
+    injected("left free encoder wire cut", cut(0), MOTEUR, "ENCODER_LOST", 10),  # 7 ms
+    injected("right free encoder wire cut", cut(1), MOTEUR, "ENCODER_LOST", 10),  # 7 ms
     injected("left motor encoder wire cut", cut_motor(0), MOTEUR, "SLIP", 32),  # 27 ms
     injected("right motor encoder wire cut", cut_motor(1), MOTEUR, "SLIP", 32),  # 27 ms
     # 24 V down to 8 V: about 0.55 m/s at full duty, the profile runs away at 1 m/s.
@@ -184,9 +186,61 @@ def test_an_injected_fault_is_reported_in_time(
     assert latency_ms(sim, t0, MOTOR_BITS) <= within_ms
     assert cause(sim) == why
     check_motors_off_and_stays(sim, first_tick(sim, MOTOR_BITS), status)
-    if status == Status.PB_GRAVE:
-        with pytest.raises(OrderRejected, match="REFUSED_PB_GRAVE"):
-            board.goto(0, -300)
+
+
+@pytest.mark.parametrize("wheel", [0, 1])
+def test_a_cut_free_encoder_wire_is_grave_at_the_next_order(wheel: int) -> None:
+    sim = lane()
+    board = drive(sim)
+    inject_at(sim, board, 0.8, cut(wheel))
+    assert board.wait_idle(5) == Status.PB_MOTEUR  # the suspicion
+    sim.advance(0.5)
+    t1 = sim.time_s
+    board.goto(0, -300)  # the wheel has not counted since: confirmed
+    assert board.wait_idle(5) == Status.PB_GRAVE
+    assert latency_ms(sim, t1 + 0.002, Status.PB_GRAVE) <= 120  # measured: 98 ms from the order
+    assert cause(sim) == "ENCODER_LOST"
+    check_motors_off_and_stays(sim, first_tick(sim, Status.PB_GRAVE), Status.PB_GRAVE)
+    with pytest.raises(OrderRejected, match="REFUSED_PB_GRAVE"):
+        board.goto(0, -300)
+
+
+# The known false PB_GRAVE "encoder lost": a corner against a wall no shock sensor sees, the
+# robot pivoting on it with the drive wheel of that side spinning and its free wheel still or
+# twitching. Each case below gave PB_GRAVE; it is a motor problem the robot recovers from.
+CORNERS = [
+    pytest.param(10, 30, False, id="10 deg at 30 cm/s"),
+    pytest.param(40, 30, False, id="40 deg at 30 cm/s"),
+    pytest.param(75, 200, False, id="75 deg at 2 m/s"),
+    pytest.param(95, 10, True, id="backing into a basket at 10 cm/s"),
+]
+
+
+@pytest.mark.parametrize(("heading", "speed", "backwards"), CORNERS)
+def test_a_corner_against_a_wall_is_not_a_cut_wire(
+    heading: int, speed: int, backwards: bool
+) -> None:
+    sim = Simulator({"start": (1000, -300, heading), "shock_count": 0})
+    board = Board(sim.bus)
+    board.set_vitesse_traj(speed, 150)
+    if backwards:
+        board.goto_reverse(255)
+    else:
+        rad = math.radians(heading)
+        board.goto(round(1000 + 2000 * math.cos(rad)), round(-300 + 2000 * math.sin(rad)))
+    assert board.wait_idle(20) == Status.PB_MOTEUR
+    assert sim.trace["contact_force_N"].max() > 0  # it did hit something
+    check_motors_off_and_stays(sim, first_tick(sim, MOTOR_BITS), Status.PB_MOTEUR)
+    # It backs off: the free wheels count again, and nothing is left suspected.
+    if backwards:  # 100 mm forwards along the heading, no turn into the basket
+        x, y, h = sim.true_pose()
+        board.goto(
+            round(x + 100 * math.cos(math.radians(h))), round(y + 100 * math.sin(math.radians(h)))
+        )
+    else:
+        board.goto_reverse(100)
+    assert not board.wait_idle(10) & MOTOR_BITS
+    assert sim._h.board.faults.lost_suspect == 0
 
 
 def test_a_low_friction_patch_makes_a_wheel_slip() -> None:
