@@ -133,6 +133,10 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 		return -1;
 	b->tick = 0;
 	b->status = 0;
+	b->timeout_ticks = 0;
+	b->silent_ticks = 0;
+	b->transactions_seen = b->proto.transactions;
+	b->timed_out = 0;
 	b->last_out.duty_q15[0] = 0;
 	b->last_out.duty_q15[1] = 0;
 	measure(b, in, &m);
@@ -145,6 +149,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 static void start_order(struct board *b)
 {
 	b->status &= (uint8_t)~STATUS_END_BITS;
+	b->timed_out = 0;
 	faults_order_started(&b->faults, b->shocks);
 }
 
@@ -211,6 +216,11 @@ static void apply(struct board *b, const struct proto_msg *msg, struct orders_me
 		set_new_pos(b, msg);
 		m->pose = odometry_get_pose(&b->odometry);
 		break;
+	case PROTO_SET_TIMEOUT:
+		/* Rounded up: the robot never stops before the time the master gave. */
+		b->timeout_ticks =
+			((uint32_t)a[ARG_SET_TIMEOUT_TIMEOUT_MS] * b->cfg.tick_hz + 999u) / 1000u;
+		break;
 	default:
 		break; /* ETAT messages never reach the queue */
 	}
@@ -243,6 +253,7 @@ static void react(struct board *b, uint8_t event, const struct orders_measure *m
 	orders_abort(&b->orders, m, reasons[event]);
 	control_reset(&b->control);
 	b->status |= bits[event];
+	b->timed_out = 0; /* a stop for the timeout ends on the fault instead */
 }
 
 /* An order ended by itself this tick. */
@@ -301,7 +312,8 @@ static void publish(struct board *b, const struct board_inputs *in, const struct
 	s.debug.current_left_ma = in->current_ma[0];
 	s.debug.current_right_ma = in->current_ma[1];
 	s.debug.order_state = b->orders.state;
-	s.debug.end_reason = b->orders.end_reason;
+	s.debug.end_reason = (b->timed_out && !orders_busy(&b->orders)) ? END_REASON_TIMEOUT
+									: b->orders.end_reason;
 	proto_publish(&b->proto, &s);
 }
 
@@ -335,6 +347,21 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	/* 4. Messages from the master, in the order they arrived. */
 	while (proto_poll(&b->proto, &msg))
 		apply(b, &msg, &m);
+
+	/* 4b. The master's silence (SET_TIMEOUT): any transaction that addresses the board, even
+	 * a poll or a rejected write, shows the master alive. When it has been silent for the
+	 * timeout, the running order stops at the current limits, as by STOP. */
+	if (b->proto.transactions != b->transactions_seen) {
+		b->transactions_seen = b->proto.transactions;
+		b->silent_ticks = 0;
+	} else if (b->silent_ticks < UINT32_MAX) {
+		b->silent_ticks++;
+	}
+	if (b->timeout_ticks && b->silent_ticks >= b->timeout_ticks && orders_busy(&b->orders) &&
+	    b->orders.state != ORDER_STATE_STOPPING) {
+		orders_stop(&b->orders);
+		b->timed_out = 1;
+	}
 
 	/* 5. Stop conditions: shocks, motor problems, unrecoverable faults. */
 	/* Pushing a basket closes the front bumper with the basket switch: the expected contact. */

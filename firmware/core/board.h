@@ -50,8 +50,12 @@ struct board {
 	int32_t angle_um;                 /* the angle axis, from heading_unwrapped_turn32 */
 	int32_t free_ratio_q16;           /* drive track / encoder track [2^-16] */
 	uint16_t tick;
-	uint8_t shocks; /* this tick's shock sensors */
-	uint8_t status; /* STATUS_* owned by the core */
+	uint8_t shocks;            /* this tick's shock sensors */
+	uint8_t status;            /* STATUS_* owned by the core */
+	uint32_t timeout_ticks;    /* SET_TIMEOUT [ticks], 0: off (power-on) */
+	uint32_t silent_ticks;     /* [ticks] since a transaction last addressed the board */
+	uint8_t transactions_seen; /* proto.transactions at the last tick */
+	uint8_t timed_out;         /* the last order was stopped by the timeout */
 	struct board_outputs last_out;
 };
 
@@ -64,8 +68,9 @@ void board_default_config(struct board_config *cfg);
  * Returns 0, or -1 when the configuration is out of range. Interrupt-safe: no. */
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
 
-/* One control period, in order: encoders -> odometry -> error radius -> messages -> stop
- * conditions -> orders -> profiles -> control -> outputs -> reply snapshot.
+/* One control period, in order: encoders -> odometry -> error radius -> messages -> the
+ * master's silence -> stop conditions -> orders -> profiles -> control -> outputs -> reply
+ * snapshot.
  * Interrupt-safe: it is the control interrupt; it must not be re-entered. */
 void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out);
 

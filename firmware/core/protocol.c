@@ -252,6 +252,7 @@ void proto_on_write_start(struct proto *p)
 	p->rx_len = 0;
 	p->rx_overflow = 0;
 	p->in_write = 1;
+	p->transactions++;
 }
 
 void proto_on_byte(struct proto *p, uint8_t byte)
@@ -286,6 +287,7 @@ void proto_on_read_start(struct proto *p)
 	p->tx_len++;
 	p->tx_pos = 0;
 	p->in_read = 1;
+	p->transactions++;
 }
 
 uint8_t proto_read_byte(struct proto *p)

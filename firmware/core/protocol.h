@@ -64,6 +64,10 @@ struct proto {
 	uint8_t write_crc;   /* CRC-8 of address + every byte of the last write */
 	uint8_t restart_crc; /* 1 when the read continues that write (repeated start) */
 
+	/* Interrupt side: own-address starts, write or read, wrapping: the tick sees the master
+	 * alive when it changes (SET_TIMEOUT). */
+	volatile uint8_t transactions;
+
 	/* Interrupt side: rejections. */
 	uint8_t rejected; /* COMMANDE_REJETEE */
 	uint8_t last_reject;

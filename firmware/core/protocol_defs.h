@@ -11,7 +11,7 @@
 #define PROTO_QUEUE_DEPTH 8
 #define PROTO_MAX_PARAMS 3
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 15
+#define PROTO_N_MSGS 16
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -29,6 +29,7 @@
 #define PROTO_STOP 12 /* extension */
 #define PROTO_VERSION 13 /* extension */
 #define PROTO_LAST_REJECT 14 /* extension */
+#define PROTO_SET_TIMEOUT 15 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -45,7 +46,8 @@
 #define CAP_STOP (1u << 1) /* the STOP order */
 #define CAP_LAST_REJECT (1u << 2) /* the LAST_REJECT reply */
 #define CAP_DEBUG (1u << 3) /* the DEBUG telemetry frame */
-#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG)
+#define CAP_TIMEOUT (1u << 4) /* the SET_TIMEOUT setting: the robot stops when the master goes silent */
+#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT)
 
 /* reject codes. */
 #define REJECT_NONE 0 /* no write rejected since reset */
@@ -79,6 +81,7 @@
 #define END_REASON_STOPPED 4 /* a STOP order */
 #define END_REASON_BASKET 5 /* GOTO_PANIER touched the basket */
 #define END_REASON_FAULT 6 /* unrecoverable fault (PB_GRAVE) */
+#define END_REASON_TIMEOUT 7 /* stopped because the master went silent (SET_TIMEOUT) */
 
 /* Index of each parameter in struct proto_msg.arg[]. */
 #define ARG_GOTO_X_MM 0
@@ -97,6 +100,7 @@
 #define ARG_SET_NEW_POS_ERR_X_MM 0
 #define ARG_SET_NEW_POS_ERR_Y_MM 1
 #define ARG_SET_NEW_POS_ERR_ANGLE_DEG 2
+#define ARG_SET_TIMEOUT_TIMEOUT_MS 0
 
 /* Reply lengths [bytes], without PEC. */
 #define PROTO_CHECK_BUSY_REPLY_LEN 1

@@ -20,6 +20,7 @@ const struct proto_param_desc proto_params[] = {
 	{-32000, 32000, PROTO_S16, 0x00}, /* SET_NEW_POS.err_x_mm */
 	{-32000, 32000, PROTO_S16, 0x00}, /* SET_NEW_POS.err_y_mm */
 	{-180, 180, PROTO_S16, 0x00}, /* SET_NEW_POS.err_angle_deg */
+	{0, 65535, PROTO_U16, 0x00}, /* SET_TIMEOUT.timeout_ms */
 };
 
 const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
@@ -37,7 +38,8 @@ const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
 	{PROTO_STOP, PROTO_KIND_ORDRE, 0, 0, 1, 1, 0, 16},
 	{PROTO_VERSION, PROTO_KIND_ETAT, 0, 0, 1, 1, 4, 16},
 	{PROTO_LAST_REJECT, PROTO_KIND_ETAT, 0, 0, 1, 1, 3, 16},
-	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 16},
+	{PROTO_SET_TIMEOUT, PROTO_KIND_SET, 1, 1, 3, 3, 0, 16},
+	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 17},
 };
 
 const struct proto_msg_desc *proto_lookup(uint8_t designation)
@@ -72,8 +74,10 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[12];
 	case 14:
 		return &proto_msgs[13];
-	case 200:
+	case 15:
 		return &proto_msgs[14];
+	case 200:
+		return &proto_msgs[15];
 	default:
 		return NULL;
 	}

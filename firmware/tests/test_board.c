@@ -422,6 +422,103 @@ static void test_encoder_cut_is_grave(void **state)
 	assert_int_equal(r[0], REJECT_REFUSED_PB_GRAVE);
 }
 
+/* DEBUG's end reason, as the master reads it. */
+static uint8_t debug_end_reason(void)
+{
+	uint8_t r[PROTO_DEBUG_REPLY_LEN];
+
+	send((const uint8_t[]){PROTO_DEBUG}, 1);
+	host_i2c_read(&h, r, sizeof(r));
+	return r[21];
+}
+
+/* Ticks with no transaction on the bus: the master is silent. */
+static void silence(uint32_t ticks)
+{
+	for (uint32_t i = 0; i < ticks; i++)
+		host_tick(&h);
+}
+
+/* Off at power-on: a master that gives a GOTO and never polls gets it done. */
+static void test_timeout_off_by_default(void **state)
+{
+	struct sim_field f;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 100, 100}, 3);
+	goto_mm(-300, 0);
+	silence(5000);
+	assert_int_equal(status(), 0);
+	assert_int_equal(debug_end_reason(), END_REASON_DONE);
+}
+
+/* SET_TIMEOUT 200 ms: polled every 100 ms the GOTO runs; then silence, and the tick that
+ * follows 200 ms without a transaction stops the order at the current limits, as by STOP (1
+ * m/s braked at 1 m/s^2: 0.5 m); DEBUG tells why. */
+static void test_timeout_stops_a_silent_master(void **state)
+{
+	struct sim_field f;
+	struct odometry_pose p0, p1;
+	uint32_t n = 0;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 100, 100}, 3);
+	send((const uint8_t[]){PROTO_SET_TIMEOUT, 0, 200}, 3);
+	goto_mm(1000, 0);
+	for (int i = 0; i < 12; i++) {
+		silence(100);
+		(void)status(); /* the last transaction: 1.2 s after the GOTO, at 1 m/s */
+	}
+	do {
+		host_tick(&h);
+		n++;
+	} while (h.board.orders.state == ORDER_STATE_TRANSLATE && n < 1000);
+	/* The first tick sees the poll; 200 more see none. */
+	assert_int_equal(n, 201);
+	assert_int_equal(h.board.orders.state, ORDER_STATE_STOPPING);
+	p0 = odometry_get_pose(&h.board.odometry);
+	silence(2000);
+	p1 = odometry_get_pose(&h.board.odometry);
+	print_message("timeout: stopped %d mm after the timeout\n", (p1.x_um - p0.x_um) / 1000);
+	assert_true(p1.x_um - p0.x_um > 480000 && p1.x_um - p0.x_um < 520000);
+	assert_int_equal(status(), 0); /* not busy: the master comes back to a stopped robot */
+	assert_int_equal(debug_end_reason(), END_REASON_TIMEOUT);
+	goto_mm(1000, 0);                                         /* and carries on */
+	assert_int_equal(debug_end_reason(), END_REASON_TIMEOUT); /* not taken yet */
+	run_until_idle(10000);
+	assert_int_equal(debug_end_reason(), END_REASON_DONE);
+}
+
+/* Any transaction keeps it alive, a status poll as much as an order; 0 turns it off. */
+static void test_timeout_polls_keep_it_going(void **state)
+{
+	struct sim_field f;
+	uint8_t s = STATUS_BUSY_TRAJET;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 100, 100}, 3);
+	send((const uint8_t[]){PROTO_SET_TIMEOUT, 0, 50}, 3);
+	goto_mm(-300, 0);
+	for (int i = 0; i < 200 && (s & STATUS_BUSY_TRAJET); i++) {
+		silence(45);
+		s = status();
+	}
+	assert_int_equal(s, 0);
+	assert_int_equal(debug_end_reason(), END_REASON_DONE);
+	send((const uint8_t[]){PROTO_SET_TIMEOUT, 0, 0}, 3);
+	/* Not straight behind: a bearing of exactly half a turn is the known undefined behaviour
+	 * of orders.c (fuzz/known-ub.supp). */
+	goto_mm(-1000, 50);
+	silence(5000);
+	assert_int_equal(debug_end_reason(), END_REASON_DONE);
+}
+
 /* SET_NEW_POS moves the estimate by minus the error, between two ticks, and the robot does not
  * move for it. */
 static void test_set_new_pos(void **state)
@@ -484,6 +581,9 @@ int main(void)
 		cmocka_unit_test(test_slip_is_a_motor_problem),
 		cmocka_unit_test(test_stuck_motor),
 		cmocka_unit_test(test_encoder_cut_is_grave),
+		cmocka_unit_test(test_timeout_off_by_default),
+		cmocka_unit_test(test_timeout_stops_a_silent_master),
+		cmocka_unit_test(test_timeout_polls_keep_it_going),
 		cmocka_unit_test(test_set_new_pos),
 		cmocka_unit_test(test_radius_grows),
 	};

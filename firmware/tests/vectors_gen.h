@@ -38,6 +38,9 @@ static const struct vec_write vec_writes[] = {
 	{"VERSION (extension)", {0x0d}, 1, PROTO_VERSION, 0, {0}, REJECT_NONE},
 	{"LAST_REJECT (extension)", {0x0e}, 1, PROTO_LAST_REJECT, 0, {0}, REJECT_NONE},
 	{"DEBUG", {0xc8}, 1, PROTO_DEBUG, 0, {0}, REJECT_NONE},
+	{"SET_TIMEOUT 500 ms (extension)", {0x0f, 0x01, 0xf4}, 3, PROTO_SET_TIMEOUT, 1, {500}, REJECT_NONE},
+	{"SET_TIMEOUT 0: off", {0x0f, 0x00, 0x00}, 3, PROTO_SET_TIMEOUT, 1, {0}, REJECT_NONE},
+	{"SET_TIMEOUT at its limit, with PEC", {0x0f, 0xff, 0xff, 0x3b}, 4, PROTO_SET_TIMEOUT, 1, {65535}, REJECT_NONE},
 	{"GOTO 200,100 with PEC", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x00, 0xce}, 7, PROTO_GOTO, 3, {200, 100, 0}, REJECT_NONE},
 	{"SET_VITESSE_TRAJ full form with PEC", {0x06, 0x64, 0x64, 0xbf}, 4, PROTO_SET_VITESSE_TRAJ, 2, {100, 100}, REJECT_NONE},
 	{"POSITION with PEC", {0x04, 0x48}, 2, PROTO_POSITION, 0, {0}, REJECT_NONE},
@@ -60,6 +63,7 @@ static const struct vec_write vec_writes[] = {
 	{"GOTO reserved option bit 2", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x04}, 6, -1, 0, {0}, REJECT_RESERVED_BIT},
 	{"GOTO reserved option bit 7", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x81}, 6, -1, 0, {0}, REJECT_RESERVED_BIT},
 	{"SET_FILTRE unknown preset", {0x08, 0x03}, 2, -1, 0, {0}, REJECT_OUT_OF_RANGE},
+	{"SET_TIMEOUT with one byte of its two", {0x0f, 0x01}, 2, -1, 0, {0}, REJECT_BAD_LENGTH},
 	{"SET_NEW_POS angle 181", {0x0a, 0x00, 0x00, 0x00, 0x00, 0x00, 0xb5}, 7, -1, 0, {0}, REJECT_OUT_OF_RANGE},
 };
 
@@ -161,7 +165,7 @@ static const struct vec_step vec_steps_14[] = {
 	{'r', 0, 0, {0}, 1, {0x00}, 0},
 };
 static const struct vec_step vec_steps_15[] = {
-	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x00, 0x0f}, 0},
+	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x00, 0x1f}, 0},
 };
 static const struct vec_step vec_steps_16[] = {
 	{'w', 0, 6, {0x00, 0x00, 0xc8, 0x00, 0x64, 0x04}, 0, {0}, 0},

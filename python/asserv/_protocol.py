@@ -193,6 +193,17 @@ MESSAGES: tuple[Message, ...] = (
         'why the last rejected write was rejected',
     ),
     Message(
+        'SET_TIMEOUT',
+        15,
+        'SET',
+        (Field('timeout_ms', 'u16', 0, 65535), ),
+        1,
+        (),
+        (),
+        True,
+        'stop the running order when no transaction has addressed the board for this long (0: never, the power-on value)',
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
@@ -225,6 +236,7 @@ class Capability(enum.IntFlag):
     STOP = 2
     LAST_REJECT = 4
     DEBUG = 8
+    TIMEOUT = 16
 
 
 class Reject(enum.IntEnum):
@@ -270,3 +282,4 @@ class EndReason(enum.IntEnum):
     STOPPED = 4
     BASKET = 5
     FAULT = 6
+    TIMEOUT = 7

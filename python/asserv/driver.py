@@ -237,6 +237,13 @@ class Board:
         """SET_FILTRE_RAW: raw PID gains, 0..65535 each (scales in docs/protocol.md, 5.4)."""
         self._command("SET_FILTRE_RAW", _integer("p", p), _integer("i", i), _integer("d", d))
 
+    def set_timeout(self, timeout_ms: int) -> None:
+        """SET_TIMEOUT (extension): stop the running order when no transaction has addressed the
+        board for ``timeout_ms`` (1..65535 ms); 0, the power-on value, turns it off. Every call
+        of this driver is a transaction, ``check_busy()`` included, so a master that polls more
+        often than the timeout keeps the robot going (docs/failure-model.md)."""
+        self._command("SET_TIMEOUT", _integer("timeout_ms", timeout_ms))
+
     def set_new_pos(self, err_x_mm: int, err_y_mm: int, err_angle_deg: int) -> None:
         """SET_NEW_POS: the error of the board's estimate (estimate minus truth), which the
         board subtracts: X, Y within -32000..32000 mm, angle within -180..180 whole degrees.

@@ -60,6 +60,7 @@ def test_every_command_is_parsed(capsys: pytest.CaptureFixture[str]) -> None:
             "set-filtre": ["0"],
             "set-filtre-raw": ["1", "2", "3"],
             "set-new-pos": ["1", "2", "3"],
+            "set-timeout": ["500"],
         }.get(name, [])
         args = ap.parse_args(["--bus", "1", name, *argv])
         assert args.bus_command == name
@@ -83,6 +84,8 @@ def test_every_command_is_parsed(capsys: pytest.CaptureFixture[str]) -> None:
         (["set-filtre", "0"], (8, (0,))),
         (["set-filtre-raw", "4660", "0", "65535"], (9, (4660, 0, 65535))),
         (["set-new-pos", "-5", "3", "-2"], (10, (-5, 3, -2))),
+        (["set-timeout", "500"], (15, (500,))),
+        (["set-timeout", "0"], (15, (0,))),
     ],
 )
 def test_orders_and_settings_reach_the_board(
@@ -122,7 +125,9 @@ def test_queries_print_what_the_board_says(capsys: pytest.CaptureFixture[str]) -
     assert out["position"] == "x -1500 mm, y 1000 mm, angle -90 deg, error radius 255 mm\n"
     assert out["status"] == "status 0x08: CHOC_PANIER\n"
     assert out["info-choc"] == "sensors 0x81: CAPTEUR_0 CAPTEUR_7\n"
-    assert out["version"] == "protocol 1.0, capabilities 0x000f: PEC STOP LAST_REJECT DEBUG\n"
+    assert out["version"] == (
+        "protocol 1.0, capabilities 0x001f: PEC STOP LAST_REJECT DEBUG TIMEOUT\n"
+    )
     assert out["last-reject"] == "no write rejected since reset\n"
     lines = out["debug"].splitlines()
     assert lines[0] == "tick 7"

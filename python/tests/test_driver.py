@@ -71,6 +71,7 @@ CALLS: list[tuple[str, Callable[[Board], None], str, tuple[int, ...]]] = [
         (4660, 0, 65535),
     ),
     ("set_new_pos", lambda b: b.set_new_pos(-5, 3, -180), "SET_NEW_POS", (-5, 3, -180)),
+    ("set_timeout", lambda b: b.set_timeout(65535), "SET_TIMEOUT", (65535,)),
 ]
 
 
@@ -178,7 +179,7 @@ def test_version_last_reject_and_debug(pec: bool) -> None:
     v = board.version()
     assert (v.major, v.minor) == (1, 0)
     assert v.capabilities == Capability.PEC | Capability.STOP | Capability.LAST_REJECT | (
-        Capability.DEBUG
+        Capability.DEBUG | Capability.TIMEOUT
     )
     assert board.last_reject().reason == Reject.NONE
     fields: dict[str, Any] = {
@@ -381,6 +382,8 @@ BAD: list[tuple[str, Callable[[Board], None], type[Exception]]] = [
     ("raw d -1", lambda b: b.set_filtre_raw(0, 0, -1), ValueError),
     ("new pos angle 181", lambda b: b.set_new_pos(0, 0, 181), ValueError),
     ("new pos x", lambda b: b.set_new_pos(-32001, 0, 0), ValueError),
+    ("timeout 65536", lambda b: b.set_timeout(65536), ValueError),
+    ("timeout -1", lambda b: b.set_timeout(-1), ValueError),
 ]
 
 

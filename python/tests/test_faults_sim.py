@@ -16,7 +16,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from asserv import OrderRejected, Status, field
+from asserv import EndReason, OrderRejected, OrderState, Status, field
 from asserv.driver import Board
 from asserv.sim import Simulator
 
@@ -280,3 +280,44 @@ def test_after_a_motor_problem_the_next_order_runs() -> None:
     board.goto_reverse(200)  # back off: the order clears PB_MOTEUR and the motors run again
     assert board.wait_idle(5) == 0
     assert sim.true_pose().x_mm == pytest.approx(x0 - 200, abs=1)
+
+
+# The master going silent (SET_TIMEOUT, docs/failure-model.md).
+
+
+def test_a_silent_master_s_order_completes_by_default() -> None:
+    sim = lane()
+    drive(sim)
+    sim.advance(4.0)  # the master crashed right after its GOTO: not a single transaction
+    x, y, _ = sim.true_pose()
+    assert abs(x - TARGET[0]) < 1 and abs(y - TARGET[1]) < 1
+
+
+def test_a_silent_master_stops_the_robot_with_a_timeout() -> None:
+    sim = lane()
+    board = Board(sim.bus)
+    board.set_timeout(300)
+    board.set_vitesse_traj(100, 100)
+    board.goto(*TARGET)
+    last = sim.time_s  # the master's last transaction ends here
+    sim.advance(3.0)
+    tr = sim.trace
+    stopping = tr["t_s"][np.nonzero(tr["order_state"] == OrderState.STOPPING)[0][0]]
+    assert 300 <= (stopping - last) * 1000 <= 302  # the tick after 300 ms of silence
+    # Braking from 1 m/s at 1 m/s^2: 0.5 m, then at rest short of the target.
+    assert np.abs(tr["v_mm_s"][tr["t_s"] > stopping + 1.05]).max() < 5  # holding, at rest
+    assert sim.true_pose().x_mm < TARGET[0] - 500
+    assert board.check_busy() == 0
+    assert board.debug().end_reason == EndReason.TIMEOUT
+
+
+def test_a_master_that_polls_keeps_the_robot_going() -> None:
+    sim = lane()
+    board = Board(sim.bus)
+    board.set_timeout(50)
+    board.set_vitesse_traj(100, 100)
+    board.goto(*TARGET)
+    assert board.wait_idle(10, poll_s=0.04) == 0  # a CHECK_BUSY every 40 ms
+    assert board.debug().end_reason == EndReason.DONE
+    x, y, _ = sim.true_pose()
+    assert abs(x - TARGET[0]) < 1 and abs(y - TARGET[1]) < 1
