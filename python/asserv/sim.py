@@ -228,6 +228,7 @@ class Simulator:
         self.frames: list[Frame] = []
         self.on_frame: list[Callable[[Frame], None]] = []
         self.bus = VirtualBus({address: self}, clock=self)
+        self._proto = ffi.addressof(self._h.board, "proto")
 
     # ---- time -------------------------------------------------------------------------------
     @property
@@ -265,29 +266,51 @@ class Simulator:
     def i2c_write(self, data: bytes, stop: bool) -> None:
         """A write transaction at the bus bit rate: each byte reaches the board's interrupt when
         its ninth clock ends, while the control ticks go on."""
-        p = ffi.addressof(self._h.board, "proto")
-        self._advance_ns(self._byte_ns)  # START and the address byte
-        lib.proto_on_write_start(p)
+        self.bus_start(read=False)
         for b in bytes(data):
-            self._advance_ns(self._byte_ns)
-            lib.proto_on_byte(p, b)
+            self.bus_write_byte(b)
         if stop:
-            lib.proto_on_stop(p)
+            self.bus_stop()
         self._log(Frame(self.time_s, "W", bytes(data), stop))
 
     def i2c_read(self, n: int) -> bytes:
         """A read transaction of n bytes, ended by NACK and STOP."""
-        p = ffi.addressof(self._h.board, "proto")
-        self._advance_ns(self._byte_ns)  # (repeated) START and the address byte
-        lib.proto_on_read_start(p)
-        out = bytearray()
-        for _ in range(n):
-            out.append(lib.proto_read_byte(p))
-            self._advance_ns(self._byte_ns)
-        lib.proto_on_stop(p)
-        frame = Frame(self.time_s, "R", bytes(out), True)
+        self.bus_start(read=True)
+        out = bytes(self.bus_read_byte() for _ in range(n))
+        self.bus_stop()
+        frame = Frame(self.time_s, "R", out, True)
         self._log(frame)
         return frame.data
+
+    # ---- raw bus events, as the board's I2C interrupt sees them (for tests of any sequence) --
+    def bus_start(self, read: bool) -> None:
+        """A START or a repeated START, then the board's address with the read or write bit:
+        one byte time, then proto_on_read_start() or proto_on_write_start()."""
+        self._advance_ns(self._byte_ns)
+        if read:
+            lib.proto_on_read_start(self._proto)
+        else:
+            lib.proto_on_write_start(self._proto)
+
+    def bus_write_byte(self, value: int) -> None:
+        """One data byte written by the master: one byte time, then proto_on_byte()."""
+        self._advance_ns(self._byte_ns)
+        lib.proto_on_byte(self._proto, value)
+
+    def bus_read_byte(self) -> int:
+        """One data byte read by the master: proto_read_byte(), then one byte time."""
+        value = int(lib.proto_read_byte(self._proto))
+        self._advance_ns(self._byte_ns)
+        return value
+
+    def bus_stop(self) -> None:
+        """A STOP: proto_on_stop()."""
+        lib.proto_on_stop(self._proto)
+
+    def bus_abort(self) -> None:
+        """A bus error in the middle of a transaction (lost arbitration, a misplaced START or
+        STOP): proto_on_abort()."""
+        lib.proto_on_abort(self._proto)
 
     def _log(self, frame: Frame) -> None:
         self.frames.append(frame)

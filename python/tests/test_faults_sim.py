@@ -56,7 +56,7 @@ def first_tick(sim: Simulator, mask: int, after_s: float = 0.0) -> int:
 
 def latency_ms(sim: Simulator, t0_s: float, mask: int) -> int:
     """From the instant the fault appears to the first tick that reports it, in ticks (ms)."""
-    return round((sim.trace["t_s"][first_tick(sim, mask, t0_s)] - t0_s) * 1000)
+    return round(float(sim.trace["t_s"][first_tick(sim, mask, t0_s)] - t0_s) * 1000)
 
 
 def inject_at(
