@@ -8,6 +8,7 @@
 typedef char board_field_baskets_fit[(FIELD_N_BASKETS <= ORDERS_MAX_BASKETS) ? 1 : -1];
 
 #define UM_PER_MM 1000
+#define POSITION_MAX_MM 32000 /* the range of POSITION's x and y (messages.toml) */
 #define STATUS_END_BITS (STATUS_CHOC_PANIER | STATUS_CHOC_BORD | STATUS_PB_MOTEUR)
 
 void board_default_config(struct board_config *c)
@@ -153,13 +154,23 @@ static void start_order(struct board *b)
 	faults_order_started(&b->faults, b->shocks);
 }
 
+/* A coordinate corrected by SET_NEW_POS [um], kept within what POSITION reports: repeated
+ * corrections cannot push the estimate out of the protocol's range (nor overflow it). */
+static int32_t corrected_um(int32_t estimate_um, int32_t err_mm)
+{
+	int64_t v = (int64_t)estimate_um - (int64_t)err_mm * UM_PER_MM;
+	const int64_t max_um = (int64_t)POSITION_MAX_MM * UM_PER_MM;
+
+	return (int32_t)(v > max_um ? max_um : v < -max_um ? -max_um : v);
+}
+
 static void set_new_pos(struct board *b, const struct proto_msg *msg)
 {
 	struct odometry_pose p = odometry_get_pose(&b->odometry);
 
 	/* The master sends the estimate's error (estimate - truth): subtract it. */
-	p.x_um -= msg->arg[ARG_SET_NEW_POS_ERR_X_MM] * UM_PER_MM;
-	p.y_um -= msg->arg[ARG_SET_NEW_POS_ERR_Y_MM] * UM_PER_MM;
+	p.x_um = corrected_um(p.x_um, msg->arg[ARG_SET_NEW_POS_ERR_X_MM]);
+	p.y_um = corrected_um(p.y_um, msg->arg[ARG_SET_NEW_POS_ERR_Y_MM]);
 	p.heading_turn32 -= fx_deg_to_turn32(msg->arg[ARG_SET_NEW_POS_ERR_ANGLE_DEG]);
 	/* Only the estimate moves, not the axes: the robot stays put, and a running GOTO re-aims
 	 * from the corrected estimate at its next update (a frozen one keeps its targets). */

@@ -546,6 +546,31 @@ static void test_set_new_pos(void **state)
 	assert_true(fabs(tx1 - tx0) < 0.2 && fabs(ty1 - ty0) < 0.2 && fabs(th1 - th0) < 0.05);
 }
 
+/* Repeated corrections keep the estimate within POSITION's range, +-32000 mm, and the robot
+ * still takes orders (70 of -32 m would overflow the micrometres: found by fuzz/fuzz_board). */
+static void test_set_new_pos_stays_in_range(void **state)
+{
+	struct sim_field f;
+	const uint8_t far[] = {PROTO_SET_NEW_POS, 0x83, 0x00, 0x7D, 0x00, 0, 0}; /* -32000, 32000 */
+	int16_t x, y;
+	int8_t a;
+	uint8_t r;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	for (int i = 0; i < 70; i++) {
+		send(far, sizeof(far));
+		host_tick(&h);
+	}
+	position(&x, &y, &a, &r);
+	assert_int_equal(x, 32000);
+	assert_int_equal(y, -32000);
+	goto_mm(31000, -31000);
+	assert_int_equal(status(), STATUS_BUSY_TRAJET);
+	silence(100);
+}
+
 /* The error radius grows with travel. */
 static void test_radius_grows(void **state)
 {
@@ -585,6 +610,7 @@ int main(void)
 		cmocka_unit_test(test_timeout_stops_a_silent_master),
 		cmocka_unit_test(test_timeout_polls_keep_it_going),
 		cmocka_unit_test(test_set_new_pos),
+		cmocka_unit_test(test_set_new_pos_stays_in_range),
 		cmocka_unit_test(test_radius_grows),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
