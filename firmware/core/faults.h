@@ -1,10 +1,11 @@
 /* Stop conditions other than arrival: shock sensors, motor problems (following error,
- * overcurrent, slip) and the unrecoverable faults (encoder signal lost, repeated motor
- * problems). Every check is gated so that what the robot does on purpose is not a fault: no
- * following-error check while pushing against a basket or a border, and no motor problem while
- * no order runs (a robot pushed while it holds its position, or rocking after an abandoned
- * order): an overcurrent then only makes the board let go of the position it holds
- * (FAULTS_YIELD). docs/failure-model.md gives the thresholds and detection times. */
+ * overcurrent, slip, a free-wheel encoder suspected lost) and the unrecoverable faults (the
+ * encoder confirmed lost at the next order, repeated motor problems). Every check is gated so
+ * that what the robot does on purpose is not a fault: no following-error check while pushing
+ * against a basket or a border, and no motor problem while no order runs (a robot pushed while
+ * it holds its position, or rocking after an abandoned order): an overcurrent then only makes
+ * the board let go of the position it holds (FAULTS_YIELD). docs/failure-model.md gives the
+ * thresholds and detection times. */
 #ifndef ASSERV_FAULTS_H
 #define ASSERV_FAULTS_H
 
