@@ -1,6 +1,8 @@
 /* The board: one tick function that runs the control period's steps in order (see board.h). */
 #include "board.h"
 
+#include <errno.h>
+
 #include "field_defs.h"
 #include "fixmath.h"
 #include "protocol_defs.h"
@@ -93,6 +95,12 @@ static int32_t angle_axis_um(const struct board *b)
 	return fx_sat32(fx_shr_round64(b->heading_unwrapped_turn32 * b->orders.pi_track_um, 32));
 }
 
+/* Drive track / encoder track [2^-16], for comparing drive-wheel and free-wheel travel. */
+static int32_t free_ratio_q16(const struct board_config *cfg, uint32_t track_um)
+{
+	return (int32_t)fx_div_round64((int64_t)cfg->orders.drive_track_um << 16, track_um);
+}
+
 static void update_status(struct board *b);
 static void publish(struct board *b, const struct board_inputs *in, const struct orders_measure *m);
 
@@ -127,8 +135,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	uncertainty_reset(&b->uncertainty, 0, 0); /* the start pose is the reference: no error */
 	b->heading_unwrapped_turn32 = 0;
 	b->angle_um = 0;
-	b->free_ratio_q16 = (int32_t)fx_div_round64((int64_t)cfg->orders.drive_track_um << 16,
-						    cfg->odometry.track_um);
+	b->free_ratio_q16 = free_ratio_q16(cfg, cfg->odometry.track_um);
 	if (orders_init(&b->orders, &cfg->orders, odometry_get_distance_um(&b->odometry), 0))
 		return -1;
 	b->tick = 0;
@@ -159,6 +166,50 @@ static void set_new_pos(struct board *b, const struct proto_msg *msg)
 	/* Only the estimate moves, not the axes: the robot stays put, and a running GOTO re-aims
 	 * from the corrected estimate at its next update (a frozen one keeps its targets). */
 	odometry_set_pose(&b->odometry, &p);
+}
+
+/* A nominal wheel factor times (1 + a / den) [um/count * 2^16], rounded. */
+static int64_t scaled_factor(int64_t factor_q16, int32_t a, int32_t den)
+{
+	return fx_div_round64(factor_q16 * (den + a), den);
+}
+
+/* SET_ODOMETRIE: the calibrated wheel factors and encoder track, from the build's nominal
+ * factors (cfg), so that the same message always gives the same configuration. The pose, the
+ * error radius and the axes are kept; the next tick measures with the new values. A result
+ * outside the odometry's ranges leaves the configuration as it was (-EDOM). */
+static int set_odometrie(struct board *b, const struct proto_msg *msg)
+{
+	const int32_t ppm = 1000000;
+	int32_t ratio = msg->arg[ARG_SET_ODOMETRIE_RATIO_PPM];
+	int32_t scale = msg->arg[ARG_SET_ODOMETRIE_SCALE_PPM];
+	struct odometry_config oc;
+	struct uncertainty_config uc = b->uncertainty.cfg;
+	int64_t left, right;
+	int err;
+
+	left = scaled_factor(b->cfg.odometry.left_um_per_count_q16, scale, ppm);
+	right = scaled_factor(b->cfg.odometry.right_um_per_count_q16, scale, ppm);
+	/* right * (1 + r/2), left * (1 - r/2): a right/left ratio of 1 + r + r^2/2 + ... */
+	left = scaled_factor(left, -ratio, 2 * ppm);
+	right = scaled_factor(right, ratio, 2 * ppm);
+	if (left < 1 || right < 1 || left > ODOMETRY_UM_PER_COUNT_Q16_MAX ||
+	    right > ODOMETRY_UM_PER_COUNT_Q16_MAX)
+		return -EDOM;
+	oc.left_um_per_count_q16 = (uint32_t)left;
+	oc.right_um_per_count_q16 = (uint32_t)right;
+	oc.track_um = (uint32_t)msg->arg[ARG_SET_ODOMETRIE_TRACK_10UM] * 10u;
+	uc.track_um = oc.track_um;
+	if (uncertainty_set_config(&b->uncertainty, &uc))
+		return -EDOM;
+	err = odometry_set_config(&b->odometry, &oc);
+	if (err) {
+		uc.track_um = b->odometry.cfg.track_um; /* as it was */
+		(void)uncertainty_set_config(&b->uncertainty, &uc);
+		return err;
+	}
+	b->free_ratio_q16 = free_ratio_q16(&b->cfg, oc.track_um);
+	return 0;
 }
 
 static void apply(struct board *b, const struct proto_msg *msg, struct orders_measure *m)
@@ -210,6 +261,9 @@ static void apply(struct board *b, const struct proto_msg *msg, struct orders_me
 	case PROTO_SET_NEW_POS:
 		set_new_pos(b, msg);
 		m->pose = odometry_get_pose(&b->odometry);
+		break;
+	case PROTO_SET_ODOMETRIE:
+		(void)set_odometrie(b, msg); /* in range by the message table; see set_odometrie */
 		break;
 	default:
 		break; /* ETAT messages never reach the queue */

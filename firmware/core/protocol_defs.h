@@ -11,7 +11,7 @@
 #define PROTO_QUEUE_DEPTH 8
 #define PROTO_MAX_PARAMS 3
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 15
+#define PROTO_N_MSGS 16
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -29,6 +29,7 @@
 #define PROTO_STOP 12 /* extension */
 #define PROTO_VERSION 13 /* extension */
 #define PROTO_LAST_REJECT 14 /* extension */
+#define PROTO_SET_ODOMETRIE 16 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -97,6 +98,9 @@
 #define ARG_SET_NEW_POS_ERR_X_MM 0
 #define ARG_SET_NEW_POS_ERR_Y_MM 1
 #define ARG_SET_NEW_POS_ERR_ANGLE_DEG 2
+#define ARG_SET_ODOMETRIE_RATIO_PPM 0
+#define ARG_SET_ODOMETRIE_TRACK_10UM 1
+#define ARG_SET_ODOMETRIE_SCALE_PPM 2
 
 /* Reply lengths [bytes], without PEC. */
 #define PROTO_CHECK_BUSY_REPLY_LEN 1

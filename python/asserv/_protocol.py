@@ -193,6 +193,17 @@ MESSAGES: tuple[Message, ...] = (
         'why the last rejected write was rejected',
     ),
     Message(
+        'SET_ODOMETRIE',
+        16,
+        'SET',
+        (Field('ratio_ppm', 's16', -30000, 30000), Field('track_10um', 'u16', 1639, 65535), Field('scale_ppm', 's16', -30000, 30000), ),
+        3,
+        (),
+        (),
+        True,
+        'odometry calibration: right/left wheel-factor ratio, encoder track and common wheel scale (docs/calibration.md)',
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
