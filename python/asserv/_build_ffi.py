@@ -193,7 +193,13 @@ void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut);
 
 /* ---- the board on the simulator (firmware/ports/host/host.h) ---- */
 struct odometry_pose { int32_t x_um; int32_t y_um; uint32_t heading_turn32; };
-struct board_config { uint16_t tick_hz; struct odometry_pose start; ...; };
+struct board_config {
+    uint16_t tick_hz;
+    struct odometry_pose start;
+    uint32_t start_radius_um;
+    uint32_t start_heading_bound_turn32;
+    ...;
+};
 struct board { struct board_config cfg; struct proto proto; uint8_t status; ...; };
 
 struct host {
