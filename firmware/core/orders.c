@@ -348,7 +348,10 @@ static uint8_t update_border(struct orders *o, const struct orders_measure *m)
 			 * front edge lies flat against the border. */
 			enter(o, ORDER_STATE_SQUARE);
 			o->square_count = 0;
-			profile_reset(&o->dist, m->dist_um + o->cfg.border_depth_um);
+			/* From where it stands, at the push speed (a step of the setpoint would
+			 * kick the derivative term). */
+			profile_reset(&o->dist, m->dist_um);
+			profile_set_target(&o->dist, m->dist_um + o->cfg.border_depth_um);
 			break;
 		}
 		if (profile_is_done(&o->dist)) {
