@@ -203,18 +203,11 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
                     if rest:
                         raise fail("randomize takes no argument (the robot comes from the seed)")
                     scn.randomize = True
-                elif cmd == "start":
+                elif cmd in ("start", "board_start"):
                     if len(rest) != 3:
-                        raise fail("start takes three numbers: start X_MM Y_MM HEADING_DEG")
+                        raise fail(f"{cmd} takes three numbers: {cmd} X_MM Y_MM HEADING_DEG")
                     x, y, h = (_num(w) for w in rest)
-                    scn.start = (x, y, h)
-                elif cmd == "board_start":
-                    if len(rest) != 3:
-                        raise fail(
-                            "board_start takes three numbers: board_start X_MM Y_MM HEADING_DEG"
-                        )
-                    x, y, h = (_num(w) for w in rest)
-                    scn.board_start = (x, y, h)
+                    setattr(scn, cmd, (x, y, h))
                 elif cmd == "start_uncertainty":
                     if len(rest) != 2:
                         raise fail(
