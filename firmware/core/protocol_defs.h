@@ -71,6 +71,8 @@
 #define ORDER_STATE_SETTLE 3 /* setpoint reached, waiting for the robot to settle inside the arrival window */
 #define ORDER_STATE_PUSH 4 /* driving slowly until a contact (basket, border) */
 #define ORDER_STATE_STOPPING 5 /* decelerating after STOP or a replaced order */
+#define ORDER_STATE_SQUARE 6 /* border recalibration: pushing against the border, heading loop relaxed, to square up */
+#define ORDER_STATE_BACK_OFF 7 /* border recalibration: backing off the border after setting the coordinate and heading */
 
 /* end_reason codes. */
 #define END_REASON_NONE 0 /* no order has ended since reset */
@@ -80,6 +82,7 @@
 #define END_REASON_STOPPED 4 /* a STOP order */
 #define END_REASON_BASKET 5 /* GOTO_PANIER touched the basket */
 #define END_REASON_FAULT 6 /* unrecoverable fault (PB_GRAVE) */
+#define END_REASON_BORDER 7 /* GOTO with border recalibration touched the border, recalibrated and backed off (CHOC_BORD) */
 
 /* Index of each parameter in struct proto_msg.arg[]. */
 #define ARG_GOTO_X_MM 0

@@ -257,6 +257,9 @@ struct board_config {
     struct faults_config faults;
     struct orders_config orders;
     struct odometry_pose start;
+    uint32_t start_radius_um;
+    uint32_t start_heading_bound_turn32;
+    ...;
 };
 struct faults { uint8_t cause; int32_t lost_um[2]; ...; };
 struct board {

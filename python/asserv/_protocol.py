@@ -269,6 +269,8 @@ class OrderState(enum.IntEnum):
     SETTLE = 3
     PUSH = 4
     STOPPING = 5
+    SQUARE = 6
+    BACK_OFF = 7
 
 
 class EndReason(enum.IntEnum):
@@ -281,3 +283,4 @@ class EndReason(enum.IntEnum):
     STOPPED = 4
     BASKET = 5
     FAULT = 6
+    BORDER = 7

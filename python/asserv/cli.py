@@ -32,8 +32,19 @@ def _parse_ints(name: str, words: list[str]) -> list[int]:
     return out
 
 
-def _sim_run(path: str, png: str | None) -> int:
+def _sim_run(path: str, png: str | None, zoom: list[float] | None = None) -> int:
     from . import plots, scenario
+
+    if zoom is not None and not (zoom[0] < zoom[1] and zoom[2] < zoom[3]):
+        print(
+            "asserv sim run: --zoom XMIN XMAX YMIN YMAX needs XMIN < XMAX and YMIN < YMAX, "
+            f"not {' '.join(f'{v:g}' for v in zoom)}",
+            file=sys.stderr,
+        )
+        return 2
+    if zoom is not None and not png:
+        print("asserv sim run: --zoom applies to the plot: give --png too", file=sys.stderr)
+        return 2
 
     try:
         scn = scenario.load(path)
@@ -43,7 +54,10 @@ def _sim_run(path: str, png: str | None) -> int:
     res = scenario.play(scn)
     scenario.summary(res)
     if png:
-        out = plots.plot_run(res.sim.trace, scn.field, png, title=path, targets=res.targets)
+        box = None if zoom is None else (zoom[0], zoom[1], zoom[2], zoom[3])
+        out = plots.plot_run(
+            res.sim.trace, scn.field, png, title=path, targets=res.targets, zoom=box
+        )
         print(f"plot: {out}")
     return 0 if res.ok else 1
 
@@ -240,6 +254,13 @@ def main(argv: list[str] | None = None) -> int:
     run_p = simsub.add_parser("run", help="play a scenario file (orders, waits) on the simulator")
     run_p.add_argument("scenario", help="scenario file, e.g. scenarios/annex.txt")
     run_p.add_argument("--png", help="also write a plot of the run to this file")
+    run_p.add_argument(
+        "--zoom",
+        nargs=4,
+        type=float,
+        metavar=("XMIN", "XMAX", "YMIN", "YMAX"),
+        help="field view of the plot [mm]",
+    )
     enc = sub.add_parser("encode", help="print the bytes of a write, e.g. encode GOTO 200 100 0")
     enc.add_argument("message")
     enc.add_argument("params", nargs="*")
@@ -260,7 +281,7 @@ def main(argv: list[str] | None = None) -> int:
 
         return demo.run(png=None if args.no_png else args.png)
     if args.command == "sim":
-        return _sim_run(args.scenario, args.png)
+        return _sim_run(args.scenario, args.png, args.zoom)
     if args.command == "calibrate":
         return _calibrate(args)
     if args.command == "bench":

@@ -91,6 +91,11 @@ def plot_run(
 
     err = np.hypot(trace["est_x_mm"] - trace["x_mm"], trace["est_y_mm"] - trace["y_mm"])
     ax_err.plot(t, err, color="tab:red", lw=1, label="|estimate - truth|")
+    # Per axis too: a recalibration corrects one coordinate at a time.
+    ax_err.plot(
+        t, trace["est_x_mm"] - trace["x_mm"], ":", color="tab:purple", lw=1, label="x error"
+    )
+    ax_err.plot(t, trace["est_y_mm"] - trace["y_mm"], ":", color="tab:olive", lw=1, label="y error")
     ax_err.plot(
         t, trace["radius_mm"], color="k", lw=1, drawstyle="steps-post", label="error radius"
     )

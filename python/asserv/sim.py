@@ -178,7 +178,9 @@ class Simulator:
     ``config`` overrides members of the simulator's ``struct sim_config`` (sim/sim.h) by name,
     e.g. ``{"enc_radius_error": (0.003, -0.003), "start": (0, -850, 1.0)}``; ``start`` is the
     true start pose (x mm, y mm, heading degrees) and the board believes it starts at
-    ``board_start`` (default: the true start as configured, before ``randomize``).
+    ``board_start`` (default: the true start as configured, before ``randomize``), known within
+    ``start_uncertainty`` = (radius mm, heading degrees), the bounds the error radius starts from
+    (default (0, 0): the start is the reference).
     ``seed`` seeds the encoder noise; ``randomize=True`` also draws a robot off the shelf from it
     (wheel mismatch, track error, noise, start pose error: ``sim_config_randomize``).
     ``field`` is a field file path or a ``field.Field`` (default: field/default.toml).
@@ -197,6 +199,7 @@ class Simulator:
         randomize: bool = False,
         board_start: tuple[float, float, float] | None = None,
         board_config: Mapping[str, Any] | None = None,
+        start_uncertainty: tuple[float, float] = (0.0, 0.0),
         address: int = 2,
         bus_hz: int = 100_000,
         record: bool = True,
@@ -227,6 +230,13 @@ class Simulator:
             bc.start.x_um = round(x * 1000)
             bc.start.y_um = round(y * 1000)
             bc.start.heading_turn32 = round(deg / 360.0 * 2**32) % 2**32
+        radius_mm, heading_deg = start_uncertainty
+        if not (0 <= radius_mm <= 255 and 0 <= heading_deg <= 90):
+            raise ValueError(
+                f"start_uncertainty must be (0..255 mm, 0..90 degrees), not {start_uncertainty!r}"
+            )
+        bc.start_radius_um = round(radius_mm * 1000)
+        bc.start_heading_bound_turn32 = round(heading_deg / 360.0 * 2**32)
         if randomize:
             lib.sim_config_randomize(sc, seed)
         else:
