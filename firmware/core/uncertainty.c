@@ -261,6 +261,57 @@ void uncertainty_reset_heading(struct uncertainty *u, uint32_t bound_turn32)
 	refresh_radius(u);
 }
 
+/* a * b / 2^30 for a unit vector component b [2^-30]. */
+static int64_t mul_unit(int64_t a, int32_t b)
+{
+	return mul_shr64(a, b, 30);
+}
+
+void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um)
+{
+	int32_t s, c;
+	int64_t r = var_of_bound(u, bound_um);
+	int64_t lat, lt, cs;
+	int64_t *vec[3] = {u->w1, u->w2, u->d};
+
+	fx_sincos(direction_turn32, &s, &c);
+	/* Lateral unit vector l = (-s, c): the lateral variance l^T S l and the lateral-heading
+	 * covariance. The along ones are replaced; dropping the along-lateral correlation leaves
+	 * the lateral variance larger than it would be given the measurement: conservative. */
+	lat = mul_unit(mul_unit(u->xx, s), s) - 2 * mul_unit(mul_unit(u->xy, c), s) +
+	      mul_unit(mul_unit(u->yy, c), c);
+	if (lat < 0)
+		lat = 0;
+	lt = -mul_unit(u->xt, s) + mul_unit(u->yt, c);
+	cs = mul_shr64(c, s, 30);
+	u->xx = mul_unit(mul_unit(r, c), c) + mul_unit(mul_unit(lat, s), s);
+	u->yy = mul_unit(mul_unit(r, s), s) + mul_unit(mul_unit(lat, c), c);
+	u->xy = mul_unit(r - lat, (int32_t)cs);
+	u->xt = -mul_unit(lt, s);
+	u->yt = mul_unit(lt, c);
+	/* Rounding may leave a hair below the exact values: the radius rounds up anyway. */
+	for (uint8_t i = 0; i < 3; i++) {
+		int64_t *v = vec[i];
+		int64_t l = -mul_unit(v[0], s) + mul_unit(v[1], c);
+
+		v[0] = -mul_unit(l, s);
+		v[1] = mul_unit(l, c);
+	}
+	refresh_radius(u);
+}
+
+uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u)
+{
+	/* sigma [rad * 2^20] = sqrt(tt / 2^16); bound = k sigma; turn32 = rad * 2^32 / (2 pi). */
+	uint64_t sigma = isqrt_up((uint64_t)(u->tt > 0 ? u->tt : 0) >> 16);
+	uint64_t bound = (sigma * u->cfg.k_q8 + 255) >> 8; /* [rad * 2^20] */
+
+	if (u->saturated || bound >= ((uint64_t)1 << 22))
+		return (uint32_t)1 << 31;
+	/* 2^12 / (2 pi) = 651.9 per rad * 2^20 -> turn * 2^32: 652 rounds up. */
+	return (uint32_t)(bound * 652);
+}
+
 /* One covariance step over the batch, taken as one arc: Sigma' = Fp Sigma Fp^T + Fd Q Fd^T with
  * Q = diag(kR |dsR|, kL |dsL|) (Chong & Kleeman 1997, eq. for the circular-arc model; Kelly
  * 2000, section 3). h = 1/(2b), u = (dx, dy) h, g = 2^20 / b heading units per um. */

@@ -2,6 +2,7 @@
  * ((kR + kL) L^3 / (3 b^2), physics.md), variance of a rotation in place, the systematic
  * offsets d^2 Ed / (2 b) and (Eb / b) theta d, monotonic growth, resets, saturation. */
 #include <errno.h>
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -309,9 +310,73 @@ static void test_config_checks(void **state)
 	assert_int_equal(u.cfg.track_error_um, 0);
 }
 
+/* A component along a direction known again: the covariance turned into (along, lateral)
+ * coordinates keeps the lateral variance and the lateral-heading covariance, the along one is
+ * the bound's. Checked on an oblique straight line (30 degrees), against the rotated matrix. */
+static void test_reset_along(void **state)
+{
+	struct uncertainty u, v;
+	long double c = cosl(PI_L / 6), s = sinl(PI_L / 6);
+	long double lat, lt, sigma = 2000 * 256 / 776; /* bound 2 mm at k = 3.03, var_of_bound */
+	uint8_t before;
+
+	(void)state;
+	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	uncertainty_reset(&u, 0, 1u << 21); /* a heading error to make it oblique and large */
+	heading_rad = PI_L / 6;
+	drive(&u, 1000, 1000, 2000, TRACK_UM);
+	before = uncertainty_get_radius_mm(&u);
+	lat = (s * s * u.xx - 2 * c * s * u.xy + c * c * u.yy) / 65536.0L;
+	lt = (-s * u.xt + c * u.yt) / 65536.0L;
+	v = u;
+	/* Along the direction of travel: the large lateral error stays, the radius hardly moves. */
+	uncertainty_reset_along(&v, 1u << 29 /* 45 deg: not the travel */, 2000);
+	uncertainty_reset_along(&u, (uint32_t)(4294967296.0L / 12), 2000);
+	assert_true(absl((c * c * u.xx + 2 * c * s * u.xy + s * s * u.yy) / 65536.0L -
+			 sigma * sigma) <= 2);
+	assert_true(absl((s * s * u.xx - 2 * c * s * u.xy + c * c * u.yy) / 65536.0L / lat - 1) <=
+		    1e-6L);
+	assert_true(absl((c * u.xt + s * u.yt) / 65536.0L) <= 2);
+	assert_true(absl((-s * u.xt + c * u.yt) / 65536.0L / lt - 1) <= 1e-6L);
+	assert_true(uncertainty_get_radius_mm(&u) <= before);
+	assert_true(uncertainty_get_radius_mm(&u) + 2 >= before);
+	/* Across the travel: the lateral error is the one removed. */
+	u = v;
+	uncertainty_reset_along(&u, (uint32_t)(4294967296.0L / 12) + (1u << 30), 2000);
+	assert_true(uncertainty_get_radius_mm(&u) < before / 2);
+	/* The systematic terms keep only their part across the direction known. */
+	u = v;
+	u.d[0] = 1000;
+	u.d[1] = 0;
+	uncertainty_reset_along(&u, 0, 2000);
+	assert_true(u.d[0] == 0 && u.d[1] == 0);
+	u.d[0] = 0;
+	u.d[1] = 1000;
+	uncertainty_reset_along(&u, 0, 2000);
+	assert_true(u.d[0] == 0 && u.d[1] == 1000);
+}
+
+/* The heading bound reads back the bound a reset put in, rounded up. */
+static void test_heading_bound(void **state)
+{
+	struct uncertainty u;
+	uint32_t b;
+
+	(void)state;
+	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	assert_int_equal(uncertainty_get_heading_bound_turn32(&u), 0);
+	uncertainty_reset(&u, 0, 1u << 24);
+	b = uncertainty_get_heading_bound_turn32(&u);
+	assert_true(b >= (1u << 24) && b <= (1u << 24) + (1u << 24) / 200);
+	u.saturated = 1;
+	assert_int_equal(uncertainty_get_heading_bound_turn32(&u), 1u << 31);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_reset_along),
+		cmocka_unit_test(test_heading_bound),
 		cmocka_unit_test(test_straight_lateral_sigma),
 		cmocka_unit_test(test_straight_any_heading),
 		cmocka_unit_test(test_rotation_in_place_grows),

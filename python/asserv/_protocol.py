@@ -204,6 +204,17 @@ MESSAGES: tuple[Message, ...] = (
         'stop the running order when no transaction has addressed the board for this long (0: never, the power-on value)',
     ),
     Message(
+        'SET_ODOMETRIE',
+        16,
+        'SET',
+        (Field('ratio_ppm', 's16', -30000, 30000), Field('track_10um', 'u16', 1639, 65535), Field('scale_ppm', 's16', -30000, 30000), ),
+        3,
+        (),
+        (),
+        True,
+        'odometry calibration: right/left wheel-factor ratio, encoder track and common wheel scale (docs/calibration.md)',
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
@@ -270,6 +281,8 @@ class OrderState(enum.IntEnum):
     SETTLE = 3
     PUSH = 4
     STOPPING = 5
+    SQUARE = 6
+    BACK_OFF = 7
 
 
 class EndReason(enum.IntEnum):
@@ -282,4 +295,5 @@ class EndReason(enum.IntEnum):
     STOPPED = 4
     BASKET = 5
     FAULT = 6
-    TIMEOUT = 7
+    BORDER = 7
+    TIMEOUT = 8
