@@ -102,6 +102,9 @@ def seeds(target: str) -> list[bytes]:
             out.append(move + event(ENV) + bytes([0, flags]) + ticks(target, 600) + read(1))
         shock = write([0, 3, 232, 0, 0, 0]) + ticks(target, 300) + event(ENV) + bytes([4, 0])
         out.append(shock + ticks(target, 50) + read(1))
+        # SET_TIMEOUT 500 ms, then a master that only polls while the robot drives.
+        polls = b"".join(read(1) + ticks(target, 100) for _ in range(20))
+        out.append(write([15, 1, 0xF4]) + write([0, 3, 232, 0, 0, 0]) + polls + ticks(target, 900))
         # SET_NEW_POS -32 m, 70 times: the estimate stays within POSITION's range.
         far = b"".join(write([10, 0x83, 0, 0x83, 0, 0, 0]) + ticks(target, 1) for _ in range(70))
         out.append(far + write([0, 0, 0, 0, 0, 0]) + ticks(target, 64))
