@@ -188,16 +188,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
 	struct fuzz_input in = {data, size};
+	uint8_t kind, n;
 	int ok = 1;
 
 	start();
-	while (ok) {
-		uint8_t ev = fuzz_byte(&in, &ok);
-		uint8_t n = (uint8_t)((ev >> 3) + 1u);
-
-		if (!ok)
-			break;
-		switch (ev & 7u) {
+	while (ok && fuzz_event(&in, &kind, &n)) {
+		switch (kind) {
 		case FUZZ_START_W:
 			if (a.proto.in_write)
 				end_write(proto_on_write_start);

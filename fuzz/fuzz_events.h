@@ -40,6 +40,18 @@ static inline uint8_t fuzz_byte(struct fuzz_input *in, int *ok)
 	return *in->p++;
 }
 
+/* The next event: its kind (enum fuzz_kind) and its count n (1..32); 0 at the end of the
+ * input. */
+static inline int fuzz_event(struct fuzz_input *in, uint8_t *kind, uint8_t *n)
+{
+	int ok = 1;
+	uint8_t ev = fuzz_byte(in, &ok);
+
+	*kind = (uint8_t)(ev & 7u);
+	*n = (uint8_t)((ev >> 3) + 1u);
+	return ok;
+}
+
 /* A failed property: say which and abort, so that libFuzzer keeps the input as a crash. */
 static inline void fuzz_fail(const char *file, int line, const char *what)
 {
