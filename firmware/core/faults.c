@@ -39,14 +39,26 @@ void faults_order_started(struct faults *f, uint8_t shocks_now)
 	f->shock_ignored = shocks_now;
 }
 
-/* Drive wheel travel this tick from a wrapping motor counter [um * 2^16]. */
+/* Drive wheel travel this tick from a wrapping motor counter [um * 2^16], saturated: counts
+ * times the factor from two 16 x 16 products. */
 static int32_t motor_step_q16(struct faults *f, uint8_t side, uint16_t count)
 {
 	uint16_t d = (uint16_t)(count - f->last_motor[side]);
-	int32_t steps = d >= 0x8000u ? (int32_t)d - 65536 : (int32_t)d;
+	uint8_t neg = d >= 0x8000u;
+	uint16_t m = neg ? (uint16_t)(0u - d) : d;
+	uint32_t k = f->cfg.motor_um_per_count_q16;
+	uint32_t lo = fx_mul_u16(m, fx_lo16(k));
+	uint32_t hi = fx_mul_u16(m, fx_hi16(k)) + fx_hi16(lo);
+	int32_t t = hi >= 0x8000u ? INT32_MAX : (int32_t)((hi << 16) | fx_lo16(lo));
 
 	f->last_motor[side] = count;
-	return fx_sat32((int64_t)steps * f->cfg.motor_um_per_count_q16);
+	return neg ? -t : t;
+}
+
+/* v / 2^n rounded (ties away from zero), n = slip_shift (0..12): a shift of the magnitude. */
+static int32_t shr_round(int32_t v, uint8_t n)
+{
+	return fx_shr_round(v, n);
 }
 
 static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
@@ -62,13 +74,17 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 	 * angle axis scaled from the encoder track to the drive track), summed with a leak so
 	 * that a short disagreement (a seam, backlash) is forgotten. Halves are taken after the
 	 * sum to keep the rounding out of the comparison. */
-	free_a = fx_mul_shr(in->free_step_q16[1] - in->free_step_q16[0], in->free_ratio_q16, 16);
+	free_a = in->free_ratio_q16 <= 0xffff
+			 ? fx_mul_q(in->free_step_q16[1] - in->free_step_q16[0], in->free_ratio_q16,
+				    16)
+			 : fx_mul_shr(in->free_step_q16[1] - in->free_step_q16[0],
+				      in->free_ratio_q16, 16);
 	diff_d = (m[0] + m[1]) - (in->free_step_q16[0] + in->free_step_q16[1]);
 	diff_a = (m[1] - m[0]) - free_a;
 	f->slip_dist_q16 +=
-		fx_shr_round(diff_d, 1) - fx_shr_round(f->slip_dist_q16, f->cfg.slip_shift);
+		fx_shr_round(diff_d, 1) - shr_round(f->slip_dist_q16, f->cfg.slip_shift);
 	f->slip_angle_q16 +=
-		fx_shr_round(diff_a, 1) - fx_shr_round(f->slip_angle_q16, f->cfg.slip_shift);
+		fx_shr_round(diff_a, 1) - shr_round(f->slip_angle_q16, f->cfg.slip_shift);
 
 	/* Encoder signal lost: one free wheel stands still while its motor turns and the other
 	 * free wheel counts. Both standing still is a slip (the robot is stuck), not a wire. */
@@ -76,7 +92,7 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 		if (in->free_step_q16[s] != 0)
 			f->lost_um[s] = 0;
 		else if (f->lost_um[s] < INT32_MAX / 2)
-			f->lost_um[s] += fx_shr_round(abs32(m[s]), 16);
+			f->lost_um[s] += (int32_t)fx_hi16((uint32_t)abs32(m[s]) + 0x8000u);
 	}
 	for (uint8_t s = 0; s < 2; s++) {
 		if (f->lost_um[s] > f->cfg.lost_min_um && f->lost_um[1 - s] == 0) {

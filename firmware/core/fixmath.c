@@ -251,89 +251,63 @@ void fx_sincos_q14(uint32_t angle_turn32, int16_t *sin_q14, int16_t *cos_q14)
 	}
 }
 
-/* atan(2^-i) [turn * 2^32], the CORDIC rotation angles. */
-#define FX_CORDIC_STEPS 10
-static const uint32_t cordic_atan_turn32[FX_CORDIC_STEPS] = {
-	536870912, 316933406, 167458907, 85004756, 42667331,
-	21354465,  10679838,  5340245,   2670163,  1335087,
+/* atan(t) on t = k / 32, k = 0..32 [turn * 2^32]; its derivative 1 / (1 + t^2) [turn * 2^32 / 2^16
+ * per unit of t]; and t / (1 + t^2)^2, half the second derivative's magnitude [turn * 2^32 / 2^12].
+ * 264 bytes. */
+static const uint32_t atan_table[33] = {
+	0,         21354465,  42667331,  63897482,  85004756,  105950391, 126697423,
+	147211045, 167458907, 187411349, 207041579, 226325781, 245243172, 263775993,
+	281909457, 299631651, 316933406, 333808132, 350251643, 366261957, 381839095,
+	396984877, 411702716, 425997422, 439875013, 453342536, 466407904, 479079736,
+	491367227, 503280012, 514828063, 526021581, 536870912,
 };
 
-/* 2^32 / (2 pi), turn * 2^32 per rad. */
-#define FX_TURN32_PER_RAD 683565276u
+static const uint16_t atan_slope[33] = {
+	10430, 10420, 10390, 10340, 10270, 10182, 10076, 9954, 9817, 9666, 9502,
+	9328,  9144,  8953,  8755,  8551,  8344,  8135,  7923, 7712, 7500, 7291,
+	7083,  6877,  6675,  6477,  6283,  6093,  5907,  5727, 5551, 5381, 5215,
+};
 
-/* The angle of (x, y) with x >= y >= 0, x > 0, in 0..1/8 turn [turn * 2^32].
- * CORDIC vectoring in 32 bits (an AVR has no 64-bit registers, and a 64-bit shift by a variable
- * count is a loop over eight bytes there), ten steps, then the residual angle phi from one
- * division, phi = atan(y / x) ~ y / x.
- * Bounds: the larger component is scaled to [2^28, 2^29), so |(x, y)| < 2^29.5; the CORDIC gain
- * (1.647) keeps both components of the rotated vector below 2^30.3, in int32_t.
- * Error: after ten steps |phi| <= atan(2^-9) rad, so |y| <= 2^30.3 * 2^-9 = 2^21.3, and
- * atan(y / x) - y / x is below phi^3 / 3 = 2^-27 / 3 rad, 2 units. The ratio is taken as
- * (|y| 2^10) / (x / 2^12), both in 32 bits (|y| 2^10 < 2^31.3, x / 2^12 >= 2^16), rounded: a
- * ratio in units of 2^-22, within half a unit, 81 units of angle; x / 2^12 drops below 2^-16 of
- * x, which moves phi by under 2^-16 phi, 2 units. Rounding the shifts (half a unit on a vector
- * longer than 2^28) turns it by at most 2^-28 rad per step, under 30 units over ten steps; the
- * table adds 5. In all well within the documented 4096 units (2^-20 turn). */
+static const uint16_t atan_curve[33] = {
+	0,     5205,  10349, 15374, 20224, 24848, 29202, 33248, 36957, 40308, 43285,
+	45883, 48102, 49950, 51437, 52582, 53404, 53925, 54170, 54166, 53936, 53507,
+	52904, 52150, 51267, 50277, 49198, 48047, 46842, 45594, 44318, 43024, 41722,
+};
+
+/* The angle of (x, y) with x >= y >= 0, x > 0, in 0..1/8 turn [turn * 2^32]: t = y / x to 20
+ * bits by long division (20 steps of compare and subtract), then atan from the nearest of 33
+ * entries with a second-order correction, d = t - t_k <= 2^-6:
+ *   atan(t_k + d) = atan(t_k) + d / (1 + t_k^2) - d^2 t_k / (1 + t_k^2)^2 + O(d^3).
+ * Error: t's floor 2^-20 (652 units of 2^-32 turn), the d^3 term left out (850), the roundings
+ * (under 200): within the 4096 documented. */
 static uint32_t atan_octant(uint32_t x, uint32_t y)
 {
-	uint32_t cx, z, my, d, q;
-	int32_t cy;
-	uint8_t i;
+	uint32_t rem = y, q = 0;
+	uint8_t k;
+	int16_t d;
+	int32_t a;
+	uint16_t d2;
 
 	if (y == 0)
 		return 0;
-	/* x <= 2^31: at most three halvings; rounding both keeps y <= x. */
-	while (x >= ((uint32_t)1 << 29)) {
-		x = (x + 1) >> 1;
-		y = (y + 1) >> 1;
+	if (rem >= x) {
+		rem -= x;
+		q = 1;
 	}
-	/* The left shift that brings x into [2^28, 2^29), found by halves (16, 8, 4, 2, 1). */
-	if (x < ((uint32_t)1 << 13)) {
-		x <<= 16;
-		y <<= 16;
-	}
-	if (x < ((uint32_t)1 << 21)) {
-		x <<= 8;
-		y <<= 8;
-	}
-	if (x < ((uint32_t)1 << 25)) {
-		x <<= 4;
-		y <<= 4;
-	}
-	if (x < ((uint32_t)1 << 27)) {
-		x <<= 2;
-		y <<= 2;
-	}
-	if (x < ((uint32_t)1 << 28)) {
-		x <<= 1;
-		y <<= 1;
-	}
-	/* Step 0 rotates by 1/8 turn; then step i shifts by i. x stays positive (it only grows),
-	 * so its shift rounds with a bias; y is shifted as a magnitude (rounded half away from
-	 * zero like fx_shr_round) and, whatever its sign, the magnitude is added to x. */
-	cx = x + y;
-	cy = (int32_t)y - (int32_t)x;
-	z = cordic_atan_turn32[0];
-	for (i = 1; i < FX_CORDIC_STEPS; i++) {
-		uint32_t half = (uint32_t)1 << (i - 1);
-		uint32_t sx = (cx + half) >> i;
-
-		my = cy >= 0 ? (uint32_t)cy : (uint32_t)0 - (uint32_t)cy;
-		cx += (my + half) >> i;
-		if (cy >= 0) {
-			cy -= (int32_t)sx;
-			z += cordic_atan_turn32[i];
-		} else {
-			cy += (int32_t)sx;
-			z -= cordic_atan_turn32[i];
+	for (uint8_t i = 0; i < 20; i++) {
+		rem <<= 1; /* rem < x <= 2^31: no overflow */
+		q <<= 1;
+		if (rem >= x) {
+			rem -= x;
+			q |= 1u;
 		}
 	}
-	/* The residual: phi [2^-22 rad] = round(|y| 2^10 / (x / 2^12)), then to turn * 2^32. */
-	my = cy >= 0 ? (uint32_t)cy : (uint32_t)0 - (uint32_t)cy;
-	d = (cx + ((uint32_t)1 << 11)) >> 12;
-	q = ((my << 10) + (d >> 1)) / d;
-	q = (uint32_t)(((uint64_t)q * FX_TURN32_PER_RAD + ((uint64_t)1 << 21)) >> 22);
-	return cy >= 0 ? z + q : z - q;
+	/* q = t 2^20 <= 2^20; the nearest entry, 2^15 apart. */
+	k = (uint8_t)((q + 0x4000u) >> 15);
+	d = (int16_t)((int32_t)q - ((int32_t)k << 15)); /* |d| <= 2^14 */
+	a = (int32_t)atan_table[k] + fx_mul_q(d, atan_slope[k], 4);
+	d2 = (uint16_t)((uint32_t)fx_mul_s16(d, d) >> 13); /* d^2 [2^-27], <= 2^15 */
+	return (uint32_t)(a - (int32_t)(fx_mul_u16(d2, atan_curve[k]) >> 15));
 }
 
 uint32_t fx_atan2(int32_t y, int32_t x)

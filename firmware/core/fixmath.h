@@ -171,6 +171,77 @@ static inline int32_t fx_int32_of(uint32_t v)
 	return (int32_t)(v - 0x80000000u) - INT32_MAX - 1;
 }
 
+/* round(a b / 2^n) with ties away from zero, for n in 8..47 and |b| <= 65535: two 16 x 16
+ * products (|a| < 2^31); the caller knows the result fits in 32 bits. */
+FX_INLINE int32_t fx_mul_q(int32_t a, int32_t b, uint8_t n)
+{
+	uint32_t ua = a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a;
+	uint16_t ub = (uint16_t)(b >= 0 ? b : -b);
+	uint32_t lo = fx_mul_u16(fx_lo16(ua), ub);
+	uint32_t hi = fx_mul_u16(fx_hi16(ua), ub) + fx_hi16(lo); /* floor(|a b| / 2^16) */
+	uint32_t r;
+
+	if (n < 16)
+		r = fx_shl_u32(hi, (uint8_t)(16 - n)) +
+		    fx_shr_u32(fx_lo16(lo) + ((uint32_t)1 << (n - 1)), n);
+	else if (n == 16)
+		r = hi + (fx_lo16(lo) >> 15);
+	else
+		r = fx_shr_u32(hi + ((uint32_t)1 << (n - 17)), (uint8_t)(n - 16));
+	return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
+}
+
+/* floor(num / den), den >= 1, for a quotient known to be below 2^qbits (1..32): a restoring
+ * division over the quotient's bits only (avr-gcc's 32-bit division always takes 32 steps of a
+ * slower loop). */
+static inline uint32_t fx_udiv_small(uint32_t num, uint32_t den, uint8_t qbits)
+{
+	uint32_t rem = qbits >= 32 ? 0 : num >> qbits;
+	uint32_t q = 0;
+
+	num = qbits >= 32 ? num : num << (32 - qbits);
+	while (qbits-- != 0) {
+		rem = (rem << 1) | (num >> 31);
+		num <<= 1;
+		q <<= 1;
+		if (rem >= den) {
+			rem -= den;
+			q |= 1u;
+		}
+	}
+	return q;
+}
+
+/* round(num / den) with ties away from zero, den >= 1, for |num| / den + 1 below 2^qbits. */
+static inline int32_t fx_div_round_small(int32_t num, uint32_t den, uint8_t qbits)
+{
+	uint32_t m = num >= 0 ? (uint32_t)num : (uint32_t)0 - (uint32_t)num;
+	int32_t q = (int32_t)fx_udiv_small(m + den / 2, den, qbits);
+
+	return num >= 0 ? q : -q;
+}
+
+/* round(a b / 2^32) with ties away from zero, for any int32_t a and uint32_t b whose product
+ * over 2^32 fits: four 16 x 16 products. */
+static inline int32_t fx_mul_shr32(int32_t a, uint32_t b)
+{
+	uint32_t m = a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a;
+	uint32_t lo, hi = fx_mul_u32_wide(m, b, &lo);
+	int32_t r = (int32_t)(hi + (lo >> 31));
+
+	return a >= 0 ? r : -r;
+}
+
+/* round(a c / 2^30) with ties away from zero, for a sine or cosine c [2^-30] (|c| <= 2^30) and
+ * |a| below 2^31: four 16 x 16 products. */
+static inline int32_t fx_mul_q30(int32_t a, int32_t c)
+{
+	uint32_t m = c >= 0 ? (uint32_t)c : (uint32_t)0 - (uint32_t)c;
+	int32_t r = m >= ((uint32_t)1 << 30) ? a : fx_mul_shr32(a, m << 2);
+
+	return c >= 0 ? r : -r;
+}
+
 /* A signed 48-bit value, hi 2^16 + lo with lo unsigned: a length [um * 2^16] keeps its whole
  * micrometres (floored) in hi. avr-gcc's int64_t arithmetic calls library routines (40 to 130
  * cycles an operation); these are a few instructions. hi wraps modulo 2^32 (the callers stay
@@ -346,9 +417,7 @@ static inline int32_t fx_angle_diff(uint32_t b_turn32, uint32_t a_turn32)
 /* A heading as -18000..18000 [0.01 degree], rounded to nearest. */
 static inline int32_t fx_turn32_to_cdeg(uint32_t angle_turn32)
 {
-	int32_t a = fx_angle_diff(angle_turn32, 0);
-
-	return (int32_t)fx_shr_round64((int64_t)a * 36000, 32);
+	return fx_mul_q(fx_angle_diff(angle_turn32, 0), 36000, 32);
 }
 
 #endif

@@ -67,26 +67,6 @@ static int limits_valid(const struct profile_limits *lim)
 	return 1;
 }
 
-/* floor(num / den), den >= 1, for a quotient known to be below 2^qbits (qbits <= 31): restoring
- * division over the quotient's bits only (avr-gcc's 32-bit division always takes 32 steps). */
-static uint32_t div_small(uint32_t num, uint32_t den, uint8_t qbits)
-{
-	uint32_t rem = num >> qbits;
-	uint32_t q = 0;
-
-	num <<= 32 - qbits;
-	while (qbits-- != 0) {
-		rem = (rem << 1) | (num >> 31);
-		num <<= 1;
-		q <<= 1;
-		if (rem >= den) {
-			rem -= den;
-			q |= 1u;
-		}
-	}
-	return q;
-}
-
 /* Bits of v (0 for 0). */
 static uint8_t bit_length(uint32_t v)
 {
@@ -138,7 +118,7 @@ static void hint_seed(const struct profile_params *prm, struct fx48 r, uint16_t 
 	if (r.hi >= 0 && r.hi <= 0x7fff) {
 		uint32_t rr = (uint32_t)fx48_to32(r);
 		uint8_t rb = bit_length(rr), ab = bit_length(a);
-		uint32_t q = rb >= ab ? div_small(rr, a, (uint8_t)(rb - ab + 1)) : 0;
+		uint32_t q = rb >= ab ? fx_udiv_small(rr, a, (uint8_t)(rb - ab + 1)) : 0;
 
 		/* k^2 + 8 q < 2^19 + 2^34: in 64 bits for the square root only. */
 		n = (fx_isqrt64((uint64_t)k * k + 8 * (uint64_t)q) - k) / 2;
@@ -216,8 +196,8 @@ static int32_t max_velocity(struct profile *p, struct fx48 r, uint16_t h)
 	rem48 = fx48_sub(r, hint->g_q16);
 	den = n + h + 1;
 	if (den <= 0xffffu && rem48.hi >= 0 && rem48.hi <= 0x7fff)
-		return hint->an_q16 + (int32_t)div_small((uint32_t)fx48_to32(rem48), den,
-							 bit_length((uint32_t)prm->a_q16));
+		return hint->an_q16 + (int32_t)fx_udiv_small((uint32_t)fx48_to32(rem48), den,
+							     bit_length((uint32_t)prm->a_q16));
 	return (int32_t)min64((int64_t)hint->an_q16 + int64_of_fx48(rem48) / den, INT32_MAX);
 }
 

@@ -54,26 +54,6 @@ static uint32_t mag32(int32_t v)
 	return v >= 0 ? (uint32_t)v : (uint32_t)0 - (uint32_t)v;
 }
 
-/* round(a b / 2^n) with ties away from zero, n in 8..31, |b| <= 65535, from two 16 x 16
- * products; the caller knows the result fits. */
-FX_INLINE int32_t mul_q(int32_t a, int32_t b, uint8_t n)
-{
-	uint32_t ua = mag32(a);
-	uint16_t ub = (uint16_t)mag32(b);
-	uint32_t lo = fx_mul_u16(fx_lo16(ua), ub);
-	uint32_t hi = fx_mul_u16(fx_hi16(ua), ub) + fx_hi16(lo); /* floor(|a b| / 2^16) */
-	uint32_t r;
-
-	if (n < 16)
-		r = fx_shl_u32(hi, (uint8_t)(16 - n)) +
-		    fx_shr_u32(fx_lo16(lo) + ((uint32_t)1 << (n - 1)), n);
-	else if (n == 16)
-		r = hi + (fx_lo16(lo) >> 15);
-	else
-		r = fx_shr_u32(hi + ((uint32_t)1 << (n - 17)), (uint8_t)(n - 16));
-	return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
-}
-
 /* round(v / 2^15), ties away from zero (a shift of the magnitude: avr-gcc divides a signed
  * value by 2^15 with a loop). */
 static int32_t q15_of(int32_t v)
@@ -355,8 +335,8 @@ static void stage_direction(struct uncertainty *u)
 
 static void stage_displacement(struct uncertainty *u)
 {
-	u->dx_um = clamp16(mul_q(u->s2_um, u->c_q14, 15));
-	u->dy_um = clamp16(mul_q(u->s2_um, u->s_q14, 15));
+	u->dx_um = clamp16(fx_mul_q(u->s2_um, u->c_q14, 15));
+	u->dy_um = clamp16(fx_mul_q(u->s2_um, u->s_q14, 15));
 }
 
 /* The noise of the batch's wheel travels, Var = k |ds| (Chong & Kleeman): k [um^2/um * 2^16]
@@ -364,10 +344,10 @@ static void stage_displacement(struct uncertainty *u)
 static void stage_noise(struct uncertainty *u)
 {
 	const struct uncertainty_batch *b = &u->run;
-	int32_t qr = mul_q((int32_t)u->cfg.noise_right_mm2_per_m_q16,
-			   um_of_q8((int32_t)b->abs_right_q8), 20);
-	int32_t ql = mul_q((int32_t)u->cfg.noise_left_mm2_per_m_q16,
-			   um_of_q8((int32_t)b->abs_left_q8), 20);
+	int32_t qr = fx_mul_q((int32_t)u->cfg.noise_right_mm2_per_m_q16,
+			      um_of_q8((int32_t)b->abs_right_q8), 20);
+	int32_t ql = fx_mul_q((int32_t)u->cfg.noise_left_mm2_per_m_q16,
+			      um_of_q8((int32_t)b->abs_left_q8), 20);
 
 	u->qp = qr + ql;
 	u->qm = qr - ql;
@@ -403,23 +383,23 @@ static void stage_fp_xx(struct uncertainty *u)
 {
 	int32_t dy = u->dy_um / UNCERTAINTY_POS_UM;
 
-	u->my = mul_q(u->tt, dy, 16);
-	u->xx += -2 * mul_q(u->xt, dy, 16) + mul_q(u->my, dy, 16);
+	u->my = fx_mul_q(u->tt, dy, 16);
+	u->xx += -2 * fx_mul_q(u->xt, dy, 16) + fx_mul_q(u->my, dy, 16);
 }
 
 static void stage_fp_xy(struct uncertainty *u)
 {
 	int32_t dx = u->dx_um / UNCERTAINTY_POS_UM, dy = u->dy_um / UNCERTAINTY_POS_UM;
 
-	u->xy += mul_q(u->xt, dx, 16) - mul_q(u->yt, dy, 16) - mul_q(u->my, dx, 16);
+	u->xy += fx_mul_q(u->xt, dx, 16) - fx_mul_q(u->yt, dy, 16) - fx_mul_q(u->my, dx, 16);
 }
 
 static void stage_fp_yy(struct uncertainty *u)
 {
 	int32_t dx = u->dx_um / UNCERTAINTY_POS_UM;
-	int32_t mx = mul_q(u->tt, dx, 16);
+	int32_t mx = fx_mul_q(u->tt, dx, 16);
 
-	u->yy += 2 * mul_q(u->yt, dx, 16) + mul_q(mx, dx, 16);
+	u->yy += 2 * fx_mul_q(u->yt, dx, 16) + fx_mul_q(mx, dx, 16);
 	u->xt -= u->my;
 	u->yt += mx;
 }
@@ -430,51 +410,51 @@ static void stage_fp_yy(struct uncertainty *u)
  * 1997, Kelly 2000 section 3. The squares and products [2^-30] are taken to 2^-15. */
 static void stage_uv(struct uncertainty *u)
 {
-	u->u_q15 = clamp16(mul_q(u->dy_um, u->inv_track_q28, 14));
-	u->v_q15 = clamp16(mul_q(u->dx_um, u->inv_track_q28, 14));
+	u->u_q15 = clamp16(fx_mul_q(u->dy_um, u->inv_track_q28, 14));
+	u->v_q15 = clamp16(fx_mul_q(u->dx_um, u->inv_track_q28, 14));
 }
 
 static void stage_q_xx(struct uncertainty *u)
 {
 	int16_t c = u->c_q14;
 
-	u->xx += mul_q(u->qp, q15_of(fx_mul_s16(c, c) + fx_mul_s16(u->u_q15, u->u_q15)), 15) -
-		 2 * mul_q(u->qm, q15_of(fx_mul_s16(c, u->u_q15)), 15);
+	u->xx += fx_mul_q(u->qp, q15_of(fx_mul_s16(c, c) + fx_mul_s16(u->u_q15, u->u_q15)), 15) -
+		 2 * fx_mul_q(u->qm, q15_of(fx_mul_s16(c, u->u_q15)), 15);
 }
 
 static void stage_q_yy(struct uncertainty *u)
 {
 	int16_t s = u->s_q14;
 
-	u->yy += mul_q(u->qp, q15_of(fx_mul_s16(s, s) + fx_mul_s16(u->v_q15, u->v_q15)), 15) +
-		 2 * mul_q(u->qm, q15_of(fx_mul_s16(s, u->v_q15)), 15);
+	u->yy += fx_mul_q(u->qp, q15_of(fx_mul_s16(s, s) + fx_mul_s16(u->v_q15, u->v_q15)), 15) +
+		 2 * fx_mul_q(u->qm, q15_of(fx_mul_s16(s, u->v_q15)), 15);
 }
 
 static void stage_q_xy(struct uncertainty *u)
 {
 	int16_t c = u->c_q14, s = u->s_q14;
 
-	u->xy += mul_q(u->qp, q15_of(fx_mul_s16(c, s) - fx_mul_s16(u->u_q15, u->v_q15)), 15) +
-		 mul_q(u->qm, q15_of(fx_mul_s16(c, u->v_q15) - fx_mul_s16(u->u_q15, s)), 15);
+	u->xy += fx_mul_q(u->qp, q15_of(fx_mul_s16(c, s) - fx_mul_s16(u->u_q15, u->v_q15)), 15) +
+		 fx_mul_q(u->qm, q15_of(fx_mul_s16(c, u->v_q15) - fx_mul_s16(u->u_q15, s)), 15);
 }
 
 static void stage_q_xt(struct uncertainty *u)
 {
-	int32_t e = mul_q(u->qm, u->c_q14, 15) - mul_q(u->qp, u->u_q15, 15); /* [4 um] */
+	int32_t e = fx_mul_q(u->qm, u->c_q14, 15) - fx_mul_q(u->qp, u->u_q15, 15); /* [4 um] */
 
-	u->xt += mul_q(e, u->g_q12, 12);
+	u->xt += fx_mul_q(e, u->g_q12, 12);
 }
 
 static void stage_q_yt(struct uncertainty *u)
 {
-	int32_t e = mul_q(u->qm, u->s_q14, 15) + mul_q(u->qp, u->v_q15, 15);
+	int32_t e = fx_mul_q(u->qm, u->s_q14, 15) + fx_mul_q(u->qp, u->v_q15, 15);
 
-	u->yt += mul_q(e, u->g_q12, 12);
+	u->yt += fx_mul_q(e, u->g_q12, 12);
 }
 
 static void stage_q_tt(struct uncertainty *u)
 {
-	u->tt += mul_q(mul_q(u->qp, u->g_q12, 12), u->g_q12, 12);
+	u->tt += fx_mul_q(fx_mul_q(u->qp, u->g_q12, 12), u->g_q12, 12);
 	if (u->xx > VAR_CAP || u->yy > VAR_CAP || u->tt > TT_CAP)
 		u->saturated = 1;
 }
