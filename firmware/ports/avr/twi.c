@@ -56,12 +56,14 @@ ISR(TWI_vect)
 	case TW_SR_STOP:
 		/* The TWI gives the same status for a STOP and a repeated start. After a STOP the
 		 * bus is idle, SCL high; a repeated start is followed by the next address, whose
-		 * clock the TWI holds low until this release. A repeated start needs nothing here:
-		 * the next proto_on_write_start() or proto_on_read_start() ends the write, and the
-		 * read's PEC then covers it. */
+		 * clock the TWI holds low until this release. After a repeated start the write is
+		 * judged here, while the master sends the next address, so that a read that follows
+		 * only has to start sending; its PEC still covers the write. */
 		TWCR = TWCR_GO;
 		if (scl)
 			proto_on_stop(p);
+		else
+			proto_on_restart(p);
 		break;
 	case TW_ST_SLA_ACK:
 	case TW_ST_ARB_LOST_SLA_ACK:
