@@ -205,7 +205,10 @@ void orders_goto(struct orders *o, const struct orders_measure *m, int32_t x_um,
 	}
 	enter(o, ORDER_STATE_ROTATE);
 	profile_stop(&o->dist);
-	aim(o, m, bearing(o, &m->pose));
+	/* The first aim (a bearing, the angle's target) waits for the next tick: the tick that
+	 * takes the order has the message and the limits to apply already. The turn starts one
+	 * tick later. */
+	o->aim_wait = 2;
 }
 
 void orders_goto_reverse(struct orders *o, const struct orders_measure *m, int32_t distance_um)
@@ -305,7 +308,9 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 				break;
 			}
 		}
-		/* GOTO: the bearing of the last re-aim. */
+		/* GOTO: the bearing of the last re-aim (none yet on the order's first tick). */
+		if (o->designation == PROTO_GOTO && !o->bearing_valid)
+			break;
 		heading_err = (uint32_t)abs32(fx_angle_diff(
 			o->designation == PROTO_GOTO
 				? (o->bearing_valid ? o->bearing_turn32 : bearing(o, &m->pose))

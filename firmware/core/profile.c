@@ -83,14 +83,54 @@ static uint8_t bit_length(uint32_t v)
 	return n;
 }
 
+/* a b [unit of a * unit of b] as a 48-bit value, "far" from 2^47 on: four 16 x 16 products. */
+static struct fx48 fx48_mul(uint32_t a, uint32_t b)
+{
+	uint32_t lo, hi = fx_mul_u32_wide(a, b, &lo);
+
+	if (hi >= 0x8000u)
+		return FAR48;
+	return fx48_make((int32_t)((hi << 16) | fx_hi16(lo)), fx_lo16(lo));
+}
+
+/* floor((nh 2^32 + nl) / den) for a quotient known to be below 2^qbits (1..32): restoring
+ * division over the quotient's bits (plan time: new limits, a stop). */
+static uint32_t div64_small(uint32_t nh, uint32_t nl, uint32_t den, uint8_t qbits)
+{
+	uint32_t rem = 0, q = 0;
+	uint8_t i;
+
+	/* rem = numerator >> qbits, then the qbits lower bits one by one. */
+	for (i = 0; i < 64 - qbits; i++) {
+		rem = (rem << 1) | (nh >> 31);
+		nh = (nh << 1) | (nl >> 31);
+		nl <<= 1;
+	}
+	while (qbits-- != 0) {
+		rem = (rem << 1) | (nh >> 31);
+		nh = (nh << 1) | (nl >> 31);
+		nl <<= 1;
+		q <<= 1;
+		if (rem >= den) {
+			rem -= den;
+			q |= 1u;
+		}
+	}
+	return q;
+}
+
 /* Distance covered from velocity n*a (included) with h ticks of cruise, then braking by a per
  * tick: g_h(n a) = a n (n + 2h + 1) / 2, exact (n (n + 2h + 1) is always even); saturated to
- * "far". 64-bit: only where a step count is found afresh or the limits change. */
+ * "far". While n (n + 2h + 1) fits 32 bits (n below 2^15, as for any limits in use), 32-bit
+ * products; 64 bits otherwise. */
 static struct fx48 g_at_step(int32_t a, uint32_t n, uint16_t h)
 {
-	uint64_t m = (uint64_t)n * (n + 2u * (uint32_t)h + 1u) / 2;
-	uint64_t g;
+	uint32_t k = n + 2u * (uint32_t)h + 1u;
+	uint64_t m, g;
 
+	if (n < 0x8000u && k <= 0xffffu)
+		return fx48_mul((uint32_t)a, fx_mul_u16((uint16_t)n, (uint16_t)k) / 2);
+	m = (uint64_t)n * k / 2;
 	/* a < 2^27: below 2^36 the product fits 63 bits. */
 	if (m >= ((uint64_t)1 << 36))
 		return FAR48;
@@ -113,15 +153,15 @@ static void hint_seed(const struct profile_params *prm, struct fx48 r, uint16_t 
 {
 	uint32_t a = (uint32_t)prm->a_q16;
 	uint32_t k = 2u * h + 1u;
-	uint32_t n;
+	uint32_t n, lo, hi;
 
 	if (r.hi >= 0 && r.hi <= 0x7fff) {
 		uint32_t rr = (uint32_t)fx48_to32(r);
 		uint8_t rb = bit_length(rr), ab = bit_length(a);
+		/* a >= 16 (1 mm/s^2 at 2 kHz): q < 2^27, k^2 + 8 q < 2^31. */
 		uint32_t q = rb >= ab ? fx_udiv_small(rr, a, (uint8_t)(rb - ab + 1)) : 0;
 
-		/* k^2 + 8 q < 2^19 + 2^34: in 64 bits for the square root only. */
-		n = (fx_isqrt64((uint64_t)k * k + 8 * (uint64_t)q) - k) / 2;
+		n = (fx_isqrt64(k * k + 8u * q) - k) / 2;
 	} else {
 		int64_t q = int64_of_fx48(r) / (int64_t)a;
 
@@ -129,7 +169,8 @@ static void hint_seed(const struct profile_params *prm, struct fx48 r, uint16_t 
 	}
 	hint->n = n;
 	hint->g_q16 = g_at_step(prm->a_q16, n, h);
-	hint->an_q16 = (int32_t)min64((int64_t)a * n, INT32_MAX);
+	hi = fx_mul_u32_wide(a, n, &lo);
+	hint->an_q16 = hi != 0 || lo > (uint32_t)INT32_MAX ? INT32_MAX : (int32_t)lo;
 	hint->valid = 1;
 }
 
@@ -203,29 +244,30 @@ static int32_t max_velocity(struct profile *p, struct fx48 r, uint16_t h)
 
 /* Beyond r_far, braking cannot limit the velocity (max_velocity() >= v_max + a for any h up to
  * hold_len), so the far part of a move costs no step count. Also the constants of the outputs,
- * and step counts to start the braking from (where r first drops below r_far). */
+ * and step counts to start the braking from (where r first drops below r_far). 32-bit
+ * arithmetic: it runs when the limits change, in an order's tick. */
 static void params_update_far(struct profile *p)
 {
 	struct profile_params *prm = &p->prm;
-	int64_t a = prm->a_q16;
-	int64_t v = (int64_t)prm->v_max_q16 + a;
-	int64_t n = (v - 1) / a;
-	int64_t f = v - n * a;
-	int64_t hz = prm->tick_hz;
+	uint32_t a = (uint32_t)prm->a_q16;
+	uint32_t v = (uint32_t)prm->v_max_q16 + a; /* below 2^31 */
+	uint8_t vb = bit_length(v - 1), ab = bit_length(a);
+	uint32_t n = vb >= ab ? fx_udiv_small(v - 1, a, (uint8_t)(vb - ab + 1)) : 0;
+	uint32_t f = v - n * a;
+	uint16_t hz = prm->tick_hz;
 
-	prm->r_far_q16 =
-		fx48_of64(int64_of_fx48(g_at_step(prm->a_q16, (uint32_t)n, prm->hold_len)) +
-			  (n + prm->hold_len + 1) * f);
-	prm->a_hold_q16 = fx48_of64(a * ((int64_t)prm->hold_len + 1));
-	prm->hz2 = (uint32_t)(hz * hz);
-	prm->vel_full_um_s = (int32_t)fx_shr_round64((int64_t)prm->v_max_q16 * hz, 16);
-	prm->acc_full_um_s2 = (int32_t)fx_shr_round64(a * hz * hz, 16);
+	prm->r_far_q16 = fx48_add(g_at_step(prm->a_q16, n, prm->hold_len),
+				  fx48_mul(n + prm->hold_len + 1u, f));
+	prm->a_hold_q16 = fx48_mul(a, (uint32_t)prm->hold_len + 1u);
+	prm->hz2 = fx_mul_u16(hz, hz);
+	prm->vel_full_um_s = fx_mul_q(prm->v_max_q16, hz, 16);
+	prm->acc_full_um_s2 = (int32_t)fx_mul_u32_shr(a, prm->hz2, 16);
 	for (uint8_t i = 0; i < 2; i++) {
 		uint16_t h = i ? prm->hold_len : 0;
 
-		p->hint[i].n = (uint32_t)n;
-		p->hint[i].g_q16 = g_at_step(prm->a_q16, (uint32_t)n, h);
-		p->hint[i].an_q16 = (int32_t)min64(a * n, INT32_MAX);
+		p->hint[i].n = n;
+		p->hint[i].g_q16 = g_at_step(prm->a_q16, n, h);
+		p->hint[i].an_q16 = (int32_t)(n * a);
 		p->hint[i].valid = 1;
 	}
 }
@@ -242,12 +284,22 @@ static int64_t accel_for_window(const struct profile_params *prm, int64_t n)
 
 static void params_set_limits(struct profile_params *prm, const struct profile_limits *lim)
 {
-	int64_t hz = prm->tick_hz;
+	uint32_t v = (uint32_t)lim->v_max_um_s, a = (uint32_t)lim->a_max_um_s2;
+	uint16_t hz = prm->tick_hz;
 
 	prm->lim = *lim;
-	/* Rounded down, so that the limits are never exceeded. */
-	prm->v_max_q16 = (int32_t)((int64_t)lim->v_max_um_s * Q16 / hz);
-	prm->a_full_q16 = (int32_t)((int64_t)lim->a_max_um_s2 * Q16 / (hz * hz));
+	/* Rounded down, so that the limits are never exceeded: v 2^16 / hz (below 2^31 for the
+	 * accepted limits) and a 2^16 / hz^2 (below 2^27). */
+	prm->v_max_q16 = (int32_t)div64_small(v >> 16, v << 16, hz, 31);
+	prm->a_full_q16 = (int32_t)div64_small(a >> 16, a << 16, fx_mul_u16(hz, hz), 27);
+}
+
+/* |target - position| [um * 2^16], for the S-curve's window (64-bit: at rest, S-curve only). */
+static int64_t move_length(const struct profile *p)
+{
+	int64_t d = int64_of_fx48(fx48_sub(p->target_q16, p->pos_in_q16));
+
+	return d >= 0 ? d : -d;
 }
 
 static int at_rest(const struct profile *p)
@@ -346,9 +398,7 @@ int profile_set_limits(struct profile *p, const struct profile_limits *lim)
 	params_set_limits(&p->prm, lim);
 	p->far_ready = 0; /* new limits: r_far is computed again */
 	if (at_rest(p)) {
-		int64_t d = int64_of_fx48(fx48_sub(p->target_q16, p->pos_in_q16));
-
-		choose_window(p, d >= 0 ? d : -d);
+		choose_window(p, p->prm.lim.j_max_um_s3 ? move_length(p) : 0);
 		return 0;
 	}
 	/* Moving: the window cannot change without a jump, so the jerk in effect stays and the
@@ -365,39 +415,38 @@ void profile_set_target(struct profile *p, int32_t target_um)
 {
 	p->target_q16 = fx48_make(target_um, 0);
 	p->stopping = 0;
-	if (at_rest(p) && !window_current(p)) {
-		int64_t d = int64_of_fx48(fx48_sub(p->target_q16, p->pos_in_q16));
-
-		choose_window(p, d >= 0 ? d : -d);
-	}
+	if (at_rest(p) && !window_current(p))
+		choose_window(p, p->prm.lim.j_max_um_s3 ? move_length(p) : 0);
 	p->out.done = (uint8_t)(at_rest(p) && fx48_eq(p->pos_in_q16, p->target_q16));
 }
 
 int32_t profile_stop(struct profile *p)
 {
-	int64_t a = p->prm.a_q16;
-	int64_t v = p->vel_in_q16;
+	uint32_t a = (uint32_t)p->prm.a_q16;
+	int32_t v = p->vel_in_q16;
 	int s = v >= 0 ? 1 : -1;
-	int64_t vm = v >= 0 ? v : -v;
-	int64_t h = (p->hold > 0 && p->hold_sign == s) ? p->hold : 0;
-	int64_t dist = h * vm;
-	int64_t stop_q16;
-	int64_t stop_um;
+	uint32_t vm = v >= 0 ? (uint32_t)v : (uint32_t)0 - (uint32_t)v;
+	uint32_t h = (p->hold > 0 && p->hold_sign == s) ? p->hold : 0;
+	struct fx48 dist = fx48_mul(h, vm);
+	struct fx48 stop;
 
 	if (vm > 0) {
-		int64_t n = (vm - 1) / a;
-		int64_t f = vm - n * a;
+		uint8_t vb = bit_length(vm - 1), ab = bit_length(a);
+		uint32_t n = vb >= ab ? fx_udiv_small(vm - 1, a, (uint8_t)(vb - ab + 1)) : 0;
+		uint32_t f = vm - n * a;
 
 		/* Velocities vm - a, ..., f, 0: n steps of f plus a (n - 1) n / 2. */
-		dist += n * f + a * (n * (n - 1) / 2);
+		dist = fx48_add(dist, fx48_add(fx48_mul(n, f), g_at_step(p->prm.a_q16, n, 0)));
+		dist = fx48_sub(dist, fx48_mul(n, a)); /* g_0(n a) - n a = a n (n - 1) / 2 */
 	}
-	stop_q16 = int64_of_fx48(p->pos_in_q16) + s * dist;
+	stop = s > 0 ? fx48_add(p->pos_in_q16, dist) : fx48_sub(p->pos_in_q16, dist);
 	/* Rounded away to a whole um, so that the end is exact and the braking never harder. */
-	stop_um = s > 0 ? -floor_q16(-stop_q16) : floor_q16(stop_q16);
-	p->target_q16 = fx48_make((int32_t)stop_um, 0);
+	if (s > 0 && stop.lo != 0)
+		stop.hi++;
+	p->target_q16 = fx48_make(stop.hi, 0);
 	p->stopping = 1;
 	p->out.done = (uint8_t)(at_rest(p) && fx48_eq(p->pos_in_q16, p->target_q16));
-	return (int32_t)stop_um;
+	return stop.hi;
 }
 
 void profile_reset(struct profile *p, int32_t pos_um)
