@@ -45,11 +45,22 @@ static inline int16_t fx_sat16(int32_t v)
  * int64_t goes through library routines of 100 to 650 cycles (docs/avr.md). So the code that
  * runs every tick multiplies 16-bit halves with these, and keeps wide values as 32-bit words.
  *
+ * The primitives below give the same exact results on any machine. Where the words are narrower
+ * than 32 bits (FX_NARROW: the AVR) they are built from 16-bit pieces and byte moves, the *_n
+ * functions; on a 32- or 64-bit machine from its own 64-bit arithmetic, a few instructions where
+ * the pieces would take tens. test_fixmath checks that both agree.
+ *
  * FX_HIDE is an empty GNU asm statement: it keeps GCC from seeing that a 16-bit operand is the
  * narrowed half of a 32-bit value, which it would otherwise fold into the multiplication and
  * turn back into the 32 x 32 routine. It generates no instruction on any target; compilers
- * without GNU asm skip it. */
-#ifdef __GNUC__
+ * without GNU asm, and wide machines (where it is not needed), skip it. */
+#if UINTPTR_MAX <= 0xffffu
+#define FX_NARROW 1
+#else
+#define FX_NARROW 0
+#endif
+
+#if defined(__GNUC__) && FX_NARROW
 #define FX_HIDE(v) __asm__("" : "+r"(v))
 #else
 #define FX_HIDE(v) ((void)0)
@@ -107,7 +118,7 @@ static inline uint16_t fx_lo16(uint32_t v)
  * shifts a uint32_t by any other count than 1, 2, 8, 16, 24 or 31 in a loop, one bit per turn,
  * up to 180 cycles; its 16-bit shifts are straight code. The halves are hidden from the
  * compiler so that it does not fold them back into one 32-bit shift. */
-FX_INLINE uint32_t fx_shr_u32(uint32_t x, uint8_t n)
+FX_INLINE uint32_t fx_shr_u32_n(uint32_t x, uint8_t n)
 {
 	uint16_t hi = fx_hi16(x), lo = fx_lo16(x);
 
@@ -121,7 +132,7 @@ FX_INLINE uint32_t fx_shr_u32(uint32_t x, uint8_t n)
 	       (uint16_t)((uint16_t)(hi << (16 - n)) | (uint16_t)(lo >> n));
 }
 
-FX_INLINE uint32_t fx_shl_u32(uint32_t x, uint8_t n)
+FX_INLINE uint32_t fx_shl_u32_n(uint32_t x, uint8_t n)
 {
 	uint16_t hi = fx_hi16(x), lo = fx_lo16(x);
 
@@ -135,8 +146,18 @@ FX_INLINE uint32_t fx_shl_u32(uint32_t x, uint8_t n)
 	       (uint16_t)(lo << n);
 }
 
+FX_INLINE uint32_t fx_shr_u32(uint32_t x, uint8_t n)
+{
+	return FX_NARROW ? fx_shr_u32_n(x, n) : x >> n;
+}
+
+FX_INLINE uint32_t fx_shl_u32(uint32_t x, uint8_t n)
+{
+	return FX_NARROW ? fx_shl_u32_n(x, n) : x << n;
+}
+
 /* a * b as two 32-bit words: returns the upper one, *lo the lower. Four 16 x 16 products. */
-static inline uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
+static inline uint32_t fx_mul_u32_wide_n(uint32_t a, uint32_t b, uint32_t *lo)
 {
 	uint32_t p0 = fx_mul_u16(fx_lo16(a), fx_lo16(b));
 	uint32_t p1 = fx_mul_u16(fx_lo16(a), fx_hi16(b));
@@ -145,6 +166,17 @@ static inline uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
 
 	*lo = fx_lo16(p0) | (t << 16);
 	return fx_mul_u16(fx_hi16(a), fx_hi16(b)) + (p1 >> 16) + (p2 >> 16) + (t >> 16);
+}
+
+static inline uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
+{
+	uint64_t p;
+
+	if (FX_NARROW)
+		return fx_mul_u32_wide_n(a, b, lo);
+	p = (uint64_t)a * b;
+	*lo = (uint32_t)p;
+	return (uint32_t)(p >> 32);
 }
 
 /* round(a * b / 2^n), halves rounded up, for n in 1..63; the caller knows the result fits in
@@ -173,7 +205,7 @@ static inline int32_t fx_int32_of(uint32_t v)
 
 /* round(a b / 2^n) with ties away from zero, for n in 8..47 and |b| <= 65535: two 16 x 16
  * products (|a| < 2^31); the caller knows the result fits in 32 bits. */
-FX_INLINE int32_t fx_mul_q(int32_t a, int32_t b, uint8_t n)
+FX_INLINE int32_t fx_mul_q_n(int32_t a, int32_t b, uint8_t n)
 {
 	uint32_t ua = a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a;
 	uint16_t ub = (uint16_t)(b >= 0 ? b : -b);
@@ -191,10 +223,23 @@ FX_INLINE int32_t fx_mul_q(int32_t a, int32_t b, uint8_t n)
 	return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
 }
 
+FX_INLINE int32_t fx_mul_q(int32_t a, int32_t b, uint8_t n)
+{
+	uint64_t m;
+	uint32_t r;
+
+	if (FX_NARROW)
+		return fx_mul_q_n(a, b, n);
+	m = (uint64_t)(a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a) *
+	    (uint32_t)(b >= 0 ? b : -b);
+	r = (uint32_t)((m + ((uint64_t)1 << (n - 1))) >> n);
+	return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
+}
+
 /* floor(num / den), den >= 1, for a quotient known to be below 2^qbits (1..32): a restoring
  * division over the quotient's bits only (avr-gcc's 32-bit division always takes 32 steps of a
  * slower loop). */
-static inline uint32_t fx_udiv_small(uint32_t num, uint32_t den, uint8_t qbits)
+static inline uint32_t fx_udiv_small_n(uint32_t num, uint32_t den, uint8_t qbits)
 {
 	uint32_t rem = qbits >= 32 ? 0 : num >> qbits;
 	uint32_t q = 0;
@@ -210,6 +255,11 @@ static inline uint32_t fx_udiv_small(uint32_t num, uint32_t den, uint8_t qbits)
 		}
 	}
 	return q;
+}
+
+static inline uint32_t fx_udiv_small(uint32_t num, uint32_t den, uint8_t qbits)
+{
+	return FX_NARROW ? fx_udiv_small_n(num, den, qbits) : num / den;
 }
 
 /* round(num / den) with ties away from zero, den >= 1, for |num| / den + 1 below 2^qbits. */

@@ -131,6 +131,18 @@ static uint32_t i_step(const struct pid *c, uint32_t m, uint16_t *lo16)
 	}
 }
 
+/* round(u / 2^24) with ties away from zero, clipped to +-lim, for u = (u8 2^16 + ul) [2^-24
+ * duty_q15]: the ties fall on multiples of 2^23, so the fraction ul does not move them. */
+static int16_t duty_of(int32_t u8, uint16_t ul, int16_t lim)
+{
+	uint32_t m = u8 >= 0 ? (uint32_t)u8 : (uint32_t)0 - (uint32_t)u8 - (ul != 0);
+	uint32_t d = m >= ((uint32_t)lim << 8) ? (uint32_t)lim : (m + 128) >> 8;
+
+	if (d > (uint32_t)lim)
+		d = (uint32_t)lim;
+	return (int16_t)(u8 >= 0 ? (int32_t)d : -(int32_t)d);
+}
+
 int16_t pid_update(struct pid *c, int32_t err_um)
 {
 	int32_t e = clip32(err_um, PID_ERR_MAX_UM);
@@ -138,10 +150,12 @@ int16_t pid_update(struct pid *c, int32_t err_um)
 	int32_t de = c->has_prev ? clip32(e - c->prev_err_um, PID_ERR_MAX_UM) : 0;
 	int32_t pd = term(c->kp_q12, e, c->p_err_max_um) + term(c->kd_q12, de, c->d_err_max_um);
 	int32_t lim = (int32_t)c->cfg.out_limit_q15 << 8; /* [2^-8 duty_q15] */
+	/* pd [2^-12] in [2^-24] as pdh 2^16 + pdl: pdh = floor(pd / 16). */
+	int32_t pdh = (pd - (pd & 15)) / 16;
+	uint16_t pdl = (uint16_t)((uint32_t)(pd & 15) << 12);
 	/* The integral [2^-24 duty_q15] as ihi 2^16 + ilo; |ihi| <= lim. */
 	int32_t ihi = c->i_acc_q24.hi;
 	uint16_t ilo = c->i_acc_q24.lo;
-	int32_t uhi, d;
 	uint32_t t;
 
 	c->prev_err_um = e;
@@ -152,6 +166,7 @@ int16_t pid_update(struct pid *c, int32_t err_um)
 	if (e != 0) {
 		uint16_t lo;
 		uint32_t hi = i_step(c, e >= 0 ? (uint32_t)e : (uint32_t)0 - (uint32_t)e, &lo);
+		int32_t uh;
 
 		if (hi > ((uint32_t)1 << 30))
 			hi = (uint32_t)1 << 30; /* far past any limit: still clipped below */
@@ -171,31 +186,17 @@ int16_t pid_update(struct pid *c, int32_t err_um)
 			ilo = 0;
 		}
 		/* Conditional integration: while the output is saturated in the direction in
-		 * which the error pushes it, integrating would only wind up. The output [2^-24]
-		 * is pd 2^12 + the integral: compared in [2^-8] (pd / 2^4 floored, with the
-		 * integral's and pd's fractions), it exceeds lim exactly when uhi does. */
-		uhi = fx_int32_of(((uint32_t)pd >> 4) | (pd < 0 ? 0xf0000000u : 0)) + ihi +
-		      (int32_t)fx_hi16((((uint32_t)pd & 15u) << 12) + ilo);
-		if ((e > 0 && (uhi > lim || (uhi == lim && (((((uint32_t)pd & 15u) << 12) + ilo) &
-							    0xffffu) != 0))) ||
-		    (e < 0 && uhi < -lim)) {
+		 * which the error pushes it, integrating would only wind up. */
+		t = (uint32_t)pdl + ilo;
+		uh = pdh + ihi + (int32_t)fx_hi16(t);
+		if ((e > 0 && (uh > lim || (uh == lim && fx_lo16(t) != 0))) ||
+		    (e < 0 && uh < -lim)) {
 			ihi = c->i_acc_q24.hi;
 			ilo = c->i_acc_q24.lo;
 		}
 		c->i_acc_q24 = fx48_make(ihi, ilo);
 	}
-	/* round((pd 2^12 + integral) / 2^24), ties away from zero, clipped: as a 48-bit sum. */
-	{
-		struct fx48 u = fx48_add(
-			fx48_make(fx_int32_of(((uint32_t)pd >> 4) | (pd < 0 ? 0xf0000000u : 0)),
-				  (uint16_t)(((uint32_t)pd & 15u) << 12)),
-			fx48_make(ihi, ilo));
-		struct fx48 m = fx48_is_neg(u) ? fx48_neg(u) : u;
-
-		d = m.hi >= lim ? c->cfg.out_limit_q15 : (m.hi + 128) >> 8;
-		if (d > c->cfg.out_limit_q15)
-			d = c->cfg.out_limit_q15;
-		c->out_q15 = (int16_t)(fx48_is_neg(u) ? -d : d);
-	}
+	t = (uint32_t)pdl + ilo;
+	c->out_q15 = duty_of(pdh + ihi + (int32_t)fx_hi16(t), fx_lo16(t), c->cfg.out_limit_q15);
 	return c->out_q15;
 }
