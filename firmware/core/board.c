@@ -1,11 +1,14 @@
 /* The board: one tick function that runs the control period's steps in order (see board.h). */
 #include "board.h"
 
+#include <errno.h>
+
 #include "field_defs.h"
 #include "fixmath.h"
 #include "protocol_defs.h"
 
 typedef char board_field_baskets_fit[(FIELD_N_BASKETS <= ORDERS_MAX_BASKETS) ? 1 : -1];
+typedef char board_field_lines_fit[(FIELD_N_LINES <= RECAL_MAX_LINES) ? 1 : -1];
 
 #define UM_PER_MM 1000
 #define STATUS_END_BITS (STATUS_CHOC_PANIER | STATUS_CHOC_BORD | STATUS_PB_MOTEUR)
@@ -75,6 +78,40 @@ void board_default_config(struct board_config *c)
 	c->orders.tick_hz = 1000;
 	c->orders.jerk_um_s3 = 0;
 
+	/* Recalibration (docs/recalibration.md). The basket switch, a 1 mm-travel microswitch at
+	 * the middle of the front edge, closes on a 125 mm circle within 16 mm of its centre. */
+	c->orders.basket_lateral_um = 16000;
+	c->orders.basket_bound_um = 1500;
+	c->orders.borders = FIELD_BORDERS;
+	c->orders.half_length_um = FIELD_LENGTH_UM / 2;
+	c->orders.half_width_um = FIELD_WIDTH_UM / 2;
+	c->orders.front_um = 125000;       /* the 250 mm long outline, centred on the axis */
+	c->orders.front_shock_mask = 0x07; /* CAPTEUR_0..2 on the front edge */
+	c->orders.border_speed_um_s = 100000;
+	c->orders.border_extra_um = 60000;
+	c->orders.border_block_um = 5000;
+	c->orders.border_depth_um = 8000;
+	c->orders.square_ticks = 300;
+	c->orders.backoff_um = 60000;
+	c->orders.border_bound_um = 1000;
+	c->orders.border_heading_bound_turn32 = fx_deg_to_turn32(1) / 4; /* 0.25 degree */
+	{
+		static const struct recal_line lines[] = FIELD_LINES;
+
+		c->recal.n_lines = FIELD_N_LINES;
+		for (uint8_t i = 0; i < FIELD_N_LINES; i++)
+			c->recal.lines[i] = lines[i];
+	}
+	c->recal.n_sensors = 2; /* under the encoder axis, 40 mm either side of the middle */
+	c->recal.sensors[0] = (struct recal_point){0, 40000};
+	c->recal.sensors[1] = (struct recal_point){0, -40000};
+	c->recal.max_angle_turn32 = fx_deg_to_turn32(30);
+	c->recal.width_tol_um = 5000;
+	c->recal.margin_um = 10000;
+	c->recal.pair_window_um = 200000;
+	c->recal.bound_um = 1000;
+	c->recal.pair_bound_um = 300;
+
 	/* The specification's initial position "0, bout du terrain", angle 0: x 0 on the field's
 	 * centre line, at the end of the field (its border at y -1050 mm, 2100 mm wide), the robot
 	 * facing +X along that border. The reference robot's 250 x 300 mm outline sweeps a circle
@@ -84,6 +121,11 @@ void board_default_config(struct board_config *c)
 	c->start.x_um = 0;
 	c->start.y_um = -850000;
 	c->start.heading_turn32 = 0;
+	/* The start pose is the reference of the estimate: no error at power-on (a team that
+	 * places its robot by hand within, say, 2 mm and 1 degree sets these so that the radius
+	 * covers the placement too). */
+	c->start_radius_um = 0;
+	c->start_heading_bound_turn32 = 0;
 }
 
 /* The angle axis [um of drive-wheel arc]: the exact sum of the heading steps times pi * drive
@@ -115,6 +157,12 @@ static void angle_axis_step(struct board *b, int32_t dtheta_turn32)
 	b->angle_um = w;
 }
 
+/* Drive track / encoder track [2^-16], for comparing drive-wheel and free-wheel travel. */
+static int32_t free_ratio_q16(const struct board_config *cfg, uint32_t track_um)
+{
+	return (int32_t)fx_div_round64((int64_t)cfg->orders.drive_track_um << 16, track_um);
+}
+
 static void update_status(struct board *b);
 static void publish(struct board *b, const struct board_inputs *in, const struct orders_measure *m);
 
@@ -130,6 +178,7 @@ static void measure(const struct board *b, const struct board_inputs *in, struct
 	m->angle_speed_um_s = fx_mul_s16(fx_sat16(b->arc_um), (int16_t)b->cfg.tick_hz);
 	m->basket_contact = in->basket;
 	m->basket_shock = (in->shocks & b->cfg.faults.shock_basket_mask) != 0;
+	m->shocks = in->shocks;
 }
 
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in)
@@ -146,15 +195,16 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	    control_init(&b->control, &cfg->control) ||
 	    faults_init(&b->faults, &cfg->faults, in->motor_count))
 		return -1;
+	b->soft = 0;
 	odometry_set_pose(&b->odometry, &cfg->start);
-	uncertainty_reset(&b->uncertainty, 0, 0); /* the start pose is the reference: no error */
+	uncertainty_reset(&b->uncertainty, cfg->start_radius_um, cfg->start_heading_bound_turn32);
 	b->angle_hi = 0;
 	b->angle_lo = 0;
 	b->angle_um = 0;
 	b->arc_um = 0;
-	b->free_ratio_q16 = (int32_t)fx_div_round64((int64_t)cfg->orders.drive_track_um << 16,
-						    cfg->odometry.track_um);
-	if (orders_init(&b->orders, &cfg->orders, odometry_get_distance_um(&b->odometry), 0))
+	b->free_ratio_q16 = free_ratio_q16(cfg, cfg->odometry.track_um);
+	if (orders_init(&b->orders, &cfg->orders, odometry_get_distance_um(&b->odometry), 0) ||
+	    recal_init(&b->recal, &cfg->recal, odometry_get_distance_um(&b->odometry)))
 		return -1;
 	b->tick = 0;
 	b->status = 0;
@@ -184,6 +234,50 @@ static void set_new_pos(struct board *b, const struct proto_msg *msg)
 	/* Only the estimate moves, not the axes: the robot stays put, and a running GOTO re-aims
 	 * from the corrected estimate at its next update (a frozen one keeps its targets). */
 	odometry_set_pose(&b->odometry, &p);
+}
+
+/* A nominal wheel factor times (1 + a / den) [um/count * 2^16], rounded. */
+static int64_t scaled_factor(int64_t factor_q16, int32_t a, int32_t den)
+{
+	return fx_div_round64(factor_q16 * (den + a), den);
+}
+
+/* SET_ODOMETRIE: the calibrated wheel factors and encoder track, from the build's nominal
+ * factors (cfg), so that the same message always gives the same configuration. The pose, the
+ * error radius and the axes are kept; the next tick measures with the new values. A result
+ * outside the odometry's ranges leaves the configuration as it was (-EDOM). */
+static int set_odometrie(struct board *b, const struct proto_msg *msg)
+{
+	const int32_t ppm = 1000000;
+	int32_t ratio = msg->arg[ARG_SET_ODOMETRIE_RATIO_PPM];
+	int32_t scale = msg->arg[ARG_SET_ODOMETRIE_SCALE_PPM];
+	struct odometry_config oc;
+	struct uncertainty_config uc = b->uncertainty.cfg;
+	int64_t left, right;
+	int err;
+
+	left = scaled_factor(b->cfg.odometry.left_um_per_count_q16, scale, ppm);
+	right = scaled_factor(b->cfg.odometry.right_um_per_count_q16, scale, ppm);
+	/* right * (1 + r/2), left * (1 - r/2): a right/left ratio of 1 + r + r^2/2 + ... */
+	left = scaled_factor(left, -ratio, 2 * ppm);
+	right = scaled_factor(right, ratio, 2 * ppm);
+	if (left < 1 || right < 1 || left > ODOMETRY_UM_PER_COUNT_Q16_MAX ||
+	    right > ODOMETRY_UM_PER_COUNT_Q16_MAX)
+		return -EDOM;
+	oc.left_um_per_count_q16 = (uint32_t)left;
+	oc.right_um_per_count_q16 = (uint32_t)right;
+	oc.track_um = (uint32_t)msg->arg[ARG_SET_ODOMETRIE_TRACK_10UM] * 10u;
+	uc.track_um = oc.track_um;
+	if (uncertainty_set_config(&b->uncertainty, &uc))
+		return -EDOM;
+	err = odometry_set_config(&b->odometry, &oc);
+	if (err) {
+		uc.track_um = b->odometry.cfg.track_um; /* as it was */
+		(void)uncertainty_set_config(&b->uncertainty, &uc);
+		return err;
+	}
+	b->free_ratio_q16 = free_ratio_q16(&b->cfg, oc.track_um);
+	return 0;
 }
 
 static void apply(struct board *b, const struct proto_msg *msg, struct orders_measure *m)
@@ -236,6 +330,9 @@ static void apply(struct board *b, const struct proto_msg *msg, struct orders_me
 		set_new_pos(b, msg);
 		m->pose = odometry_get_pose(&b->odometry);
 		break;
+	case PROTO_SET_ODOMETRIE:
+		(void)set_odometrie(b, msg); /* in range by the message table; see set_odometrie */
+		break;
 	default:
 		break; /* ETAT messages never reach the queue */
 	}
@@ -264,19 +361,89 @@ static void react(struct board *b, uint8_t event, const struct orders_measure *m
 	b->status |= bits[event];
 }
 
+/* A new estimate from the field itself. */
+static void set_pose(struct board *b, const struct odometry_pose *p, struct orders_measure *m)
+{
+	odometry_set_pose(&b->odometry, p);
+	m->pose = *p;
+}
+
+/* Line recalibration, while a GOTO with option bit 0 drives straight (recal.h). */
+static void recal_lines(struct board *b, const struct board_inputs *in, struct orders_measure *m)
+{
+	const struct orders *o = &b->orders;
+	int enabled = o->designation == PROTO_GOTO && (o->options & ORDERS_OPT_LINE) &&
+		      !o->border && o->state == ORDER_STATE_TRANSLATE;
+	struct recal_fix fix;
+
+	recal_update(&b->recal, in->lines, enabled, &m->pose, m->dist_um,
+		     uncertainty_get_radius_mm(&b->uncertainty),
+		     enabled ? uncertainty_get_heading_bound_turn32(&b->uncertainty) : 0, &fix);
+	if (!fix.what)
+		return;
+	set_pose(b, &fix.pose, m);
+	if (fix.what & RECAL_FIX_HEADING)
+		uncertainty_reset_heading(&b->uncertainty, fix.heading_bound_turn32);
+	uncertainty_reset_along(&b->uncertainty, fix.normal_turn32, fix.bound_um);
+}
+
+/* A basket contact: the coordinate along the approach from the basket's geometry, the lateral
+ * one clamped to the switch's window (orders_basket_pose()). */
+static void recal_basket(struct board *b, struct orders_measure *m)
+{
+	const struct orders_config *oc = &b->cfg.orders;
+	struct odometry_pose p;
+
+	if (orders_basket_pose(&b->orders, &m->pose, &p) != 0)
+		return;
+	set_pose(b, &p, m);
+	uncertainty_reset_along(&b->uncertainty, p.heading_turn32, oc->basket_bound_um);
+	if (oc->basket_lateral_um > 0 &&
+	    (int32_t)uncertainty_get_radius_mm(&b->uncertainty) * 1000 > oc->basket_lateral_um)
+		uncertainty_reset_along(&b->uncertainty, p.heading_turn32 + ((uint32_t)1 << 30),
+					(uint32_t)oc->basket_lateral_um);
+}
+
+/* Squared up against a border: one coordinate and the heading (orders.c, border_recal()). */
+static void recal_border(struct board *b, struct orders_measure *m)
+{
+	struct orders_recal r;
+
+	if (!orders_take_recal(&b->orders, &r))
+		return;
+	set_pose(b, &r.pose, m);
+	uncertainty_reset_heading(&b->uncertainty, b->cfg.orders.border_heading_bound_turn32);
+	uncertainty_reset_axis(&b->uncertainty, r.axis ? UNCERTAINTY_AXIS_Y : UNCERTAINTY_AXIS_X,
+			       b->cfg.orders.border_bound_um);
+}
+
+/* A border push runs on FILTRE_SOUPLE's gains; the gains in effect before come back after. */
+static void select_gains(struct board *b)
+{
+	uint8_t soft = (uint8_t)orders_soft(&b->orders);
+
+	if (soft == b->soft)
+		return;
+	if (soft) {
+		b->saved_gains = b->control.gains;
+		control_set_preset(&b->control, FILTRE_SOUPLE);
+	} else {
+		control_set_gains(&b->control, &b->saved_gains);
+	}
+	control_reset(&b->control);
+	b->soft = soft;
+}
+
 /* An order ended by itself this tick. */
 static void finish(struct board *b, uint8_t reason, struct orders_measure *m)
 {
-	struct odometry_pose p;
-
+	if (reason == END_REASON_BORDER)
+		b->status |= STATUS_CHOC_BORD;
 	if (reason != END_REASON_BASKET)
 		return;
 	b->status |= STATUS_CHOC_PANIER;
 	control_reset(&b->control);
-	if (orders_basket_pose(&b->orders, &m->pose, &p) == 0) {
-		odometry_set_pose(&b->odometry, &p);
-		m->pose = p;
-	}
+	recal_basket(b, m);
 }
 
 static void update_status(struct board *b)
@@ -370,9 +537,10 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	uncertainty_update(&b->uncertainty, step->left_q16, step->right_q16,
 			   b->odometry.heading_turn32);
 
-	/* 3. The two polar axes and the pose, measured; the switches. */
+	/* 3. The two polar axes and the pose, measured; the switches; line crossings. */
 	measure(b, in, &m);
 	b->shocks = in->shocks;
+	recal_lines(b, in, &m);
 
 	/* 4. Messages from the master, in the order they arrived. */
 	while (proto_poll(&b->proto, &msg))
@@ -380,7 +548,9 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 
 	/* 5. Stop conditions: shocks, motor problems, unrecoverable faults. */
 	/* Pushing a basket closes the front bumper with the basket switch: the expected contact. */
+	/* Against the border, the front switches are the expected contact. */
 	fi.shocks = (b->orders.state == ORDER_STATE_PUSH && in->basket) ? 0 : in->shocks;
+	fi.shocks &= (uint8_t)~orders_expected_shocks(&b->orders);
 	fi.current_ma[0] = in->current_ma[0];
 	fi.current_ma[1] = in->current_ma[1];
 	fi.motor_count[0] = in->motor_count[0];
@@ -391,13 +561,15 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	fi.dist_err_um = b->orders.sp_dist.pos_um - m.dist_um;
 	fi.angle_err_um = b->orders.sp_angle.pos_um - m.angle_um;
 	fi.moving = (uint8_t)orders_busy(&b->orders);
-	fi.pushing = b->orders.state == ORDER_STATE_PUSH;
+	fi.pushing = b->orders.state == ORDER_STATE_PUSH || b->orders.state == ORDER_STATE_SQUARE;
 	event = faults_check(&b->faults, &fi);
 	react(b, encoder_fault ? FAULTS_GRAVE : event, &m);
 
-	/* 6. Orders -> profiles -> setpoints of both axes. */
+	/* 6. Orders -> profiles -> setpoints of both axes; the contact recalibrations. */
 	reason = orders_update(&b->orders, &m);
+	recal_border(b, &m);
 	finish(b, reason, &m);
+	select_gains(b);
 	update_status(b);
 
 	/* 7. Control: feed-forward + PID on both axes, mixed into the motor duties. */

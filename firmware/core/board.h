@@ -11,6 +11,7 @@
 #include "odometry.h"
 #include "orders.h"
 #include "protocol.h"
+#include "recal.h"
 #include "uncertainty.h"
 
 /* What the port samples before each tick (hal/ gives the meaning of each). */
@@ -35,7 +36,12 @@ struct board_config {
 	struct control_config control;
 	struct faults_config faults;
 	struct orders_config orders;
+	struct recal_config recal;
 	struct odometry_pose start; /* the specification: x 0, at the end of the field, angle 0 */
+	/* How well the robot is placed at the start (bounds at the uncertainty's probability):
+	 * the error radius starts from them. 0 and 0: the start pose is the reference. */
+	uint32_t start_radius_um;
+	uint32_t start_heading_bound_turn32;
 };
 
 struct board {
@@ -46,6 +52,9 @@ struct board {
 	struct orders orders;
 	struct control control;
 	struct faults faults;
+	struct recal recal;
+	uint8_t soft;                     /* FILTRE_SOUPLE's gains put in by a border push */
+	struct control_gains saved_gains; /* ... and the gains it replaced */
 	/* The angle axis: the exact sum of the odometry's heading steps [turn * 2^32] times
 	 * pi * drive track [um], i.e. [um * 2^32], as hi 2^32 + lo (hi an int32_t modulo 2^32). */
 	uint32_t angle_hi;
@@ -68,8 +77,9 @@ void board_default_config(struct board_config *cfg);
  * Returns 0, or -1 when the configuration is out of range. Interrupt-safe: no. */
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
 
-/* One control period, in order: encoders -> odometry -> error radius -> messages -> stop
- * conditions -> orders -> profiles -> control -> outputs -> reply snapshot.
+/* One control period, in order: encoders -> odometry -> error radius -> line recalibration ->
+ * messages -> stop conditions -> orders -> profiles -> border/basket recalibration -> control ->
+ * outputs -> reply snapshot.
  * Interrupt-safe: it is the control interrupt; it must not be re-entered. */
 void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out);
 

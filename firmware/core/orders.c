@@ -65,8 +65,10 @@ static void apply_limits(struct orders *o)
 {
 	struct profile_limits d = o->traj;
 
-	if (o->state == ORDER_STATE_PUSH && d.v_max_um_s > o->cfg.push_speed_um_s)
-		d.v_max_um_s = o->cfg.push_speed_um_s;
+	int32_t push = o->border ? o->cfg.border_speed_um_s : o->cfg.push_speed_um_s;
+
+	if (o->state == ORDER_STATE_PUSH && d.v_max_um_s > push)
+		d.v_max_um_s = push;
 	profile_set_limits(&o->dist, &d);
 	profile_set_limits(&o->angle, &o->rot);
 }
@@ -108,10 +110,13 @@ static void begin(struct orders *o, uint8_t designation)
 	o->ended = 0;
 	o->bearing_valid = 0; /* a new target */
 	o->aim_wait = o->aim_period;
+	o->border = 0;
+	o->recal.pending = 0;
 }
 
 static void end(struct orders *o, uint8_t reason)
 {
+	o->border = 0;
 	o->state = ORDER_STATE_IDLE;
 	o->end_reason = reason;
 	o->ended = 1;
@@ -292,10 +297,114 @@ static void step_goto(struct orders *o, const struct orders_measure *m)
 		profile_set_target(&o->dist, m->dist_um + projection(o, &m->pose));
 }
 
+/* The heading that faces border side (0 +X, 1 +Y, 2 -X, 3 -Y): a quarter turn per side. */
+static uint32_t border_heading(uint8_t side)
+{
+	return (uint32_t)side << 30;
+}
+
+/* The gap between the front edge and border side, from the estimate [um]. */
+static int32_t border_gap(const struct orders *o, const struct odometry_pose *p, uint8_t side)
+{
+	static const int8_t sign[4] = {1, 1, -1, -1};
+	int32_t half = (side & 1u) ? o->cfg.half_width_um : o->cfg.half_length_um;
+	int32_t c = (side & 1u) ? p->y_um : p->x_um;
+
+	return half - sign[side] * c - o->cfg.front_um;
+}
+
+/* GOTO reached its point: turn to face the nearest border (by the estimate). */
+static void start_border(struct orders *o, const struct orders_measure *m)
+{
+	uint8_t side = 0;
+
+	for (uint8_t k = 1; k < 4; k++)
+		if (border_gap(o, &m->pose, k) < border_gap(o, &m->pose, side))
+			side = k;
+	o->border = 1;
+	o->border_side = side;
+	enter(o, ORDER_STATE_ROTATE);
+	profile_stop(&o->dist);
+	aim(o, m, border_heading(side));
+}
+
+/* Squared up against the border: the coordinate across it is the border less the front
+ * offset, and the heading faces it exactly. */
+static void border_recal(struct orders *o, const struct orders_measure *m)
+{
+	uint8_t side = o->border_side;
+	int32_t at = ((side & 1u) ? o->cfg.half_width_um : o->cfg.half_length_um) - o->cfg.front_um;
+
+	o->recal.pose = m->pose;
+	o->recal.pose.heading_turn32 = border_heading(side);
+	o->recal.axis = side & 1u;
+	if (side & 1u)
+		o->recal.pose.y_um = side == 1 ? at : -at;
+	else
+		o->recal.pose.x_um = side == 0 ? at : -at;
+	o->recal.pending = 1;
+}
+
+static uint8_t update_border(struct orders *o, const struct orders_measure *m)
+{
+	int32_t err;
+
+	switch (o->state) {
+	case ORDER_STATE_ROTATE:
+		if (!profile_is_done(&o->angle) ||
+		    (uint32_t)abs32(
+			    fx_angle_diff(border_heading(o->border_side), m->pose.heading_turn32)) >
+			    o->cfg.heading_window_turn32)
+			break;
+		enter(o, ORDER_STATE_PUSH);
+		profile_set_target(&o->dist, m->dist_um + border_gap(o, &m->pose, o->border_side) +
+						     o->cfg.border_extra_um);
+		break;
+	case ORDER_STATE_PUSH:
+		err = o->sp_dist.pos_um - m->dist_um;
+		if ((m->shocks & o->cfg.front_shock_mask) || err > o->cfg.border_block_um) {
+			/* Contact: push a little further, heading loop relaxed, so that the
+			 * front edge lies flat against the border. */
+			enter(o, ORDER_STATE_SQUARE);
+			o->square_count = 0;
+			/* From where it stands, at the push speed (a step of the setpoint would
+			 * kick the derivative term). */
+			profile_reset(&o->dist, m->dist_um);
+			profile_set_target(&o->dist, m->dist_um + o->cfg.border_depth_um);
+			break;
+		}
+		if (profile_is_done(&o->dist)) {
+			end(o, END_REASON_DONE); /* no border where expected: no CHOC_BORD */
+			return END_REASON_DONE;
+		}
+		break;
+	case ORDER_STATE_SQUARE:
+		if (++o->square_count < o->cfg.square_ticks)
+			break;
+		border_recal(o, m);
+		enter(o, ORDER_STATE_BACK_OFF);
+		profile_reset(&o->dist, m->dist_um);
+		profile_reset(&o->angle, m->angle_um);
+		profile_set_target(&o->dist, m->dist_um - o->cfg.backoff_um);
+		break;
+	case ORDER_STATE_BACK_OFF:
+		if (profile_is_done(&o->dist)) {
+			end(o, END_REASON_BORDER);
+			return END_REASON_BORDER;
+		}
+		break;
+	default:
+		break;
+	}
+	return END_REASON_NONE;
+}
+
 static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 {
 	uint32_t heading_err;
 
+	if (o->border)
+		return update_border(o, m);
 	switch (o->state) {
 	case ORDER_STATE_ROTATE:
 		if (o->designation == PROTO_GOTO) {
@@ -336,6 +445,11 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 		break;
 	case ORDER_STATE_SETTLE:
 		if (settled(o, m)) {
+			if (o->designation == PROTO_GOTO && (o->options & ORDERS_OPT_BORDER) &&
+			    o->cfg.borders) {
+				start_border(o, m);
+				break;
+			}
 			end(o, END_REASON_DONE);
 			return END_REASON_DONE;
 		}
@@ -378,6 +492,9 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 		reason = update_state(o, m);
 	if (reason == END_REASON_BASKET)
 		return reason; /* setpoints already hold the contact position */
+	if (o->state == ORDER_STATE_SQUARE)
+		profile_reset(&o->angle,
+			      m->angle_um); /* the heading loop relaxed: no angle error */
 	copy_out(&o->sp_dist, profile_update(&o->dist));
 	copy_out(&o->sp_angle, profile_update(&o->angle));
 	return reason;
@@ -387,7 +504,7 @@ int orders_basket_pose(const struct orders *o, const struct odometry_pose *estim
 		       struct odometry_pose *out)
 {
 	const struct orders_basket *best = 0;
-	int64_t best_d2 = 0;
+	int64_t best_d2 = 0, ex, ey, along, lateral, lim;
 	int32_t s, c, reach;
 
 	/* The basket touched is the one nearest to the switch's estimated position. */
@@ -407,16 +524,49 @@ int orders_basket_pose(const struct orders *o, const struct odometry_pose *estim
 	}
 	if (!best)
 		return -1;
-	/* The switch touches the circle on the robot's heading line: the axis midpoint is
-	 * radius + contact offset behind the basket's centre. */
+	/* The front edge touches the circle where its normal is the heading: the basket's centre
+	 * is radius + contact offset ahead of the axis midpoint, exactly. Across the heading the
+	 * switch only closes within basket_lateral_um of the centre: the estimate's lateral offset
+	 * is kept, clamped to that. */
 	reach = best->radius_um + o->cfg.basket_contact_um;
+	ex = (int64_t)best->x_um - estimate->x_um;
+	ey = (int64_t)best->y_um - estimate->y_um;
+	along = reach;
+	lateral = fx_shr_round64(-ex * s + ey * c, 30);
+	lim = o->cfg.basket_lateral_um;
+	if (lim > 0 && lateral > lim)
+		lateral = lim;
+	if (lim > 0 && lateral < -lim)
+		lateral = -lim;
 	out->heading_turn32 = estimate->heading_turn32;
-	out->x_um = best->x_um - fx_mul_shr(reach, c, 30);
-	out->y_um = best->y_um - fx_mul_shr(reach, s, 30);
+	out->x_um = best->x_um - (int32_t)fx_shr_round64(along * c - lateral * s, 30);
+	out->y_um = best->y_um - (int32_t)fx_shr_round64(along * s + lateral * c, 30);
 	return 0;
 }
 
 int orders_busy(const struct orders *o)
 {
 	return o->state != ORDER_STATE_IDLE;
+}
+
+int orders_soft(const struct orders *o)
+{
+	return o->border && (o->state == ORDER_STATE_PUSH || o->state == ORDER_STATE_SQUARE);
+}
+
+uint8_t orders_expected_shocks(const struct orders *o)
+{
+	if (o->border && (o->state == ORDER_STATE_PUSH || o->state == ORDER_STATE_SQUARE ||
+			  o->state == ORDER_STATE_BACK_OFF))
+		return o->cfg.front_shock_mask;
+	return 0;
+}
+
+int orders_take_recal(struct orders *o, struct orders_recal *r)
+{
+	if (!o->recal.pending)
+		return 0;
+	*r = o->recal;
+	o->recal.pending = 0;
+	return 1;
 }

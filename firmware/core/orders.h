@@ -12,6 +12,10 @@
 
 #define ORDERS_MAX_BASKETS 4
 
+/* GOTO's option bits (the specification's "recalage ligne" and "recalage contact"). */
+#define ORDERS_OPT_LINE 0x01u
+#define ORDERS_OPT_BORDER 0x02u
+
 /* A basket seen from above: a circle the front contact switch touches. */
 struct orders_basket {
 	int32_t x_um;
@@ -34,6 +38,35 @@ struct orders_config {
 	struct orders_basket baskets[ORDERS_MAX_BASKETS];
 	uint16_t tick_hz;
 	uint32_t jerk_um_s3; /* 0: trapezoids; else S-curves with this jerk on both axes */
+
+	/* Basket recalibration: the basket switch closes only when the basket's centre is within
+	 * this of the robot's heading line (set by the switch's width; 0: no lateral constraint).
+	 */
+	int32_t basket_lateral_um;
+	uint32_t basket_bound_um; /* residual along the approach after a basket contact */
+
+	/* Border recalibration (GOTO option bit 1). The field's borders: x = +/- half length,
+	 * y = +/- half width [um]; no border recalibration when borders is 0. */
+	uint8_t borders;
+	int32_t half_length_um;
+	int32_t half_width_um;
+	int32_t front_um;                     /* from the encoder axis midpoint to the front edge */
+	uint8_t front_shock_mask;             /* the shock sensors on the front edge */
+	int32_t border_speed_um_s;            /* approach speed (capped by the traj limit) */
+	int32_t border_extra_um;              /* gives up this far past the expected contact */
+	int32_t border_block_um;              /* a following error this large is a contact too */
+	int32_t border_depth_um;              /* the push: setpoint this far past the contact */
+	uint16_t square_ticks;                /* the push lasts this long, heading loop relaxed */
+	int32_t backoff_um;                   /* then backs off this far */
+	uint32_t border_bound_um;             /* residual of the coordinate across the border */
+	uint32_t border_heading_bound_turn32; /* residual of the heading once squared up */
+};
+
+/* A recalibration the state machine asks the board to apply (orders_take_recal()). */
+struct orders_recal {
+	uint8_t pending;
+	uint8_t axis;              /* 0: x known, 1: y known */
+	struct odometry_pose pose; /* the estimate with the coordinate and the heading set */
 };
 
 /* The setpoint of one axis for this tick, for the controller. */
@@ -52,6 +85,7 @@ struct orders_measure {
 	int32_t angle_speed_um_s;
 	uint8_t basket_contact;
 	uint8_t basket_shock; /* a basket-side shock sensor is pressed */
+	uint8_t shocks;       /* the shock sensors, bit n = CAPTEUR_n */
 };
 
 struct orders {
@@ -89,6 +123,12 @@ struct orders {
 	int32_t trig_cos_q30;
 	struct orders_axis sp_dist;
 	struct orders_axis sp_angle;
+	/* Border recalibration in progress: the border faced (0 +X, 1 +Y, 2 -X, 3 -Y) and the
+	 * ticks of the push. */
+	uint8_t border;
+	uint8_t border_side;
+	uint16_t square_count;
+	struct orders_recal recal;
 };
 
 /* Power-on: no order, holding (dist_um, angle_um); limits 10 cm/s, 40 cm/s^2 on both axes.
@@ -121,12 +161,23 @@ int32_t orders_arc_um(const struct orders *o, int32_t dheading_turn32);
  * END_REASON_BASKET the caller recalibrates from orders_basket_pose()). */
 uint8_t orders_update(struct orders *o, const struct orders_measure *m);
 
-/* After a basket contact: the pose the basket's geometry gives, keeping the estimated heading.
- * Returns 0, or -1 with no basket configured. */
+/* After a basket contact: the pose the basket's geometry gives (docs/recalibration.md): the
+ * coordinate along the heading from the circle and the contact offset, the lateral offset of the
+ * basket's centre clamped to +/- basket_lateral_um, the heading kept (a point contact on a circle
+ * does not measure it). Returns 0, or -1 with no basket configured. */
 int orders_basket_pose(const struct orders *o, const struct odometry_pose *estimate,
 		       struct odometry_pose *out);
 
 /* 1 while an order runs (BUSY_TRAJET). */
 int orders_busy(const struct orders *o);
+
+/* 1 while a border recalibration pushes (FILTRE_SOUPLE's gains apply). */
+int orders_soft(const struct orders *o);
+
+/* The shock sensors an order expects to close (the front ones against the border). */
+uint8_t orders_expected_shocks(const struct orders *o);
+
+/* The recalibration asked for this tick, if any (then cleared). Returns 1 and fills r, or 0. */
+int orders_take_recal(struct orders *o, struct orders_recal *r);
 
 #endif

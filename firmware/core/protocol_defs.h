@@ -11,7 +11,7 @@
 #define PROTO_QUEUE_DEPTH 8
 #define PROTO_MAX_PARAMS 3
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 15
+#define PROTO_N_MSGS 16
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -29,6 +29,7 @@
 #define PROTO_STOP 12 /* extension */
 #define PROTO_VERSION 13 /* extension */
 #define PROTO_LAST_REJECT 14 /* extension */
+#define PROTO_SET_ODOMETRIE 16 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -70,6 +71,8 @@
 #define ORDER_STATE_SETTLE 3 /* setpoint reached, waiting for the robot to settle inside the arrival window */
 #define ORDER_STATE_PUSH 4 /* driving slowly until a contact (basket, border) */
 #define ORDER_STATE_STOPPING 5 /* decelerating after STOP or a replaced order */
+#define ORDER_STATE_SQUARE 6 /* border recalibration: pushing against the border, heading loop relaxed, to square up */
+#define ORDER_STATE_BACK_OFF 7 /* border recalibration: backing off the border after setting the coordinate and heading */
 
 /* end_reason codes. */
 #define END_REASON_NONE 0 /* no order has ended since reset */
@@ -79,6 +82,7 @@
 #define END_REASON_STOPPED 4 /* a STOP order */
 #define END_REASON_BASKET 5 /* GOTO_PANIER touched the basket */
 #define END_REASON_FAULT 6 /* unrecoverable fault (PB_GRAVE) */
+#define END_REASON_BORDER 7 /* GOTO with border recalibration touched the border, recalibrated and backed off (CHOC_BORD) */
 
 /* Index of each parameter in struct proto_msg.arg[]. */
 #define ARG_GOTO_X_MM 0
@@ -97,6 +101,9 @@
 #define ARG_SET_NEW_POS_ERR_X_MM 0
 #define ARG_SET_NEW_POS_ERR_Y_MM 1
 #define ARG_SET_NEW_POS_ERR_ANGLE_DEG 2
+#define ARG_SET_ODOMETRIE_RATIO_PPM 0
+#define ARG_SET_ODOMETRIE_TRACK_10UM 1
+#define ARG_SET_ODOMETRIE_SCALE_PPM 2
 
 /* Reply lengths [bytes], without PEC. */
 #define PROTO_CHECK_BUSY_REPLY_LEN 1

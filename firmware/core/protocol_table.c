@@ -20,6 +20,9 @@ const struct proto_param_desc proto_params[] = {
 	{-32000, 32000, PROTO_S16, 0x00}, /* SET_NEW_POS.err_x_mm */
 	{-32000, 32000, PROTO_S16, 0x00}, /* SET_NEW_POS.err_y_mm */
 	{-180, 180, PROTO_S16, 0x00}, /* SET_NEW_POS.err_angle_deg */
+	{-30000, 30000, PROTO_S16, 0x00}, /* SET_ODOMETRIE.ratio_ppm */
+	{1639, 65535, PROTO_U16, 0x00}, /* SET_ODOMETRIE.track_10um */
+	{-30000, 30000, PROTO_S16, 0x00}, /* SET_ODOMETRIE.scale_ppm */
 };
 
 const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
@@ -37,7 +40,8 @@ const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
 	{PROTO_STOP, PROTO_KIND_ORDRE, 0, 0, 1, 1, 0, 16},
 	{PROTO_VERSION, PROTO_KIND_ETAT, 0, 0, 1, 1, 4, 16},
 	{PROTO_LAST_REJECT, PROTO_KIND_ETAT, 0, 0, 1, 1, 3, 16},
-	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 16},
+	{PROTO_SET_ODOMETRIE, PROTO_KIND_SET, 3, 3, 7, 7, 0, 16},
+	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 19},
 };
 
 const struct proto_msg_desc *proto_lookup(uint8_t designation)
@@ -72,8 +76,10 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[12];
 	case 14:
 		return &proto_msgs[13];
-	case 200:
+	case 16:
 		return &proto_msgs[14];
+	case 200:
+		return &proto_msgs[15];
 	default:
 		return NULL;
 	}

@@ -92,6 +92,31 @@ static void add48(struct uncertainty_sum48 *w, int32_t a, int32_t b)
 	w->lo = fx_lo16(t);
 }
 
+/* A 48-bit sum as int64_t and back (a recalibration's projection, not the tick). */
+static int64_t int64_of48(const struct uncertainty_sum48 *w)
+{
+	return (int64_t)w->hi * 65536 + w->lo;
+}
+
+static void set48(struct uncertainty_sum48 *w, int64_t v)
+{
+	int64_t hi = v >= 0 ? v / 65536 : -((-v + 65535) / 65536);
+
+	w->hi = fx_sat32(hi);
+	w->lo = (uint16_t)(v - hi * 65536);
+}
+
+/* w = its part along l = (-s, c): (l . w) l, with the sine and cosine to 2^-15 (exact at the
+ * four cardinal directions), so that the products of the 48-bit sums fit 64 bits. */
+static void lateral48(struct uncertainty_sum48 w[2], int32_t s, int32_t c)
+{
+	int64_t s15 = fx_shr_round64(s, 15), c15 = fx_shr_round64(c, 15);
+	int64_t l = fx_shr_round64(-s15 * int64_of48(&w[0]) + c15 * int64_of48(&w[1]), 15);
+
+	set48(&w[0], fx_shr_round64(-l * s15, 15));
+	set48(&w[1], fx_shr_round64(l * c15, 15));
+}
+
 /* |w| / 2^16, rounded up. */
 static uint32_t mag48(const struct uncertainty_sum48 *w)
 {
@@ -196,12 +221,13 @@ static void clear_batch(struct uncertainty_batch *b)
 	b->ticks = 0;
 }
 
-/* sigma^2 of a bound at the configured probability, sigma = bound / k rounded down (to the um,
- * or to the heading unit), in the covariance's unit: [(4 um)^2] for a position (pos = 1),
- * [(2^-16 rad)^2] for a heading. */
+/* sigma^2 of a bound at the configured probability, sigma = bound / k, in the covariance's
+ * unit: for a position (pos = 1) sigma rounded down to the um (a bound of 2 mm reads 2 mm),
+ * the variance in [(4 um)^2]; for a heading sigma rounded up to the unit of 2^-16 rad (which is
+ * coarse: the bound read back must not be below the one set). */
 static int32_t var_of_bound(struct uncertainty *u, uint32_t bound, uint8_t pos, int32_t cap)
 {
-	uint64_t sigma = ((uint64_t)bound << 8) / u->cfg.k_q8;
+	uint64_t sigma = (((uint64_t)bound << 8) + (pos ? 0 : u->cfg.k_q8 - 1u)) / u->cfg.k_q8;
 	uint64_t var =
 		pos ? (sigma * sigma) / (UNCERTAINTY_POS_UM * UNCERTAINTY_POS_UM) : sigma * sigma;
 
@@ -303,6 +329,62 @@ void uncertainty_reset_heading(struct uncertainty *u, uint32_t bound_turn32)
 	u->travel2_um = 0;
 	u->turn_um = 0;
 	request_radius(u);
+}
+
+/* The covariance turned into (along, lateral) coordinates of a direction, the along variance set
+ * from the bound and its correlations dropped, the lateral variance and the lateral-heading
+ * covariance kept. In 64 bits with the Q30 sine and cosine: it runs at a recalibration, not
+ * every tick. */
+static int32_t round_q30(int64_t v)
+{
+	return fx_sat32(fx_shr_round64(v, 30));
+}
+
+void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um)
+{
+	int32_t s, c;
+	int64_t r = var_of_bound(u, bound_um, 1, VAR_CAP);
+	int64_t ss, cc, cs, lat, lt;
+
+	fx_sincos(direction_turn32, &s, &c);
+	ss = fx_shr_round64((int64_t)s * s, 30);
+	cc = fx_shr_round64((int64_t)c * c, 30);
+	cs = fx_shr_round64((int64_t)c * s, 30);
+	/* Lateral unit vector l = (-s, c): l^T S l and the lateral-heading covariance. Dropping the
+	 * along-lateral correlation leaves the lateral variance larger than it would be given the
+	 * measurement: conservative. */
+	lat = fx_shr_round64(ss * u->xx - 2 * cs * u->xy + cc * u->yy, 30);
+	if (lat < 0)
+		lat = 0;
+	lt = fx_shr_round64(-(int64_t)s * u->xt + (int64_t)c * u->yt, 30);
+	u->xx = round_q30(r * cc + lat * ss);
+	u->yy = round_q30(r * ss + lat * cc);
+	u->xy = round_q30((r - lat) * cs);
+	u->xt = round_q30(-lt * s);
+	u->yt = round_q30(lt * c);
+	/* The systematic terms keep their lateral part. */
+	{
+		int64_t l = fx_shr_round64(-(int64_t)s * u->d[0] + (int64_t)c * u->d[1], 30);
+
+		u->d[0] = round_q30(-l * s);
+		u->d[1] = round_q30(l * c);
+	}
+	lateral48(u->w1, s, c);
+	lateral48(u->w2, s, c);
+	request_radius(u);
+}
+
+uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u)
+{
+	/* sigma [2^-16 rad] = sqrt(tt); bound = k sigma, rounded up; turn32 = rad 2^32 / (2 pi):
+	 * 2^16 / (2 pi) = 10430.4 per unit, 10431 rounds up. */
+	uint32_t sigma = isqrt_up((uint32_t)(u->tt > 0 ? u->tt : 0));
+	uint32_t ks = sigma * u->cfg.k_q8; /* sigma <= 2^14 under the cap */
+	uint32_t bound = (ks + 255) >> 8;
+
+	if (u->saturated || bound >= 205887u) /* beyond half a turn */
+		return (uint32_t)1 << 31;
+	return bound * 10431u;
 }
 
 /* Travel [um * 2^8] rounded to um, and clamped to 16 bits (32 mm: a batch is shorter). */

@@ -132,4 +132,17 @@ void uncertainty_reset_axis(struct uncertainty *u, enum uncertainty_axis axis, u
  * interrupt-safe: no (between two ticks). */
 void uncertainty_reset_heading(struct uncertainty *u, uint32_t bound_turn32);
 
+/* The position component along a direction known again within bound_um (e.g. across a field
+ * line, or along the approach to a basket): the covariance is turned into (along, lateral)
+ * coordinates, the along variance set from bound_um and its correlations dropped, the lateral
+ * variance and its correlation with the heading kept; the systematic terms keep only their
+ * lateral part. direction_turn32 is the direction's angle [turn * 2^32]; the sign does not
+ * matter. interrupt-safe: no (between two ticks). */
+void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um);
+
+/* The heading's bound at the configured probability [turn * 2^32], rounded up, saturating at
+ * 2^31 (half a turn): how well the heading is known, to decide whether a measurement improves
+ * it. interrupt-safe: no. */
+uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u);
+
 #endif

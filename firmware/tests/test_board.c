@@ -443,6 +443,45 @@ static void test_set_new_pos(void **state)
 	assert_true(fabs(tx1 - tx0) < 0.2 && fabs(ty1 - ty0) < 0.2 && fabs(th1 - th0) < 0.05);
 }
 
+/* SET_ODOMETRIE: absolute factors from the nominal ones, applied at the next tick, the pose and
+ * the axes kept; the error radius takes the new track. Nominal: 2 pi 25 mm / 2000 counts =
+ * 78.540 um, 5147185 [um/count * 2^16]; scale -1000 ppm: 5142038; then ratio +2000 ppm: left
+ * * 0.999 = 5136896, right * 1.001 = 5147180. */
+static void test_set_odometrie(void **state)
+{
+	struct sim_field f;
+	struct odometry_pose p0, p1;
+	int32_t d0;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	host_tick(&h);
+	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5147185);
+	p0 = odometry_get_pose(&h.board.odometry);
+	d0 = odometry_get_distance_um(&h.board.odometry);
+	/* ratio +2000 ppm, track 280.12 mm, scale -1000 ppm */
+	send((const uint8_t[]){PROTO_SET_ODOMETRIE, 0x07, 0xD0, 0x6D, 0x6C, 0xFC, 0x18}, 7);
+	assert_int_equal(h.board.odometry.cfg.track_um, 280000); /* not before the tick */
+	host_tick(&h);
+	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5136896);
+	assert_int_equal(h.board.odometry.cfg.right_um_per_count_q16, 5147180);
+	assert_int_equal(h.board.odometry.cfg.track_um, 280120);
+	assert_int_equal(h.board.uncertainty.cfg.track_um, 280120);
+	p1 = odometry_get_pose(&h.board.odometry);
+	assert_int_equal(p1.x_um, p0.x_um);
+	assert_int_equal(p1.y_um, p0.y_um);
+	assert_int_equal(p1.heading_turn32, p0.heading_turn32);
+	assert_int_equal(odometry_get_distance_um(&h.board.odometry), d0);
+	assert_int_equal(status() & STATUS_COMMANDE_REJETEE, 0);
+	/* Absolute, not cumulative: the nominal values again. */
+	send((const uint8_t[]){PROTO_SET_ODOMETRIE, 0, 0, 0x6D, 0x60, 0, 0}, 7);
+	host_tick(&h);
+	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5147185);
+	assert_int_equal(h.board.odometry.cfg.right_um_per_count_q16, 5147185);
+	assert_int_equal(h.board.odometry.cfg.track_um, 280000);
+}
+
 /* The error radius grows with travel. */
 static void test_radius_grows(void **state)
 {
@@ -479,6 +518,7 @@ int main(void)
 		cmocka_unit_test(test_stuck_motor),
 		cmocka_unit_test(test_encoder_cut_is_grave),
 		cmocka_unit_test(test_set_new_pos),
+		cmocka_unit_test(test_set_odometrie),
 		cmocka_unit_test(test_radius_grows),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

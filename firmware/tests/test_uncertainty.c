@@ -2,6 +2,7 @@
  * ((kR + kL) L^3 / (3 b^2), physics.md), variance of a rotation in place, the systematic
  * offsets d^2 Ed / (2 b) and (Eb / b) theta d, monotonic growth, resets, saturation. */
 #include <errno.h>
+#include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -274,18 +275,19 @@ static void test_resets(void **state)
 	assert_true(uncertainty_get_radius_mm(&v) <= uncertainty_get_radius_mm(&u));
 
 	/* A full reset with a heading bound: sigma_theta = bound / k. 2^20 turn32 is 1.534e-3
-	 * rad, 100.53 units of 2^-16 rad, rounded up to 101; sigma 101 * 256 / 776 -> 33. */
+	 * rad, 100.53 units of 2^-16 rad, rounded up to 101; sigma 101 * 256 / 776 = 33.3, rounded
+	 * up to 34. */
 	uncertainty_reset(&u, 0, 1u << 20);
-	assert_int_equal(u.tt, 33 * 33);
+	assert_int_equal(u.tt, 34 * 34);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
 	/* ... which adds (sigma_theta d)^2 to the lateral variance: after 1 m (111 whole
-	 * batches), sigma 503 um from the heading and 921 um from the wheels' noise: k sigma
-	 * = 3.18 mm -> 4. */
+	 * batches), sigma 518 um from the heading and 921 um from the wheels' noise: k sigma
+	 * = 3.20 mm -> 4. */
 	heading_rad = 0;
 	drive(&u, 1000, 1000, 111 * BATCH, TRACK_UM);
 	settle(&u);
 	{
-		long double len = 111 * BATCH * 1000.0L, st = 33.0L / 65536;
+		long double len = 111 * BATCH * 1000.0L, st = 34.0L / 65536;
 		long double want = st * st * len * len + k_of(cfg_noise.noise_left_mm2_per_m_q16) *
 								 2 * len * len * len /
 								 (3.0L * TRACK_UM * TRACK_UM);
@@ -343,9 +345,78 @@ static void test_config_checks(void **state)
 	assert_int_equal(u.cfg.track_error_um, 0);
 }
 
+/* A component along a direction known again: the covariance turned into (along, lateral)
+ * coordinates keeps the lateral variance and the lateral-heading covariance, the along one is
+ * the bound's. Checked on an oblique straight line (30 degrees), against the rotated matrix. */
+static void test_reset_along(void **state)
+{
+	struct uncertainty u, v;
+	long double c = cosl(PI_L / 6), s = sinl(PI_L / 6);
+	/* Bound 2 mm at k = 3.03: sigma 659 um (var_of_bound), the variance in (4 um)^2. */
+	long double lat, lt, sigma = 2000 * 256 / 776;
+	uint8_t before;
+
+	(void)state;
+	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	uncertainty_reset(&u, 0, 1u << 21); /* a heading error to make it oblique and large */
+	heading_rad = PI_L / 6;
+	drive(&u, 1000, 1000, 2000, TRACK_UM);
+	settle(&u);
+	before = uncertainty_get_radius_mm(&u);
+	lat = UM2(s * s * u.xx - 2 * c * s * u.xy + c * c * u.yy);
+	lt = -s * u.xt + c * u.yt;
+	v = u;
+	/* Along the direction of travel: the large lateral error stays, the radius hardly moves. */
+	uncertainty_reset_along(&v, 1u << 29 /* 45 deg: not the travel */, 2000);
+	uncertainty_reset_along(&u, (uint32_t)(4294967296.0L / 12), 2000);
+	/* Within the covariance's units, (4 um)^2 and 4 um * 2^-16 rad, and their rounding. */
+	assert_true(absl(UM2(c * c * u.xx + 2 * c * s * u.xy + s * s * u.yy) - sigma * sigma) <=
+		    3 * UM2(1));
+	assert_true(absl(UM2(s * s * u.xx - 2 * c * s * u.xy + c * c * u.yy) - lat) <= 3 * UM2(1));
+	assert_true(absl(c * u.xt + s * u.yt) <= 2);
+	assert_true(absl(-s * u.xt + c * u.yt - lt) <= 2);
+	/* The radius follows within the stages. */
+	settle(&u);
+	assert_true(uncertainty_get_radius_mm(&u) <= before);
+	assert_true(uncertainty_get_radius_mm(&u) + 2 >= before);
+	/* Across the travel: the lateral error is the one removed. */
+	u = v;
+	uncertainty_reset_along(&u, (uint32_t)(4294967296.0L / 12) + (1u << 30), 2000);
+	settle(&u);
+	assert_true(uncertainty_get_radius_mm(&u) < before / 2);
+	/* The systematic terms keep only their part across the direction known. */
+	u = v;
+	u.d[0] = 1000;
+	u.d[1] = 0;
+	uncertainty_reset_along(&u, 0, 2000);
+	assert_true(u.d[0] == 0 && u.d[1] == 0);
+	u.d[0] = 0;
+	u.d[1] = 1000;
+	uncertainty_reset_along(&u, 0, 2000);
+	assert_true(u.d[0] == 0 && u.d[1] == 1000);
+}
+
+/* The heading bound reads back the bound a reset put in, rounded up. */
+static void test_heading_bound(void **state)
+{
+	struct uncertainty u;
+	uint32_t b;
+
+	(void)state;
+	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	assert_int_equal(uncertainty_get_heading_bound_turn32(&u), 0);
+	uncertainty_reset(&u, 0, 1u << 24);
+	b = uncertainty_get_heading_bound_turn32(&u);
+	assert_true(b >= (1u << 24) && b <= (1u << 24) + (1u << 24) / 200);
+	u.saturated = 1;
+	assert_int_equal(uncertainty_get_heading_bound_turn32(&u), 1u << 31);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_reset_along),
+		cmocka_unit_test(test_heading_bound),
 		cmocka_unit_test(test_straight_lateral_sigma),
 		cmocka_unit_test(test_straight_any_heading),
 		cmocka_unit_test(test_rotation_in_place_grows),

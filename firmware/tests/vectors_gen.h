@@ -31,6 +31,8 @@ static const struct vec_write vec_writes[] = {
 	{"SET_NEW_POS signed errors", {0x0a, 0xff, 0xfb, 0x00, 0x03, 0xff, 0xfe}, 7, PROTO_SET_NEW_POS, 3, {-5, 3, -2}, REJECT_NONE},
 	{"SET_NEW_POS angle limit", {0x0a, 0x00, 0x00, 0x00, 0x00, 0xff, 0x4c}, 7, PROTO_SET_NEW_POS, 3, {0, 0, -180}, REJECT_NONE},
 	{"STOP (extension)", {0x0c}, 1, PROTO_STOP, 0, {0}, REJECT_NONE},
+	{"SET_ODOMETRIE (extension): ratio +2000 ppm, track 280.12 mm, scale -1000 ppm", {0x10, 0x07, 0xd0, 0x6d, 0x6c, 0xfc, 0x18}, 7, PROTO_SET_ODOMETRIE, 3, {2000, 28012, -1000}, REJECT_NONE},
+	{"SET_ODOMETRIE at its limits", {0x10, 0x8a, 0xd0, 0xff, 0xff, 0x75, 0x30}, 7, PROTO_SET_ODOMETRIE, 3, {-30000, 65535, 30000}, REJECT_NONE},
 	{"CHECK_BUSY", {0x03}, 1, PROTO_CHECK_BUSY, 0, {0}, REJECT_NONE},
 	{"POSITION", {0x04}, 1, PROTO_POSITION, 0, {0}, REJECT_NONE},
 	{"INFO_CHOC", {0x05}, 1, PROTO_INFO_CHOC, 0, {0}, REJECT_NONE},
@@ -42,6 +44,7 @@ static const struct vec_write vec_writes[] = {
 	{"SET_VITESSE_TRAJ full form with PEC", {0x06, 0x64, 0x64, 0xbf}, 4, PROTO_SET_VITESSE_TRAJ, 2, {100, 100}, REJECT_NONE},
 	{"POSITION with PEC", {0x04, 0x48}, 2, PROTO_POSITION, 0, {0}, REJECT_NONE},
 	{"GOTO with a wrong PEC", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x00, 0xcf}, 7, -1, 0, {0}, REJECT_BAD_PEC},
+	{"SET_ODOMETRIE with PEC (the longest write: 8 bytes)", {0x10, 0x07, 0xd0, 0x6d, 0x6c, 0xfc, 0x18, 0x19}, 8, PROTO_SET_ODOMETRIE, 3, {2000, 28012, -1000}, REJECT_NONE},
 	{"SET_VITESSE_TRAJ with a wrong PEC", {0x06, 0x64, 0x64, 0x00}, 4, -1, 0, {0}, REJECT_BAD_PEC},
 	{"POSITION with a wrong PEC", {0x04, 0x00}, 2, -1, 0, {0}, REJECT_BAD_PEC},
 	{"unknown designation", {0x63}, 1, -1, 0, {0}, REJECT_UNKNOWN_DESIGNATION},
@@ -60,6 +63,9 @@ static const struct vec_write vec_writes[] = {
 	{"GOTO reserved option bit 2", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x04}, 6, -1, 0, {0}, REJECT_RESERVED_BIT},
 	{"GOTO reserved option bit 7", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x81}, 6, -1, 0, {0}, REJECT_RESERVED_BIT},
 	{"SET_FILTRE unknown preset", {0x08, 0x03}, 2, -1, 0, {0}, REJECT_OUT_OF_RANGE},
+	{"SET_ODOMETRIE ratio 30001 ppm", {0x10, 0x75, 0x31, 0x6d, 0x60, 0x00, 0x00}, 7, -1, 0, {0}, REJECT_OUT_OF_RANGE},
+	{"SET_ODOMETRIE track 16.38 mm", {0x10, 0x00, 0x00, 0x06, 0x66, 0x00, 0x00}, 7, -1, 0, {0}, REJECT_OUT_OF_RANGE},
+	{"SET_ODOMETRIE without its scale", {0x10, 0x00, 0x00, 0x6d, 0x60}, 5, -1, 0, {0}, REJECT_BAD_LENGTH},
 	{"SET_NEW_POS angle 181", {0x0a, 0x00, 0x00, 0x00, 0x00, 0x00, 0xb5}, 7, -1, 0, {0}, REJECT_OUT_OF_RANGE},
 };
 

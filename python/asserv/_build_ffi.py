@@ -193,8 +193,84 @@ void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut);
 
 /* ---- the board on the simulator (firmware/ports/host/host.h) ---- */
 struct odometry_pose { int32_t x_um; int32_t y_um; uint32_t heading_turn32; };
-struct board_config { uint16_t tick_hz; struct odometry_pose start; ...; };
-struct board { struct board_config cfg; struct proto proto; uint8_t status; ...; };
+struct odometry_config {
+    uint32_t left_um_per_count_q16;
+    uint32_t right_um_per_count_q16;
+    uint32_t track_um;
+};
+struct odometry { struct odometry_config cfg; ...; };
+struct uncertainty_config {
+    uint32_t noise_left_mm2_per_m_q16;
+    uint32_t noise_right_mm2_per_m_q16;
+    uint32_t track_um;
+    uint32_t ratio_error_ppm;
+    uint32_t track_error_um;
+    uint32_t scale_error_ppm;
+    uint16_t k_q8;
+    uint8_t batch_ticks;
+};
+struct uncertainty { struct uncertainty_config cfg; ...; };
+struct control_gains { uint16_t p; uint16_t i; uint16_t d; };
+struct control_config {
+    uint16_t tick_hz;
+    int16_t duty_max_q15;
+    int32_t ff_speed_q15_per_m_s;
+    int32_t ff_accel_q15_per_m_s2;
+    int32_t ff_angle_accel_q15_per_m_s2;
+    struct control_gains presets[...];
+};
+struct faults_config {
+    uint8_t shock_basket_mask;
+    int32_t following_max_um;
+    uint16_t following_ticks;
+    int16_t current_max_ma;
+    uint16_t current_ticks;
+    uint8_t motor_encoders;
+    uint32_t motor_um_per_count_q16;
+    int32_t slip_max_um;
+    uint8_t slip_shift;
+    int32_t lost_min_um;
+    uint8_t repeat_max;
+    uint16_t repeat_window_ticks;
+};
+struct orders_config {
+    uint32_t drive_track_um;
+    uint32_t heading_window_turn32;
+    int32_t freeze_radius_um;
+    int32_t arrive_window_um;
+    int32_t arrive_speed_um_s;
+    uint16_t settle_ticks;
+    uint16_t settle_timeout_ticks;
+    int32_t push_speed_um_s;
+    int32_t push_max_um;
+    int32_t basket_contact_um;
+    uint8_t n_baskets;
+    uint16_t tick_hz;
+    uint32_t jerk_um_s3;
+    ...;
+};
+struct board_config {
+    uint16_t tick_hz;
+    struct odometry_config odometry;
+    struct uncertainty_config uncertainty;
+    struct control_config control;
+    struct faults_config faults;
+    struct orders_config orders;
+    struct odometry_pose start;
+    uint32_t start_radius_um;
+    uint32_t start_heading_bound_turn32;
+    ...;
+};
+struct faults { uint8_t cause; int32_t lost_um[2]; ...; };
+struct board {
+    struct board_config cfg;
+    struct proto proto;
+    struct odometry odometry;
+    struct uncertainty uncertainty;
+    struct faults faults;
+    uint8_t status;
+    ...;
+};
 
 struct host {
     struct sim sim;

@@ -193,6 +193,17 @@ MESSAGES: tuple[Message, ...] = (
         'why the last rejected write was rejected',
     ),
     Message(
+        'SET_ODOMETRIE',
+        16,
+        'SET',
+        (Field('ratio_ppm', 's16', -30000, 30000), Field('track_10um', 'u16', 1639, 65535), Field('scale_ppm', 's16', -30000, 30000), ),
+        3,
+        (),
+        (),
+        True,
+        'odometry calibration: right/left wheel-factor ratio, encoder track and common wheel scale (docs/calibration.md)',
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
@@ -258,6 +269,8 @@ class OrderState(enum.IntEnum):
     SETTLE = 3
     PUSH = 4
     STOPPING = 5
+    SQUARE = 6
+    BACK_OFF = 7
 
 
 class EndReason(enum.IntEnum):
@@ -270,3 +283,4 @@ class EndReason(enum.IntEnum):
     STOPPED = 4
     BASKET = 5
     FAULT = 6
+    BORDER = 7

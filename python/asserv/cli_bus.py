@@ -50,6 +50,7 @@ BUS_COMMANDS: dict[str, str] = {
     "set-filtre": "SET_FILTRE PRESET: 0/STD, 1/SOUPLE or 2/RAIDE",
     "set-filtre-raw": "SET_FILTRE_RAW P I D: raw PID gains, 0..65535",
     "set-new-pos": "SET_NEW_POS X Y ANGLE: error of the estimate (estimate minus truth)",
+    "set-odometrie": "SET_ODOMETRIE RATIO_PPM TRACK_MM SCALE_PPM: odometry calibration",
     "wait": "poll the status until the trajectory is over (the annex's while (BUSY_TRAJET))",
     "debug": "read the DEBUG telemetry frame",
 }
@@ -125,6 +126,10 @@ def add_bus_arguments(
     p.add_argument("x", metavar="X", help="error of the estimate in X, mm")
     p.add_argument("y", metavar="Y", help="error of the estimate in Y, mm")
     p.add_argument("angle", metavar="ANGLE", help="error of the estimate in angle, degrees")
+    p = add("set-odometrie")
+    p.add_argument("ratio", metavar="RATIO_PPM", help="right/left wheel factor correction, ppm")
+    p.add_argument("track", metavar="TRACK_MM", help="encoder track, mm (to 0.01 mm)")
+    p.add_argument("scale", metavar="SCALE_PPM", help="common wheel factor correction, ppm")
     p = add("wait")
     p.add_argument("--timeout", default="30", help="give up after S seconds (default 30)")
     p.add_argument("--poll", default="0.01", help="poll period, seconds (default 0.01)")
@@ -233,6 +238,13 @@ def _action(args: argparse.Namespace) -> Action:
     if cmd == "set-new-pos":
         ex, ey, ea = _int("X", args.x), _int("Y", args.y), _int("ANGLE", args.angle)
         return order(lambda b: b.set_new_pos(ex, ey, ea), f"SET_NEW_POS ({ex}, {ey}, {ea})")
+    if cmd == "set-odometrie":
+        ratio, scale = _int("RATIO_PPM", args.ratio), _int("SCALE_PPM", args.scale)
+        track = round(_float("TRACK_MM", args.track) * 100)
+        return order(
+            lambda b: b.set_odometrie(ratio, track, scale),
+            f"SET_ODOMETRIE ratio {ratio} ppm, track {track / 100:.2f} mm, scale {scale} ppm",
+        )
     if cmd == "version":
 
         def version(b: Board) -> list[str]:

@@ -248,6 +248,20 @@ class Board:
             _integer("err_angle_deg", err_angle_deg),
         )
 
+    def set_odometrie(self, ratio_ppm: int, track_10um: int, scale_ppm: int = 0) -> None:
+        """SET_ODOMETRIE (extension): the odometry's calibration, absolute (docs/calibration.md).
+
+        ratio_ppm: -30000..30000, the right wheel's factor times (1 + ratio/2) and the left's
+        times (1 - ratio/2), from the build's nominal factors; track_10um: the encoder track in
+        0.01 mm, 1639..65535; scale_ppm: -30000..30000, both factors times (1 + scale). The pose
+        and the error radius are kept."""
+        self._command(
+            "SET_ODOMETRIE",
+            _integer("ratio_ppm", ratio_ppm),
+            _integer("track_10um", track_10um),
+            _integer("scale_ppm", scale_ppm),
+        )
+
     def declare_pose(self, x_mm: int, y_mm: int, angle_deg: int) -> None:
         """Tell the board that the robot truly is at (x_mm, y_mm, angle_deg): read POSITION and
         DEBUG's fine heading, and send their difference with the truth as SET_NEW_POS

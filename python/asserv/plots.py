@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -13,8 +14,13 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.patches import Circle, Rectangle
 
+from . import accuracy
 from ._protocol import Status
 from .field import Field
+
+if TYPE_CHECKING:
+    from .accuracy import BenchResult, StraightRun
+    from .sim import OdometryErrors
 
 
 def draw_field(ax: Axes, field: Field) -> None:
@@ -85,6 +91,11 @@ def plot_run(
 
     err = np.hypot(trace["est_x_mm"] - trace["x_mm"], trace["est_y_mm"] - trace["y_mm"])
     ax_err.plot(t, err, color="tab:red", lw=1, label="|estimate - truth|")
+    # Per axis too: a recalibration corrects one coordinate at a time.
+    ax_err.plot(
+        t, trace["est_x_mm"] - trace["x_mm"], ":", color="tab:purple", lw=1, label="x error"
+    )
+    ax_err.plot(t, trace["est_y_mm"] - trace["y_mm"], ":", color="tab:olive", lw=1, label="y error")
     ax_err.plot(
         t, trace["radius_mm"], color="k", lw=1, drawstyle="steps-post", label="error radius"
     )
@@ -117,3 +128,201 @@ def plot_run(
     fig.savefig(out, dpi=100)
     plt.close(fig)
     return out
+
+
+_CONTROLLER_STYLE = {
+    "legacy": ("legacy P-only", "tab:red"),
+    "asserv": ("asserv, nominal odometry", "tab:blue"),
+    "calibrated": ("asserv, calibrated", "tab:green"),
+}
+
+
+def plot_accuracy(res: BenchResult, out_dir: Path) -> list[Path]:
+    """The accuracy bench's figures (asserv.accuracy): distributions over the robots, one
+    robot's runs at the top speed, and the calibration before and after. Returns the files."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    files = [_plot_accuracy_figures(res, out_dir / "accuracy.png")]
+    if res.examples:
+        files.append(_plot_accuracy_example(res, out_dir / "accuracy-run.png"))
+    if any(r.after is not None for r in res.robots):
+        files.append(_plot_calibration(res, out_dir / "calibration.png"))
+    return files
+
+
+def _plot_accuracy_figures(res: BenchResult, path: Path) -> Path:
+    fig, axs = plt.subplots(2, 2, figsize=(14, 9), layout="constrained")
+    fig.suptitle(
+        f"asserv bench accuracy: {len(res.robots)} robots, 1.8 m straight, 1 m/s^2"
+        " (boxes: quartiles, whiskers 5-95 %)"
+    )
+    ctls = [c for c in _CONTROLLER_STYLE if any(res.runs(c, v) for v in res.speeds)]
+
+    def panel(
+        ax: Axes,
+        value: Callable[[StraightRun], float],
+        *,
+        log: bool,
+        goal: float,
+        spec: tuple[float, str] | None,
+        ylabel: str,
+        title: str,
+    ) -> None:
+        """Boxes per speed and controller, the goal (dotted) and the specification (dashed)."""
+        width = 0.8 / len(ctls)
+        for i, c in enumerate(ctls):
+            label, color = _CONTROLLER_STYLE[c]
+            data = [[value(r) for r in res.runs(c, v) if r.finished] for v in res.speeds]
+            pos = [k + (i - (len(ctls) - 1) / 2) * width for k in range(len(res.speeds))]
+            bp = ax.boxplot(
+                data,
+                positions=pos,
+                widths=width * 0.9,
+                whis=(5, 95),
+                showfliers=False,
+                patch_artist=True,
+            )
+            for b in bp["boxes"]:
+                b.set_facecolor(color)
+                b.set_alpha(0.6)
+            ax.plot([], [], "s", color=color, alpha=0.6, label=label)
+        ax.set_xticks(range(len(res.speeds)), [f"{v / 100:.1f} m/s" for v in res.speeds])
+        if log:
+            ax.set_yscale("log")
+        ax.axhline(goal, color="tab:green", ls=":", lw=1)
+        if spec is not None:
+            ax.axhline(spec[0], color="k", ls="--", lw=1)
+            ax.text(
+                0.99,
+                spec[0] * 1.03,
+                spec[1],
+                fontsize=8,
+                ha="right",
+                transform=ax.get_yaxis_transform(),
+            )
+        ax.grid(True, axis="y", alpha=0.3)
+        ax.legend(loc="upper left", fontsize=8)
+        ax.set_ylabel(ylabel)
+        ax.set_title(title)
+
+    panel(
+        axs[0, 0],
+        lambda r: max(r.arrival_est_mm, 1e-3),
+        log=True,
+        goal=2.0,
+        spec=(70.0, "spec 2002: +/-70 mm at 1 m/s"),
+        ylabel="|target - estimate| when finished [mm]",
+        title="arrival error, as the board knows it",
+    )
+    panel(
+        axs[0, 1],
+        lambda r: r.odometry_own_mm,
+        log=False,
+        goal=5.0,
+        spec=(20.0, "spec 2002: +/-20 mm"),
+        ylabel="|estimate - truth|, start error taken out [mm]",
+        title="odometry error over 1.8 m",
+    )
+    panel(
+        axs[1, 0],
+        lambda r: r.time_s / accuracy.time_bound_s(r.speed_cm_s),
+        log=False,
+        goal=1.05,
+        spec=None,
+        ylabel="trajectory time / time-optimal bound",
+        title="time until the board reports the move finished",
+    )
+
+    ax = axs[1, 1]
+    v = max(res.speeds)
+    for c in ("asserv", "calibrated"):
+        runs = [r for r in res.runs(c, v) if r.finished]
+        if not runs:
+            continue
+        label, color = _CONTROLLER_STYLE[c]
+        ax.scatter(
+            [r.radius_mm for r in runs],
+            [r.odometry_own_mm for r in runs],
+            s=10,
+            color=color,
+            alpha=0.6,
+            label=label,
+        )
+    lim = ax.get_xlim()[1]
+    ax.plot([0, lim], [0, lim], color="k", lw=1, label="error = radius")
+    ax.set_xlabel("error radius reported when finished [mm]")
+    ax.set_ylabel("true odometry error [mm]")
+    ax.set_title(f"error radius against the true error ({v / 100:.1f} m/s)")
+    ax.legend(loc="upper left", fontsize=8)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def _plot_accuracy_example(res: BenchResult, path: Path) -> Path:
+    fig, (ax_v, ax_l, ax_e) = plt.subplots(3, 1, figsize=(11, 10), layout="constrained")
+    rob = res.robots[0]
+    fig.suptitle(
+        f"robot {rob.seed}, the 1.8 m straight at {max(res.speeds) / 100:.1f} m/s\n"
+        f"{rob.description}",
+        fontsize=10,
+    )
+    for c, tr in res.examples.items():
+        label, color = _CONTROLLER_STYLE[c]
+        busy = (tr["status"].astype(int) & Status.BUSY_TRAJET) != 0
+        idx = np.nonzero(busy)[0]
+        if not len(idx):
+            continue
+        i0 = idx[0]
+        i1 = i0 + int(np.argmin(busy[i0:])) if not busy[i0:].all() else len(tr) - 1
+        seg = tr[i0 : min(len(tr), i1 + 300)]
+        t = seg["t_s"] - seg["t_s"][0]
+        ax_v.plot(t, seg["v_set_mm_s"], color=color, lw=1, ls="--")
+        ax_v.plot(t, seg["v_mm_s"], color=color, lw=1.2, label=f"{label} (dashed: set point)")
+        ax_l.plot(t, accuracy.following_lag_mm(seg), color=color, lw=1.2, label=label)
+        err = np.hypot(seg["est_x_mm"] - accuracy.TARGET[0], seg["est_y_mm"] - accuracy.TARGET[1])
+        ax_e.plot(t, err, color=color, lw=1.2, label=label)
+        te = t[i1 - i0]
+        for ax in (ax_v, ax_l, ax_e):
+            ax.axvline(te, color=color, lw=0.8, ls=":")
+    ax_v.set_ylabel("speed [mm/s]")
+    ax_v.legend(loc="upper right", fontsize=8)
+    ax_v.set_title("speed (dotted lines: when the board reports the move finished)")
+    ax_l.set_ylabel("set point - estimate [mm]")
+    ax_l.set_title("lag behind the set point: v / Kp for P-only")
+    ax_l.legend(loc="upper right", fontsize=8)
+    ax_e.set_yscale("log")
+    ax_e.set_ylim(1e-2, 3e3)
+    ax_e.set_ylabel("|target - estimate| [mm]")
+    ax_e.set_xlabel("time since the GOTO [s]")
+    ax_e.set_title("distance to the target, as the board sees it")
+    ax_e.legend(loc="upper right", fontsize=8)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
+
+
+def _plot_calibration(res: BenchResult, path: Path) -> Path:
+    ok = [r for r in res.robots if r.after is not None and r.before is not None]
+    fig, axs = plt.subplots(1, 3, figsize=(15, 4.8), layout="constrained")
+    fig.suptitle(f"odometry calibration on {len(ok)} robots: before (grey) and after (green)")
+    items: list[tuple[str, Callable[[OdometryErrors], float], float]] = [
+        ("wheel ratio error [%]", lambda e: e.ratio * 100, 0.05),
+        ("track error [mm]", lambda e: e.track_mm, 0.1),
+        ("wheel scale error [%]", lambda e: e.scale * 100, 0.0),
+    ]
+    for ax, (name, f, goal) in zip(axs, items, strict=True):
+        before = [f(r.before) for r in ok if r.before is not None]
+        after = [f(r.after) for r in ok if r.after is not None]
+        lo, hi = min(before + after), max(before + after)
+        bins = np.linspace(lo, hi, 60)
+        ax.hist(before, bins=bins, color="0.6", label="before")
+        ax.hist(after, bins=bins, color="tab:green", label="after")
+        if goal:
+            for g in (-goal, goal):
+                ax.axvline(g, color="k", ls=":", lw=1)
+        ax.set_xlabel(name)
+        ax.set_ylabel("robots")
+        ax.legend(fontsize=8)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path

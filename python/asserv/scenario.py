@@ -108,7 +108,17 @@ BUS_COMMANDS: dict[str, tuple[str, list[Parser], list[Parser], str]] = {
     "wait": ("", [], [_num], "wait [TIMEOUT_S]"),
     "sleep": ("", [_num], [], "sleep SECONDS"),
 }
-SETUP = ("field", "seed", "randomize", "start", "config", "bus_hz", "pec")
+SETUP = (
+    "field",
+    "seed",
+    "randomize",
+    "start",
+    "board_start",
+    "start_uncertainty",
+    "config",
+    "bus_hz",
+    "pec",
+)
 
 
 @dataclass
@@ -126,6 +136,8 @@ class Scenario:
     seed: int = 0
     randomize: bool = False
     start: tuple[float, float, float] | None = None
+    board_start: tuple[float, float, float] | None = None
+    start_uncertainty: tuple[float, float] = (0.0, 0.0)
     config: dict[str, Any] = dataclasses.field(default_factory=dict)
     bus_hz: int = 100_000
     pec: bool = False
@@ -136,7 +148,13 @@ class Scenario:
         if self.start is not None:
             config["start"] = self.start
         return Simulator(
-            config, self.seed, field=self.field, randomize=self.randomize, bus_hz=self.bus_hz
+            config,
+            self.seed,
+            field=self.field,
+            randomize=self.randomize,
+            bus_hz=self.bus_hz,
+            board_start=self.board_start,
+            start_uncertainty=self.start_uncertainty,
         )
 
 
@@ -185,11 +203,20 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
                     if rest:
                         raise fail("randomize takes no argument (the robot comes from the seed)")
                     scn.randomize = True
-                elif cmd == "start":
+                elif cmd in ("start", "board_start"):
                     if len(rest) != 3:
-                        raise fail("start takes three numbers: start X_MM Y_MM HEADING_DEG")
+                        raise fail(f"{cmd} takes three numbers: {cmd} X_MM Y_MM HEADING_DEG")
                     x, y, h = (_num(w) for w in rest)
-                    scn.start = (x, y, h)
+                    setattr(scn, cmd, (x, y, h))
+                elif cmd == "start_uncertainty":
+                    if len(rest) != 2:
+                        raise fail(
+                            "start_uncertainty takes two numbers: "
+                            "start_uncertainty RADIUS_MM HEADING_DEG"
+                        )
+                    r, h = (_num(w) for w in rest)
+                    Simulator(start_uncertainty=(r, h), record=False)  # checks the ranges
+                    scn.start_uncertainty = (r, h)
                 elif cmd == "config":
                     if len(rest) < 2:
                         raise fail("config takes a setting and its value(s): config KEY VALUE...")

@@ -88,6 +88,15 @@ class TruePose(NamedTuple):
     heading_deg: float
 
 
+class OdometryErrors(NamedTuple):
+    """The board's odometry configuration against the robot's true encoder wheels (hidden from
+    the board): what a calibration should bring to zero."""
+
+    ratio: float  # configured right/left factor ratio over the true one, minus 1
+    scale: float  # mean of the configured factors over the true ones, minus 1
+    track_mm: float  # configured track minus the true track in the odometry's length unit
+
+
 @dataclass(frozen=True)
 class Frame:
     """One I2C transaction as the simulated board saw it (for logs and demos)."""
@@ -109,14 +118,19 @@ def _set_config(sc: Any, key: str, value: Any) -> None:
             ) from None
         sc.start.x_mm, sc.start.y_mm, sc.start.heading_rad = x, y, math.radians(deg)
         return
+    _set_member(sc, key, value, "config: unknown simulator setting", "sim/sim.h")
+
+
+def _set_member(root: Any, key: str, value: Any, unknown: str, where: str) -> None:
+    """Set a member of a cffi struct by its dotted name, with a message that names it."""
     path = key.split(".")
-    obj = sc
+    obj = root
     try:
         for p in path[:-1]:
             obj = getattr(obj, p)
         current = getattr(obj, path[-1])
     except AttributeError:
-        raise ValueError(f"config: unknown simulator setting {key!r} (see sim/sim.h)") from None
+        raise ValueError(f"{unknown} {key!r} (see {where})") from None
     try:
         if isinstance(current, int | float | bool):
             setattr(obj, path[-1], value)
@@ -164,11 +178,16 @@ class Simulator:
     ``config`` overrides members of the simulator's ``struct sim_config`` (sim/sim.h) by name,
     e.g. ``{"enc_radius_error": (0.003, -0.003), "start": (0, -850, 1.0)}``; ``start`` is the
     true start pose (x mm, y mm, heading degrees) and the board believes it starts at
-    ``board_start`` (default: the true start as configured, before ``randomize``).
+    ``board_start`` (default: the true start as configured, before ``randomize``), known within
+    ``start_uncertainty`` = (radius mm, heading degrees), the bounds the error radius starts from
+    (default (0, 0): the start is the reference).
     ``seed`` seeds the encoder noise; ``randomize=True`` also draws a robot off the shelf from it
     (wheel mismatch, track error, noise, start pose error: ``sim_config_randomize``).
     ``field`` is a field file path or a ``field.Field`` (default: field/default.toml).
     ``bus_hz`` is the I2C bit rate: each byte takes 9 bit times of simulated time.
+    ``board_config`` overrides members of the board's ``struct board_config`` (board.h and the
+    module headers it includes) by dotted name, after ``host_board_config()`` has set it for the
+    nominal robot, e.g. ``{"control.ff_speed_q15_per_m_s": 0, "orders.settle_ticks": 1}``.
     """
 
     def __init__(
@@ -179,6 +198,8 @@ class Simulator:
         field: str | Path | fieldmod.Field | None = None,
         randomize: bool = False,
         board_start: tuple[float, float, float] | None = None,
+        board_config: Mapping[str, Any] | None = None,
+        start_uncertainty: tuple[float, float] = (0.0, 0.0),
         address: int = 2,
         bus_hz: int = 100_000,
         record: bool = True,
@@ -202,11 +223,20 @@ class Simulator:
         bc = ffi.new("struct board_config *")
         # The board is configured with the nominal robot: the errors drawn below stay hidden.
         lib.host_board_config(sc, self._f, bc)
+        for key, value in (board_config or {}).items():
+            _set_member(bc, key, value, "board_config: unknown board setting", "firmware/core/*.h")
         if board_start is not None:
             x, y, deg = board_start
             bc.start.x_um = round(x * 1000)
             bc.start.y_um = round(y * 1000)
             bc.start.heading_turn32 = round(deg / 360.0 * 2**32) % 2**32
+        radius_mm, heading_deg = start_uncertainty
+        if not (0 <= radius_mm <= 255 and 0 <= heading_deg <= 90):
+            raise ValueError(
+                f"start_uncertainty must be (0..255 mm, 0..90 degrees), not {start_uncertainty!r}"
+            )
+        bc.start_radius_um = round(radius_mm * 1000)
+        bc.start_heading_bound_turn32 = round(heading_deg / 360.0 * 2**32)
         if randomize:
             lib.sim_config_randomize(sc, seed)
         else:
@@ -315,6 +345,32 @@ class Simulator:
         t = ffi.new("struct sim_truth *")
         lib.sim_get_truth(ffi.addressof(self._h, "sim"), t)
         return TruePose(t.odo_pose.x_mm, t.odo_pose.y_mm, math.degrees(t.odo_pose.heading_rad))
+
+    @property
+    def config(self) -> Any:
+        """The simulated robot's ``struct sim_config`` (sim/sim.h), as drawn: read it only
+        (changing it after construction has no effect on the physics)."""
+        return self._sc
+
+    @property
+    def board_config(self) -> Any:
+        """The board's ``struct board_config`` (firmware/core/board.h) it was started with: the
+        nominal robot, with the ``board_config`` overrides. Read it only."""
+        return self._h.board.cfg
+
+    def odometry_errors(self) -> OdometryErrors:
+        """How far the board's odometry configuration (SET_ODOMETRIE included) is from the true
+        wheels. With q = configured factor / true factor per wheel, a straight line is seen
+        turning by (qR - qL) s / b, and a turn as mean(q) b_true / b times itself: the track the
+        heading needs is mean(q) times the true one (docs/calibration.md)."""
+        sc, oc = self._sc, self._h.board.odometry.cfg
+        q = []
+        for i, k in enumerate((oc.left_um_per_count_q16, oc.right_um_per_count_q16)):
+            true_um = 2 * math.pi * sc.enc_radius_mm * 1000 * (1 + sc.enc_radius_error[i])
+            q.append(k / 65536 / (true_um / sc.enc_cpr))
+        mean = (q[0] + q[1]) / 2
+        true_track = sc.enc_track_mm + sc.enc_track_error_mm
+        return OdometryErrors(q[1] / q[0] - 1, mean - 1, oc.track_um / 1000 - mean * true_track)
 
     @property
     def trace(self) -> np.ndarray:

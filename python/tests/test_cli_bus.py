@@ -60,6 +60,7 @@ def test_every_command_is_parsed(capsys: pytest.CaptureFixture[str]) -> None:
             "set-filtre": ["0"],
             "set-filtre-raw": ["1", "2", "3"],
             "set-new-pos": ["1", "2", "3"],
+            "set-odometrie": ["1", "280", "3"],
         }.get(name, [])
         args = ap.parse_args(["--bus", "1", name, *argv])
         assert args.bus_command == name
@@ -83,6 +84,7 @@ def test_every_command_is_parsed(capsys: pytest.CaptureFixture[str]) -> None:
         (["set-filtre", "0"], (8, (0,))),
         (["set-filtre-raw", "4660", "0", "65535"], (9, (4660, 0, 65535))),
         (["set-new-pos", "-5", "3", "-2"], (10, (-5, 3, -2))),
+        (["set-odometrie", "-113", "279.384", "871"], (16, (-113, 27938, 871))),
     ],
 )
 def test_orders_and_settings_reach_the_board(

@@ -82,3 +82,31 @@ def test_cli_runs_a_scenario_and_plots(tmp_path: Path, capsys: pytest.CaptureFix
 def test_cli_missing_scenario(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["sim", "run", "/nonexistent.txt"]) == 2
     assert "cannot read the scenario" in capsys.readouterr().err
+
+
+def test_cli_zoom_is_checked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / "s.txt"
+    p.write_text("goto 0 -800\nwait\n")
+    png = tmp_path / "s.png"
+    assert main(["sim", "run", str(p), "--png", str(png), "--zoom", "5", "1", "0", "1"]) == 2
+    assert "needs XMIN < XMAX" in capsys.readouterr().err
+    assert main(["sim", "run", str(p), "--zoom", "0", "1", "0", "1"]) == 2
+    assert "give --png too" in capsys.readouterr().err
+    assert not png.exists()
+    assert (
+        main(["sim", "run", str(p), "--png", str(png), "--zoom", "-200", "200", "-1000", "-600"])
+        == 0
+    )
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_start_uncertainty_lines(tmp_path: Path) -> None:
+    text = "board_start 0 -850 0\nstart_uncertainty 2 1\ngoto 0 -800\n"
+    scn = scenario.parse(text, "s.txt")
+    assert scn.board_start == (0, -850, 0) and scn.start_uncertainty == (2, 1)
+    with pytest.raises(scenario.ScenarioError, match=r"s.txt:1: start_uncertainty takes two"):
+        scenario.parse("start_uncertainty 2\n", "s.txt")
+    with pytest.raises(scenario.ScenarioError, match=r"s.txt:1: bad start_uncertainty line"):
+        scenario.parse("start_uncertainty 2 100\n", "s.txt")
+    with pytest.raises(scenario.ScenarioError, match=r"s.txt:2: 'board_start' is a setup line"):
+        scenario.parse("goto 0 -800\nboard_start 0 0 0\n", "s.txt")

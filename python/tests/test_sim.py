@@ -119,3 +119,40 @@ def test_a_stuck_motor_is_reported_then_the_next_order_runs() -> None:
     status = board.wait_idle(10)
     assert not status & (Status.PB_MOTEUR | Status.PB_GRAVE)
     assert (board.position().x_mm, board.position().y_mm) == (200, 100)
+
+
+def test_board_config_overrides_and_odometry_errors() -> None:
+    sim = Simulator(
+        {"enc_radius_error": (0.002, -0.001), "enc_track_error_mm": 0.5},
+        board_config={"orders.settle_ticks": 7, "odometry.track_um": 280100},
+    )
+    assert sim.board_config.orders.settle_ticks == 7
+    e = sim.odometry_errors()
+    # configured factors over true ones: 1/1.002 and 1/0.999
+    assert e.ratio == pytest.approx(1.002 / 0.999 - 1, rel=1e-6)
+    q = (1 / 1.002 + 1 / 0.999) / 2
+    assert e.scale == pytest.approx(q - 1, abs=1e-6)  # the nominal factor is rounded: 1e-7
+    assert e.track_mm == pytest.approx(280.1 - q * 280.5, abs=1e-4)
+    with pytest.raises(ValueError, match=r"unknown board setting 'orders\.settle'"):
+        Simulator(board_config={"orders.settle": 1})
+
+
+def test_set_odometrie_changes_what_the_board_measures() -> None:
+    # A robot whose right free wheel is 0.3 % larger: calibrated, its estimate goes straight
+    # where the nominal one turns.
+    def drift(setting: tuple[int, int, int] | None) -> float:
+        sim = Simulator({"enc_radius_error": (0.0, 0.003), "start": (-900, 0, 0)})
+        board = Board(sim.bus)
+        if setting:
+            board.set_odometrie(*setting)
+        sim.advance(0.01)
+        expected = 0 if setting else 1 / 1.003 - 1
+        assert sim.odometry_errors().ratio == pytest.approx(expected, abs=2e-6)
+        board.set_vitesse_traj(50, 100)
+        board.goto(900, 0)
+        board.wait_idle(10)
+        return abs(sim.true_pose().y_mm)
+
+    ratio = round(2 * (1.003 - 1) / (1.003 + 1) * 1e6)  # right/left = (1 + r/2) / (1 - r/2)
+    assert drift(None) > 15  # 0.3 % over 1.8 m and 280 mm: d^2 Ed / (2 b) = 17 mm
+    assert drift((ratio, 28000, 0)) < 1

@@ -85,6 +85,33 @@ void host_board_config(const struct sim_config *sc, const struct sim_field *f,
 		n++;
 	}
 	bc->orders.n_baskets = n;
+	/* Recalibration: the outline's front edge, the line sensors and the field's lines and
+	 * borders as the simulator has them (the board's frame is the encoder axis midpoint). */
+	bc->orders.front_um = (int32_t)lround(
+		(sc->outline_offset_x_mm + sc->outline_length_mm / 2 - sc->enc_offset_x_mm) *
+		1000.0);
+	bc->orders.borders = f->borders;
+	bc->orders.half_length_um = (int32_t)lround(f->length_mm * 500.0);
+	bc->orders.half_width_um = (int32_t)lround(f->width_mm * 500.0);
+	bc->recal.n_sensors = sc->line_sensor_count < RECAL_MAX_SENSORS ? sc->line_sensor_count
+									: RECAL_MAX_SENSORS;
+	for (uint8_t i = 0; i < bc->recal.n_sensors; i++) {
+		bc->recal.sensors[i].x_um =
+			(int32_t)lround((sc->line_sensor[i].x_mm - sc->enc_offset_x_mm) * 1000.0);
+		bc->recal.sensors[i].y_um = (int32_t)lround(sc->line_sensor[i].y_mm * 1000.0);
+	}
+	n = 0;
+	for (int i = 0; i < f->line_count && n < RECAL_MAX_LINES; i++) {
+		const struct sim_line *l = &f->lines[i];
+
+		bc->recal.lines[n].x0_um = (int32_t)lround(l->x0_mm * 1000.0);
+		bc->recal.lines[n].y0_um = (int32_t)lround(l->y0_mm * 1000.0);
+		bc->recal.lines[n].x1_um = (int32_t)lround(l->x1_mm * 1000.0);
+		bc->recal.lines[n].y1_um = (int32_t)lround(l->y1_mm * 1000.0);
+		bc->recal.lines[n].width_um = (int32_t)lround(l->width_mm * 1000.0);
+		n++;
+	}
+	bc->recal.n_lines = n;
 	/* The board believes the robot is where the simulator's configuration puts it (before
 	 * any start error a benchmark adds to the truth). */
 	bc->start.x_um = (int32_t)lround(sc->start.x_mm * 1000.0);

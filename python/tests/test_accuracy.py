@@ -1,0 +1,62 @@
+"""A smoke run of the accuracy bench (``asserv bench accuracy``) on a handful of robots: the
+format of its table, and figures that a working board must give."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from asserv import accuracy
+from asserv.cli import main
+
+
+def cells(out: str, title: str) -> dict[str, list[str]]:
+    """The rows under a block title: speed label -> its cells."""
+    lines = out.splitlines()
+    i = next(k for k, line in enumerate(lines) if line.startswith(title))
+    rows: dict[str, list[str]] = {}
+    for line in lines[i + 1 :]:
+        m = re.match(r"  (\d\.\d m/s)", line)
+        if not m:
+            break
+        rows[m.group(1)] = line[accuracy._LABEL :].split()
+    return rows
+
+
+def test_bench_accuracy_smoke(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    assert main(["bench", "accuracy", "--robots", "3", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("asserv bench accuracy: 3 robots (seeds 0..2), a 1.8 m straight")
+    assert re.search(r"spec 2002 +legacy +asserv +asserv +goal", out)
+    assert re.search(r"P-only +nominal +calibrated", out)
+    # the specification's figures beside ours
+    odo = cells(out, "odometry error |estimate - truth|")
+    assert [r[0] for r in odo.values()] == ["+/-20"] * 3
+    arrival = cells(out, "arrival error |target - estimate|")
+    spec, _legacy, asserv, calibrated, *goal = arrival["1.0 m/s"]
+    assert (spec, goal) == ("+/-70", ["<=", "2"])
+    assert float(asserv) < 2 and float(calibrated) < 2
+    times = cells(out, "trajectory time / time-optimal bound")
+    for row in times.values():
+        assert all(1.0 <= float(c) <= 1.05 for c in row[:3])
+    own = cells(out, "  without the start pose error")
+    for row in own.values():
+        assert float(row[2]) < 40 and float(row[1]) > float(row[2])  # calibration helps
+    cover = cells(out, "error radius: coverage")
+    assert all(row[0] == "-" and float(row[2]) == 100.0 for row in cover.values())
+    assert "runs not finished cleanly: 0" in out
+    assert re.search(r"odometry calibration \(10 turns, 3 round trips .*\) on 3 robots", out)
+    ratio = re.search(r"wheel ratio error \[%\] +([\d.]+) +([\d.]+) +([\d.]+) +([\d.]+)", out)
+    assert ratio and float(ratio.group(3)) <= 0.05 < float(ratio.group(1))
+    assert re.search(r"wall time: \d+\.\d s", out)
+    for name in ("accuracy.png", "accuracy-run.png", "calibration.png"):
+        png = tmp_path / name
+        assert png.read_bytes()[:4] == b"\x89PNG" and f"plot: {png}" in out
+
+
+def test_time_bound() -> None:
+    assert accuracy.time_bound_s(100) == pytest.approx(2.8)  # physics.md: 1.8 m, 1 m/s, 1 m/s^2
+    assert accuracy.time_bound_s(20) == pytest.approx(9.2)
+    assert accuracy.time_bound_s(255, 10) == pytest.approx(2 * (1.8 / 0.1) ** 0.5)
