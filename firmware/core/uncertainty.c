@@ -14,6 +14,8 @@
 #define VAR_CAP ((int32_t)1 << 30) /* xx, yy: sigma 2^15 units, 131 mm */
 #define TT_CAP ((int32_t)1 << 28)  /* tt: sigma 2^14 units, 0.25 rad */
 #define PATH_HALF_Q8 ((uint32_t)UNCERTAINTY_BATCH_PATH_UM << 7)
+/* A wheel's travel in a batch stays within the stages' 16-bit lengths [um * 2^8]: 32.7 mm. */
+#define WHEEL_MAX_Q8 ((uint32_t)0x7fff << 8)
 /* 2 pi * 2^16 [2^-16 rad per turn], 2^32 / (2 pi) [turn * 2^32 per rad]. */
 #define TWO_PI_Q16 411775u
 #define TURN32_PER_RAD 683565276u
@@ -711,9 +713,12 @@ void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q
 	struct uncertainty_batch *b = &u->acc;
 	int32_t l = q8_of_q16(left_q16), r = q8_of_q16(right_q16);
 
-	/* A batch starts with its first tick of travel. */
+	/* A batch starts with its first tick of travel. One that waits for the stages (below) is
+	 * handed over at once, the stages in flight finished in this tick, before a wheel's travel
+	 * in it would pass 32.7 mm: at 1 kHz only above 1.5 m/s (docs/odometry.md). */
 	if ((b->ticks | l | r) != 0) {
-		if (b->ticks == 0xffu)
+		if (b->ticks == 0xffu || b->abs_left_q8 + mag32(l) > WHEEL_MAX_Q8 ||
+		    b->abs_right_q8 + mag32(r) > WHEEL_MAX_Q8)
 			start_batch(u);
 		b->left_q8 += l;
 		b->right_q8 += r;

@@ -105,8 +105,9 @@ int uncertainty_set_config(struct uncertainty *u, const struct uncertainty_confi
  * every batch_ticks ticks, or after UNCERTAINTY_BATCH_PATH_UM of travel, and is propagated over
  * the next UNCERTAINTY_STAGES ticks, one stage per call, the last refreshing the radius. A batch
  * that is due while the previous one is still being propagated goes on accumulating until the
- * stages are done (or, past 2^31 um * 2^16 of travel, finishes them at once). A few hundred
- * cycles on an AVR. interrupt-safe: no (tick only). */
+ * stages are done, or until a wheel's travel in it would pass 32.7 mm, where the stages in flight
+ * are finished at once (at 1 kHz, only above 1.5 m/s). Under 2 000 cycles on an AVR, except
+ * then. interrupt-safe: no (tick only). */
 void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q16,
 			uint32_t heading_turn32);
 

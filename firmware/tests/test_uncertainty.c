@@ -127,6 +127,28 @@ static void test_straight_any_heading(void **state)
 	assert_true(absl(across / var_lat - 1) <= 0.02L);
 }
 
+/* The same 2 m at 4 mm per tick (4 m/s at 1 kHz, 1 m/s at 250 Hz): batches that wait for the
+ * stages would pass the 32.7 mm a wheel may travel in one, so they are handed over before it
+ * and the variances keep their closed forms. */
+static void test_straight_fast(void **state)
+{
+	struct uncertainty u;
+	const long double len = 2e6L, k = k_of(cfg_noise.noise_left_mm2_per_m_q16) * 2;
+	long double var_lat = k * len * len * len / (3.0L * TRACK_UM * TRACK_UM);
+	long double var_long = k * len / 4;
+
+	(void)state;
+	uncertainty_init(&u, &cfg_noise);
+	heading_rad = 0;
+	drive(&u, 4000, 4000, 500, TRACK_UM);
+	settle(&u);
+	print_message("at 4 mm per tick: lateral var %.0Lf um^2 (closed form %.0Lf), along %.0Lf "
+		      "(%.0Lf)\n",
+		      UM2(u.yy), var_lat, UM2(u.xx), var_long);
+	assert_true(absl(UM2(u.yy) / var_lat - 1) <= 0.02L);
+	assert_true(absl(UM2(u.xx) / var_long - 1) <= 0.02L);
+}
+
 /* In place, each wheel rolls pi b per turn: Var(theta) = (kR + kL) pi b n / b^2 and
  * Var(x) + Var(y) = (kR + kL) pi b n / 4, growing the radius. */
 static void test_rotation_in_place_grows(void **state)
@@ -419,6 +441,7 @@ int main(void)
 		cmocka_unit_test(test_heading_bound),
 		cmocka_unit_test(test_straight_lateral_sigma),
 		cmocka_unit_test(test_straight_any_heading),
+		cmocka_unit_test(test_straight_fast),
 		cmocka_unit_test(test_rotation_in_place_grows),
 		cmocka_unit_test(test_systematic_ratio),
 		cmocka_unit_test(test_systematic_track),
