@@ -122,6 +122,29 @@ uint32_t fx_isqrt64(uint64_t v)
 	return (uint32_t)r;
 }
 
+/* The sine and cosine (s, c) of an angle in the first quadrant, moved on by q quarter turns. */
+static inline void to_quadrant(uint8_t q, int32_t s, int32_t c, int32_t *sin_out, int32_t *cos_out)
+{
+	switch (q) {
+	case 0:
+		*sin_out = s;
+		*cos_out = c;
+		break;
+	case 1:
+		*sin_out = c;
+		*cos_out = -s;
+		break;
+	case 2:
+		*sin_out = -s;
+		*cos_out = -c;
+		break;
+	default:
+		*sin_out = -c;
+		*cos_out = s;
+		break;
+	}
+}
+
 /* round(d m / 2^31) for d < 2^32, m <= 2^22, within 0.52: the product of the low halves is
  * taken from their upper bytes (8 x 8 bits, one instruction on an AVR). */
 static uint32_t mul_q31(uint32_t d, uint32_t m)
@@ -183,24 +206,7 @@ void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30)
 	if (c < 0)
 		c = 0;
 
-	switch (quadrant) {
-	case 0:
-		*sin_q30 = s;
-		*cos_q30 = c;
-		break;
-	case 1:
-		*sin_q30 = c;
-		*cos_q30 = -s;
-		break;
-	case 2:
-		*sin_q30 = -s;
-		*cos_q30 = -c;
-		break;
-	default:
-		*sin_q30 = -c;
-		*cos_q30 = s;
-		break;
-	}
+	to_quadrant(quadrant, s, c, sin_q30, cos_q30);
 }
 
 /* sin(i pi / 128) [2^-14], i = 0..64: 1 is exact. */
@@ -230,25 +236,11 @@ void fx_sincos_q14(uint32_t angle_turn32, int16_t *sin_q14, int16_t *cos_q14)
 							    sin_table_q14[63 - i]),
 						 f) +
 				      0x8000u));
+	int32_t so, co;
 
-	switch (quadrant) {
-	case 0:
-		*sin_q14 = s;
-		*cos_q14 = c;
-		break;
-	case 1:
-		*sin_q14 = c;
-		*cos_q14 = (int16_t)-s;
-		break;
-	case 2:
-		*sin_q14 = (int16_t)-s;
-		*cos_q14 = (int16_t)-c;
-		break;
-	default:
-		*sin_q14 = (int16_t)-c;
-		*cos_q14 = s;
-		break;
-	}
+	to_quadrant(quadrant, s, c, &so, &co);
+	*sin_q14 = (int16_t)so;
+	*cos_q14 = (int16_t)co;
 }
 
 /* atan(t) on t = k / 32, k = 0..32 [turn * 2^32]; its derivative 1 / (1 + t^2) [turn * 2^32 / 2^16

@@ -131,11 +131,10 @@ static void aim(struct orders *o, const struct orders_measure *m, uint32_t headi
 	profile_set_target(&o->angle, m->angle_um + orders_arc_um(o, d));
 }
 
-/* The bearing of the target from the estimate. fx_atan2 is a CORDIC (ten steps and a division,
- * a few thousand cycles on an AVR), so its result is kept with the position it was computed
- * from: turning on the spot moves the estimated position little or not at all (the two wheel
- * travels cancel), a second call in the same tick finds it too, and the same inputs give the
- * same output. */
+/* The bearing of the target from the estimate. fx_atan2 divides bit by bit (about a thousand
+ * cycles on an AVR), so its result is kept with the position it was computed from: turning on
+ * the spot moves the estimated position little or not at all (the two wheel travels cancel), a
+ * second call in the same tick finds it too, and the same inputs give the same output. */
 static uint32_t bearing(struct orders *o, const struct odometry_pose *p)
 {
 	if (!o->bearing_valid || p->x_um != o->bearing_x_um || p->y_um != o->bearing_y_um) {

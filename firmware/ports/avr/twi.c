@@ -2,8 +2,10 @@
  * layer (hal_i2c.h). While TWINT is set the TWI holds SCL low, so each case releases TWINT
  * first and only then calls the protocol layer: the clock is held only for the interrupt's
  * entry, except after the own address with the read bit, where the first reply byte must be in
- * TWDR before the release (proto_on_read_start() packs the reply). Later reply bytes are fetched
- * one ahead, while the master clocks the previous one out. */
+ * TWDR before the release. The reply is packed before that when it can be: at the repeated start
+ * that ends the selecting write (proto_on_restart(), while the master sends the address), so
+ * that proto_on_read_start() only starts the PEC; the PEC is then summed as the bytes go out.
+ * Later reply bytes are fetched one ahead, while the master clocks the previous one out. */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 
