@@ -398,10 +398,9 @@ static void recal_basket(struct board *b, struct orders_measure *m)
 		return;
 	set_pose(b, &p, m);
 	uncertainty_reset_along(&b->uncertainty, p.heading_turn32, oc->basket_bound_um);
-	if (oc->basket_lateral_um > 0 &&
-	    (int32_t)uncertainty_get_radius_mm(&b->uncertainty) * 1000 > oc->basket_lateral_um)
-		uncertainty_reset_along(&b->uncertainty, p.heading_turn32 + ((uint32_t)1 << 30),
-					(uint32_t)oc->basket_lateral_um);
+	if (oc->basket_lateral_um > 0)
+		uncertainty_cap_along(&b->uncertainty, p.heading_turn32 + ((uint32_t)1 << 30),
+				      (uint32_t)oc->basket_lateral_um);
 }
 
 /* Squared up against a border: one coordinate and the heading (orders.c, border_recal()). */

@@ -246,11 +246,18 @@ static uint32_t heading_units(uint32_t bound_turn32)
 	return (uint32_t)(((uint64_t)bound_turn32 * TWO_PI_Q16 + 0xffffffffu) >> 32);
 }
 
-/* The radius is refreshed by the last stages: run them (after any batch in flight). */
+static void run_stage(struct uncertainty *u);
+
+/* After a reset the radius is refreshed at once: the batch in flight is finished, then the
+ * last stages run, all in this call. A recalibration's tick pays for up to a whole batch (a few
+ * per match), so that the master reading POSITION when the order ends sees the new radius. */
 static void request_radius(struct uncertainty *u)
 {
-	if (u->stage == STAGE_IDLE)
-		u->stage = STAGE_EIGEN;
+	while (u->stage != STAGE_IDLE)
+		run_stage(u);
+	u->stage = STAGE_EIGEN;
+	while (u->stage != STAGE_IDLE)
+		run_stage(u);
 }
 
 int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg)
@@ -342,16 +349,22 @@ static int32_t round_q30(int64_t v)
 	return fx_sat32(fx_shr_round64(v, 30));
 }
 
-void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um)
+/* The along variance set to r; with cap, only when it is larger than r (the lateral unit vector
+ * is then the direction itself turned a quarter: l^T S l is the along variance of the turned
+ * direction). Returns 0 when nothing was changed. */
+static int set_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um, int cap)
 {
 	int32_t s, c;
 	int64_t r = var_of_bound(u, bound_um, 1, VAR_CAP);
-	int64_t ss, cc, cs, lat, lt;
+	int64_t ss, cc, cs, lat, lt, along;
 
 	fx_sincos(direction_turn32, &s, &c);
 	ss = fx_shr_round64((int64_t)s * s, 30);
 	cc = fx_shr_round64((int64_t)c * c, 30);
 	cs = fx_shr_round64((int64_t)c * s, 30);
+	along = fx_shr_round64(cc * u->xx + 2 * cs * u->xy + ss * u->yy, 30);
+	if (cap && along <= r)
+		return 0;
 	/* Lateral unit vector l = (-s, c): l^T S l and the lateral-heading covariance. Dropping the
 	 * along-lateral correlation leaves the lateral variance larger than it would be given the
 	 * measurement: conservative. */
@@ -374,6 +387,17 @@ void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, u
 	lateral48(u->w1, s, c);
 	lateral48(u->w2, s, c);
 	request_radius(u);
+	return 1;
+}
+
+void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um)
+{
+	set_along(u, direction_turn32, bound_um, 0);
+}
+
+int uncertainty_cap_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um)
+{
+	return set_along(u, direction_turn32, bound_um, 1);
 }
 
 uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u)

@@ -146,4 +146,10 @@ void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, u
  * it. interrupt-safe: no. */
 uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u);
 
+/* The position component along a direction known to lie within bound_um (e.g. across a basket
+ * approach, the switch's window): as uncertainty_reset_along(), but only when its variance is
+ * larger than the bound's. Returns 1 when it was capped, 0 when left as it was.
+ * interrupt-safe: no (between two ticks). */
+int uncertainty_cap_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um);
+
 #endif

@@ -372,7 +372,7 @@ static void test_config_checks(void **state)
  * the bound's. Checked on an oblique straight line (30 degrees), against the rotated matrix. */
 static void test_reset_along(void **state)
 {
-	struct uncertainty u, v;
+	struct uncertainty u, v, orig;
 	long double c = cosl(PI_L / 6), s = sinl(PI_L / 6);
 	/* Bound 2 mm at k = 3.03: sigma 659 um (var_of_bound), the variance in (4 um)^2. */
 	long double lat, lt, sigma = 2000 * 256 / 776;
@@ -384,6 +384,7 @@ static void test_reset_along(void **state)
 	heading_rad = PI_L / 6;
 	drive(&u, 1000, 1000, 2000, TRACK_UM);
 	settle(&u);
+	orig = u;
 	before = uncertainty_get_radius_mm(&u);
 	lat = UM2(s * s * u.xx - 2 * c * s * u.xy + c * c * u.yy);
 	lt = -s * u.xt + c * u.yt;
@@ -416,6 +417,17 @@ static void test_reset_along(void **state)
 	u.d[1] = 1000;
 	uncertainty_reset_along(&u, 0, 2000);
 	assert_true(u.d[0] == 0 && u.d[1] == 1000);
+
+	/* A cap: the lateral component (large) is brought down to a 2 mm bound, the along one
+	 * (below it) is left as it was. */
+	u = orig;
+	v = orig;
+	assert_int_equal(uncertainty_cap_along(&u, (uint32_t)(4294967296.0L / 12), 2000), 0);
+	assert_memory_equal(&u, &v, sizeof u);
+	assert_int_equal(
+		uncertainty_cap_along(&u, (uint32_t)(4294967296.0L / 12) + (1u << 30), 2000), 1);
+	settle(&u);
+	assert_true(uncertainty_get_radius_mm(&u) < before / 2);
 }
 
 /* The heading bound reads back the bound a reset put in, rounded up. */
