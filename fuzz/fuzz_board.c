@@ -224,9 +224,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 			break;
 		case FUZZ_STOP:
 			if (a.proto.in_write)
-				end_write(proto_on_stop);
-			else
+				end_write(n % 2 ? proto_on_stop : proto_on_restart);
+			else if (n % 2)
 				proto_on_stop(&a.proto);
+			else
+				proto_on_restart(&a.proto);
 			break;
 		case FUZZ_ABORT:
 			if (a.proto.in_write)

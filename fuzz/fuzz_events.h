@@ -18,7 +18,8 @@ enum fuzz_kind {
 	FUZZ_DATA = 1,    /* n data bytes follow, each proto_on_byte() */
 	FUZZ_START_R = 2, /* own address + read: proto_on_read_start() */
 	FUZZ_READ = 3,    /* n bytes read by the master: proto_read_byte() */
-	FUZZ_STOP = 4,    /* STOP: proto_on_stop() */
+	FUZZ_STOP = 4,    /* n odd: STOP, proto_on_stop(); n even: a repeated start as the AVR's
+			   * TWI reports it, before the next address: proto_on_restart() */
 	FUZZ_ABORT = 5,   /* bus error: proto_on_abort() */
 	FUZZ_TICK = 6,    /* the control side: see each target */
 	FUZZ_ENV = 7,     /* the control side: see each target */

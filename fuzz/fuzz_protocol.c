@@ -31,6 +31,7 @@
 struct model {
 	uint8_t in_write, in_read;
 	uint8_t seg_crc;  /* CRC of the current write: address + data bytes */
+	uint8_t restart;  /* a repeated start ended that write: the next read's PEC covers it */
 	uint8_t selected; /* per the rules of docs/protocol.md, PROTO_NONE when none */
 	uint8_t rejected; /* COMMANDE_REJETEE */
 	uint8_t orders_accepted, orders_polled_at_publish, orders_polled;
@@ -166,6 +167,7 @@ static void end_read(void)
 {
 	m.in_read = 0;
 	m.selected = PROTO_NONE;
+	m.restart = 0;
 }
 
 /* Own address + read: the reply the model expects, and its PEC. */
@@ -175,7 +177,7 @@ static void start_read(void)
 
 	if (m.in_read)
 		end_read();
-	crc = m.in_write ? m.seg_crc : 0; /* a repeated start: the write belongs to it */
+	crc = (m.in_write || m.restart) ? m.seg_crc : 0; /* a repeated start: the write too */
 	if (m.in_write)
 		end_write(proto_on_read_start);
 	else
@@ -258,6 +260,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 				proto_on_write_start(&p);
 			if (m.in_read)
 				end_read();
+			m.restart = 0;
 			m.in_write = 1;
 			m.seg_crc = proto_crc8(0, &(const uint8_t){ADDR_W}, 1);
 			break;
@@ -289,12 +292,24 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 			}
 			break;
 		case FUZZ_STOP:
+			if (n % 2 == 0) { /* a repeated start */
+				if (m.in_write) {
+					end_write(proto_on_restart);
+					m.restart = 1;
+				} else {
+					proto_on_restart(&p);
+					if (m.in_read)
+						end_read();
+				}
+				break;
+			}
 			if (m.in_write)
 				end_write(proto_on_stop);
 			else
 				proto_on_stop(&p);
 			if (m.in_read)
 				end_read();
+			m.restart = 0;
 			break;
 		case FUZZ_ABORT:
 			if (m.in_write)

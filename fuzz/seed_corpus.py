@@ -42,9 +42,10 @@ def data(payload: list[int]) -> bytes:
 
 
 def write(payload: list[int], restart: bool = False) -> bytes:
-    """S addr+W [payload] then P, or nothing when a repeated start follows."""
+    """S addr+W [payload] then P, or the repeated start that follows, as the AVR's TWI reports
+    it (the STOP event with an even count)."""
     out = event(START_W) + (data(payload) if payload else b"")
-    return out if restart else out + event(STOP)
+    return out + event(STOP, 2 if restart else 1)
 
 
 def read(n: int) -> bytes:

@@ -129,11 +129,33 @@ void board_default_config(struct board_config *c)
 	c->start_heading_bound_turn32 = 0;
 }
 
-/* The angle axis [um of drive-wheel arc] from the unwrapped heading. Exact to 2^-32 turn; the
- * product stays in 64 bits for 4000 turns of the robot. */
-static int32_t angle_axis_um(const struct board *b)
+/* The angle axis [um of drive-wheel arc]: the exact sum of the heading steps times pi * drive
+ * track, kept in [um * 2^32] (the product of a step and pi * track is exact; summing it is the
+ * unwrapped heading times pi * track, bit for bit). Also the step's own arc, rounded, for the
+ * measured turn rate. */
+static void angle_axis_step(struct board *b, int32_t dtheta_turn32)
 {
-	return fx_sat32(fx_shr_round64(b->heading_unwrapped_turn32 * b->orders.pi_track_um, 32));
+	uint32_t m = dtheta_turn32 >= 0 ? (uint32_t)dtheta_turn32
+					: (uint32_t)0 - (uint32_t)dtheta_turn32;
+	uint32_t lo, hi = fx_mul_u32_wide(m, (uint32_t)b->orders.pi_track_um, &lo);
+	uint32_t old_lo = b->angle_lo;
+	int32_t w;
+
+	/* The step's arc rounded half away from zero. */
+	b->arc_um = (int32_t)(hi + (lo >> 31));
+	if (dtheta_turn32 < 0) {
+		b->arc_um = -b->arc_um;
+		b->angle_lo = old_lo - lo;
+		b->angle_hi -= hi + (old_lo < lo);
+	} else {
+		b->angle_lo = old_lo + lo;
+		b->angle_hi += hi + (b->angle_lo < old_lo);
+	}
+	/* Rounded half away from zero, like the rest of the core. */
+	w = fx_int32_of(b->angle_hi);
+	if (w >= 0 ? b->angle_lo >= 0x80000000u : b->angle_lo > 0x80000000u)
+		w = w == INT32_MAX ? w : w + 1;
+	b->angle_um = w;
 }
 
 /* Drive track / encoder track [2^-16], for comparing drive-wheel and free-wheel travel. */
@@ -142,18 +164,29 @@ static int32_t free_ratio_q16(const struct board_config *cfg, uint32_t track_um)
 	return (int32_t)fx_div_round64((int64_t)cfg->orders.drive_track_um << 16, track_um);
 }
 
+/* a - b saturated, in 32 bits (a following error far out of range is still far out). */
+static int32_t sub_sat(int32_t a, int32_t b)
+{
+	if (b < 0 && a > INT32_MAX + b)
+		return INT32_MAX;
+	if (b > 0 && a < INT32_MIN + b)
+		return INT32_MIN;
+	return a - b;
+}
+
 static void update_status(struct board *b);
 static void publish(struct board *b, const struct board_inputs *in, const struct orders_measure *m);
 
 static void measure(const struct board *b, const struct board_inputs *in, struct orders_measure *m)
 {
-	struct odometry_step st = odometry_get_step(&b->odometry);
+	const struct odometry_step *st = &b->odometry.step;
 
 	m->pose = odometry_get_pose(&b->odometry);
 	m->dist_um = odometry_get_distance_um(&b->odometry);
 	m->angle_um = b->angle_um;
-	m->dist_speed_um_s = st.ds_um * b->cfg.tick_hz;
-	m->angle_speed_um_s = orders_arc_um(&b->orders, st.dtheta_turn32) * b->cfg.tick_hz;
+	/* Steps of a tick are below 32.8 mm: 16 x 16-bit products. */
+	m->dist_speed_um_s = fx_mul_s16(fx_sat16(st->ds_um), (int16_t)b->cfg.tick_hz);
+	m->angle_speed_um_s = fx_mul_s16(fx_sat16(b->arc_um), (int16_t)b->cfg.tick_hz);
 	m->basket_contact = in->basket;
 	m->basket_shock = (in->shocks & b->cfg.faults.shock_basket_mask) != 0;
 	m->shocks = in->shocks;
@@ -176,8 +209,10 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->soft = 0;
 	odometry_set_pose(&b->odometry, &cfg->start);
 	uncertainty_reset(&b->uncertainty, cfg->start_radius_um, cfg->start_heading_bound_turn32);
-	b->heading_unwrapped_turn32 = 0;
+	b->angle_hi = 0;
+	b->angle_lo = 0;
 	b->angle_um = 0;
+	b->arc_um = 0;
 	b->free_ratio_q16 = free_ratio_q16(cfg, cfg->odometry.track_um);
 	if (orders_init(&b->orders, &cfg->orders, odometry_get_distance_um(&b->odometry), 0) ||
 	    recal_init(&b->recal, &cfg->recal, odometry_get_distance_um(&b->odometry)))
@@ -401,10 +436,9 @@ static void recal_basket(struct board *b, struct orders_measure *m)
 		return;
 	set_pose(b, &p, m);
 	uncertainty_reset_along(&b->uncertainty, p.heading_turn32, oc->basket_bound_um);
-	if (oc->basket_lateral_um > 0 &&
-	    (int32_t)uncertainty_get_radius_mm(&b->uncertainty) * 1000 > oc->basket_lateral_um)
-		uncertainty_reset_along(&b->uncertainty, p.heading_turn32 + ((uint32_t)1 << 30),
-					(uint32_t)oc->basket_lateral_um);
+	if (oc->basket_lateral_um > 0)
+		uncertainty_cap_along(&b->uncertainty, p.heading_turn32 + ((uint32_t)1 << 30),
+				      (uint32_t)oc->basket_lateral_um);
 }
 
 /* Squared up against a border: one coordinate and the heading (orders.c, border_recal()). */
@@ -461,9 +495,30 @@ static void update_status(struct board *b)
 	b->status = s;
 }
 
+/* round(x / d) for the two divisors of the replies, by the reciprocal: q = x m / 2^32 with
+ * m = ceil(2^32 / d) is the quotient or one more (for x below 2^25, the excess stays under 1/d),
+ * which the remainder settles. */
+static uint16_t div_round_by(uint32_t x, uint16_t d, uint32_t m)
+{
+	uint32_t lo, q;
+
+	x += d / 2u;
+	q = fx_mul_u32_wide(x, m, &lo);
+	if (fx_mul_u16((uint16_t)q, d) > x)
+		q--;
+	return (uint16_t)q;
+}
+
+/* round(um / 1000) saturated to 16 bits. */
 static int16_t mm_of(int32_t um)
 {
-	return fx_sat16(fx_div_round(um, UM_PER_MM));
+	if (um >= 32767500)
+		return INT16_MAX;
+	if (um <= -32768500)
+		return INT16_MIN;
+	if (um >= 0)
+		return (int16_t)div_round_by((uint32_t)um, UM_PER_MM, 4294968u);
+	return (int16_t) - (int32_t)div_round_by((uint32_t)-um, UM_PER_MM, 4294968u);
 }
 
 static void publish(struct board *b, const struct board_inputs *in, const struct orders_measure *m)
@@ -473,7 +528,10 @@ static void publish(struct board *b, const struct board_inputs *in, const struct
 
 	s.x_mm = mm_of(m->pose.x_um);
 	s.y_mm = mm_of(m->pose.y_um);
-	s.angle_2deg = (int8_t)fx_div_round(cdeg, 200); /* -90..90 */
+	/* -90..90, rounded half away from zero like cdeg. */
+	s.angle_2deg =
+		(int8_t)(cdeg >= 0 ? (int32_t)div_round_by((uint32_t)cdeg, 200, 21474837u)
+				   : -(int32_t)div_round_by((uint32_t)-cdeg, 200, 21474837u));
 	s.radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
 	s.status = b->status;
 	s.sensors = in->shocks;
@@ -481,8 +539,8 @@ static void publish(struct board *b, const struct board_inputs *in, const struct
 	s.debug.heading_cdeg = (int16_t)cdeg;
 	s.debug.speed_mm_s = mm_of(m->dist_speed_um_s);
 	s.debug.turn_rate_cdeg_s = fx_sat16(
-		fx_turn32_to_cdeg((uint32_t)odometry_get_step(&b->odometry).dtheta_turn32) *
-		b->cfg.tick_hz);
+		fx_mul_s16((int16_t)fx_turn32_to_cdeg((uint32_t)b->odometry.step.dtheta_turn32),
+			   (int16_t)b->cfg.tick_hz));
 	s.debug.dist_err_um = fx_sat16(b->control.dist_err_um);
 	s.debug.angle_err_um = fx_sat16(b->control.angle_err_um);
 	s.debug.duty_left_q15 = b->control.duty_q15[0];
@@ -497,7 +555,7 @@ static void publish(struct board *b, const struct board_inputs *in, const struct
 
 void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out)
 {
-	struct odometry_step step;
+	const struct odometry_step *step;
 	struct orders_measure m;
 	struct faults_inputs fi;
 	struct proto_msg msg;
@@ -506,16 +564,15 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 
 	/* 1. Encoders -> odometry (a wheel that jumps more than a tick can travel is a fault). */
 	encoder_fault = odometry_update(&b->odometry, in->free_count[0], in->free_count[1]) != 0;
-	step = odometry_get_step(&b->odometry);
-	if (step.dtheta_turn32 != 0) {
-		/* The angle axis only moves with the heading (a 64-bit product: skipped when
-		 * still). */
-		b->heading_unwrapped_turn32 += step.dtheta_turn32;
-		b->angle_um = angle_axis_um(b);
-	}
+	step = &b->odometry.step;
+	/* The angle axis only moves with the heading. */
+	if (step->dtheta_turn32 != 0)
+		angle_axis_step(b, step->dtheta_turn32);
+	else
+		b->arc_um = 0;
 
 	/* 2. Error radius. */
-	uncertainty_update(&b->uncertainty, step.left_q16, step.right_q16,
+	uncertainty_update(&b->uncertainty, step->left_q16, step->right_q16,
 			   b->odometry.heading_turn32);
 
 	/* 3. The two polar axes and the pose, measured; the switches; line crossings. */
@@ -551,11 +608,11 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	fi.current_ma[1] = in->current_ma[1];
 	fi.motor_count[0] = in->motor_count[0];
 	fi.motor_count[1] = in->motor_count[1];
-	fi.free_step_q16[0] = step.left_q16;
-	fi.free_step_q16[1] = step.right_q16;
+	fi.free_step_q16[0] = step->left_q16;
+	fi.free_step_q16[1] = step->right_q16;
 	fi.free_ratio_q16 = b->free_ratio_q16;
-	fi.dist_err_um = fx_sat32((int64_t)b->orders.sp_dist.pos_um - m.dist_um);
-	fi.angle_err_um = fx_sat32((int64_t)b->orders.sp_angle.pos_um - m.angle_um);
+	fi.dist_err_um = sub_sat(b->orders.sp_dist.pos_um, m.dist_um);
+	fi.angle_err_um = sub_sat(b->orders.sp_angle.pos_um, m.angle_um);
 	fi.moving = (uint8_t)orders_busy(&b->orders);
 	fi.pushing = b->orders.state == ORDER_STATE_PUSH || b->orders.state == ORDER_STATE_SQUARE;
 	event = faults_check(&b->faults, &fi);

@@ -55,9 +55,13 @@ struct board {
 	struct recal recal;
 	uint8_t soft;                     /* FILTRE_SOUPLE's gains put in by a border push */
 	struct control_gains saved_gains; /* ... and the gains it replaced */
-	int64_t heading_unwrapped_turn32; /* exact sum of the odometry's heading steps */
-	int32_t angle_um;                 /* the angle axis, from heading_unwrapped_turn32 */
-	int32_t free_ratio_q16;           /* drive track / encoder track [2^-16] */
+	/* The angle axis: the exact sum of the odometry's heading steps [turn * 2^32] times
+	 * pi * drive track [um], i.e. [um * 2^32], as hi 2^32 + lo (hi an int32_t modulo 2^32). */
+	uint32_t angle_hi;
+	uint32_t angle_lo;
+	int32_t angle_um;       /* the angle axis, rounded */
+	int32_t arc_um;         /* this tick's heading step on the angle axis, rounded */
+	int32_t free_ratio_q16; /* drive track / encoder track [2^-16] */
 	uint16_t tick;
 	uint8_t shocks;            /* this tick's shock sensors */
 	uint8_t status;            /* STATUS_* owned by the core */

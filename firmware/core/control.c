@@ -70,9 +70,21 @@ void control_reset(struct control *c)
 	pid_reset(&c->angle);
 }
 
+/* round(v k / 2^20) for a coefficient k <= 2^20 (1 full duty per m/s): two 16 x 16 products for
+ * the usual coefficients below 2^16, and two more above (rounded twice: within one unit). The
+ * velocity and acceleration stay below 2^24 (the profiles' limits). */
+static int32_t ff_term(int32_t v, int32_t k)
+{
+	int32_t r = fx_mul_q(v, (int32_t)fx_lo16((uint32_t)k), 20);
+
+	if (k > 0xffff)
+		r += fx_mul_q(v, (int32_t)fx_hi16((uint32_t)k), 4);
+	return r;
+}
+
 static int32_t feed_forward(int32_t k_speed, int32_t k_accel, const struct orders_axis *sp)
 {
-	return fx_mul_shr(sp->vel_um_s, k_speed, 20) + fx_mul_shr(sp->acc_um_s2, k_accel, 20);
+	return ff_term(sp->vel_um_s, k_speed) + ff_term(sp->acc_um_s2, k_accel);
 }
 
 void control_update(struct control *c, const struct orders_axis *sp_dist,

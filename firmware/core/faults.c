@@ -13,6 +13,28 @@ static int32_t mag32(int32_t v)
 	return v < 0 ? -v : v;
 }
 
+/* a + b, saturated: the leaky sums must not wrap however long a disagreement lasts. */
+static int32_t add_sat(int32_t a, int32_t b)
+{
+	if (b > 0 && a > INT32_MAX - b)
+		return INT32_MAX;
+	if (b < 0 && a < INT32_MIN - b)
+		return INT32_MIN;
+	return a + b;
+}
+
+/* A wheel travel above 4 mm in one tick (4 m/s) is a glitch: clamped there, the sums of four
+ * travels below fit in 32 bits [um * 2^16]. */
+#define STEP_MAX_Q16 ((int32_t)1 << 28)
+
+static int32_t clamp_step(int32_t v)
+{
+	return v > STEP_MAX_Q16 ? STEP_MAX_Q16 : v < -STEP_MAX_Q16 ? -STEP_MAX_Q16 : v;
+}
+
+/* The lost check's sums stop growing here, so that three times one of them fits. */
+#define LOST_SUM_MAX (INT32_MAX / 4)
+
 int faults_init(struct faults *f, const struct faults_config *cfg, const uint16_t motor_count[2])
 {
 	if (cfg->repeat_max == 0 || cfg->repeat_max > N_FAULT_TIMES || cfg->slip_shift > 12 ||
@@ -45,39 +67,54 @@ void faults_order_started(struct faults *f, uint8_t shocks_now)
 	f->shock_ignored = shocks_now;
 }
 
-/* Drive wheel travel this tick from a wrapping motor counter [um * 2^16]. */
+/* Drive wheel travel this tick from a wrapping motor counter [um * 2^16], saturated: counts
+ * times the factor from two 16 x 16 products. */
 static int32_t motor_step_q16(struct faults *f, uint8_t side, uint16_t count)
 {
 	uint16_t d = (uint16_t)(count - f->last_motor[side]);
-	int32_t steps = d >= 0x8000u ? (int32_t)d - 65536 : (int32_t)d;
+	uint8_t neg = d >= 0x8000u;
+	uint16_t m = neg ? (uint16_t)(0u - d) : d;
+	uint32_t k = f->cfg.motor_um_per_count_q16;
+	uint32_t lo = fx_mul_u16(m, fx_lo16(k));
+	uint32_t hi = fx_mul_u16(m, fx_hi16(k)) + fx_hi16(lo);
+	int32_t t = hi >= 0x8000u ? INT32_MAX : (int32_t)((hi << 16) | fx_lo16(lo));
 
 	f->last_motor[side] = count;
-	return fx_sat32((int64_t)steps * f->cfg.motor_um_per_count_q16);
+	return neg ? -t : t;
+}
+
+/* v / 2^n rounded (ties away from zero), n = slip_shift (0..12): a shift of the magnitude. */
+static int32_t shr_round(int32_t v, uint8_t n)
+{
+	return fx_shr_round(v, n);
 }
 
 static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 {
-	int32_t m[2], diff_d, diff_a, free_a;
+	int32_t m[2], fr[2], diff_d, diff_a, free_a;
 	uint8_t lost_pending = 0;
 
-	m[0] = motor_step_q16(f, 0, in->motor_count[0]);
-	m[1] = motor_step_q16(f, 1, in->motor_count[1]);
+	m[0] = clamp_step(motor_step_q16(f, 0, in->motor_count[0]));
+	m[1] = clamp_step(motor_step_q16(f, 1, in->motor_count[1]));
 	if (!f->cfg.motor_encoders)
 		return FAULTS_NONE;
+	fr[0] = clamp_step(in->free_step_q16[0]);
+	fr[1] = clamp_step(in->free_step_q16[1]);
 
 	/* Slip: the drive wheels' travel against the free wheels', on both polar axes (the
 	 * angle axis scaled from the encoder track to the drive track), summed with a leak so
 	 * that a short disagreement (a seam, backlash) is forgotten. Halves are taken after the
-	 * sum to keep the rounding out of the comparison. A glitching counter can make a step
-	 * saturate, so the sums are in 64 bits and saturated. */
-	free_a = fx_mul_shr(fx_sat32((int64_t)in->free_step_q16[1] - in->free_step_q16[0]),
-			    in->free_ratio_q16, 16);
-	diff_d = fx_sat32((int64_t)m[0] + m[1] - in->free_step_q16[0] - in->free_step_q16[1]);
-	diff_a = fx_sat32((int64_t)m[1] - m[0] - free_a);
-	f->slip_dist_q16 = fx_sat32((int64_t)f->slip_dist_q16 + fx_shr_round(diff_d, 1) -
-				    fx_shr_round(f->slip_dist_q16, f->cfg.slip_shift));
-	f->slip_angle_q16 = fx_sat32((int64_t)f->slip_angle_q16 + fx_shr_round(diff_a, 1) -
-				     fx_shr_round(f->slip_angle_q16, f->cfg.slip_shift));
+	 * sum to keep the rounding out of the comparison. */
+	free_a = in->free_ratio_q16 <= 0xffff ? fx_mul_q(fr[1] - fr[0], in->free_ratio_q16, 16)
+					      : fx_mul_shr(fr[1] - fr[0], in->free_ratio_q16, 16);
+	diff_d = (m[0] + m[1]) - (fr[0] + fr[1]);
+	diff_a = (m[1] - m[0]) - free_a;
+	f->slip_dist_q16 =
+		add_sat(f->slip_dist_q16 - shr_round(f->slip_dist_q16, f->cfg.slip_shift),
+			fx_shr_round(diff_d, 1));
+	f->slip_angle_q16 =
+		add_sat(f->slip_angle_q16 - shr_round(f->slip_angle_q16, f->cfg.slip_shift),
+			fx_shr_round(diff_a, 1));
 	if (!in->moving) {
 		/* No order to abandon: a robot pushed while it holds its position, or rocking
 		 * after an order was abandoned, is not a motor problem. */
@@ -106,13 +143,13 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 			f->lost_other_um[s] = 0;
 			continue;
 		}
-		if (f->lost_motor_um[s] < INT32_MAX / 2) {
-			f->lost_motor_um[s] += fx_shr_round(mag32(m[s]), 16);
-			f->lost_other_um[s] = fx_sat32((int64_t)f->lost_other_um[s] +
-						       fx_shr_round(in->free_step_q16[o], 16));
+		if (f->lost_motor_um[s] < LOST_SUM_MAX &&
+		    mag32(f->lost_other_um[s]) < LOST_SUM_MAX) {
+			f->lost_motor_um[s] += (int32_t)fx_hi16((uint32_t)mag32(m[s]) + 0x8000u);
+			f->lost_other_um[s] += fx_shr_round(fr[o], 16);
 		}
 		if (!(f->lost_suspect & bit) &&
-		    (int64_t)mag32(f->lost_other_um[s]) * 3 < f->lost_motor_um[s])
+		    mag32(f->lost_other_um[s]) * 3 < f->lost_motor_um[s])
 			continue;
 		if (f->lost_motor_um[s] > f->cfg.lost_min_um) {
 			f->cause = FAULTS_CAUSE_ENCODER_LOST;

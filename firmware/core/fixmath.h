@@ -40,6 +40,343 @@ static inline int16_t fx_sat16(int32_t v)
 	return (int16_t)v;
 }
 
+/* Products for the tick's arithmetic. An 8-bit AVR multiplies 8 x 8 bits in hardware: avr-gcc's
+ * 16 x 16 -> 32 routine takes about 25 cycles, its 32 x 32 -> 32 one 70, and anything on
+ * int64_t goes through library routines of 100 to 650 cycles (docs/avr.md). So the code that
+ * runs every tick multiplies 16-bit halves with these, and keeps wide values as 32-bit words.
+ *
+ * The primitives below give the same exact results on any machine. Where the words are narrower
+ * than 32 bits (FX_NARROW: the AVR) they are built from 16-bit pieces and byte moves, the *_n
+ * functions; on a 32- or 64-bit machine from its own 64-bit arithmetic, a few instructions where
+ * the pieces would take tens. test_fixmath checks that both agree.
+ *
+ * FX_HIDE is an empty GNU asm statement: it keeps GCC from seeing that a 16-bit operand is the
+ * narrowed half of a 32-bit value, which it would otherwise fold into the multiplication and
+ * turn back into the 32 x 32 routine. It generates no instruction on any target; compilers
+ * without GNU asm, and wide machines (where it is not needed), skip it. */
+#if UINTPTR_MAX <= 0xffffu
+#define FX_NARROW 1
+#else
+#define FX_NARROW 0
+#endif
+
+#if defined(__GNUC__) && FX_NARROW
+#define FX_HIDE(v) __asm__("" : "+r"(v))
+#else
+#define FX_HIDE(v) ((void)0)
+#endif
+
+/* For the small helpers whose shift counts must be constants where they are used: GCC may
+ * otherwise keep one out-of-line copy, and shift by a variable count in a loop. */
+#ifdef __GNUC__
+#define FX_INLINE __attribute__((always_inline)) static inline
+#else
+#define FX_INLINE static inline
+#endif
+
+/* For the work a tick does only now and then: kept out of line, so that the tick's common path
+ * does not pay for its registers (an AVR saves up to 18 of them on entry). */
+#ifdef __GNUC__
+#define FX_NOINLINE __attribute__((noinline))
+#else
+#define FX_NOINLINE
+#endif
+
+static inline uint32_t fx_mul_u16(uint16_t a, uint16_t b)
+{
+	FX_HIDE(a);
+	FX_HIDE(b);
+	return (uint32_t)a * b;
+}
+
+static inline int32_t fx_mul_s16(int16_t a, int16_t b)
+{
+	FX_HIDE(a);
+	FX_HIDE(b);
+	return (int32_t)a * b;
+}
+
+static inline int32_t fx_mul_s16_u16(int16_t a, uint16_t b)
+{
+	FX_HIDE(a);
+	FX_HIDE(b);
+	return (int32_t)a * (int32_t)b;
+}
+
+/* The upper 16 bits of a uint32_t, and the lower. */
+static inline uint16_t fx_hi16(uint32_t v)
+{
+	return (uint16_t)(v >> 16);
+}
+
+static inline uint16_t fx_lo16(uint32_t v)
+{
+	return (uint16_t)v;
+}
+
+/* x >> n and x << n for a constant n in 0..31, written as 16-bit shifts and byte moves: avr-gcc
+ * shifts a uint32_t by any other count than 1, 2, 8, 16, 24 or 31 in a loop, one bit per turn,
+ * up to 180 cycles; its 16-bit shifts are straight code. The halves are hidden from the
+ * compiler so that it does not fold them back into one 32-bit shift. */
+FX_INLINE uint32_t fx_shr_u32_n(uint32_t x, uint8_t n)
+{
+	uint16_t hi = fx_hi16(x), lo = fx_lo16(x);
+
+	if (n == 0)
+		return x;
+	if (n >= 16)
+		return (uint16_t)(hi >> (n - 16));
+	FX_HIDE(hi);
+	FX_HIDE(lo);
+	return ((uint32_t)(uint16_t)(hi >> n) << 16) |
+	       (uint16_t)((uint16_t)(hi << (16 - n)) | (uint16_t)(lo >> n));
+}
+
+FX_INLINE uint32_t fx_shl_u32_n(uint32_t x, uint8_t n)
+{
+	uint16_t hi = fx_hi16(x), lo = fx_lo16(x);
+
+	if (n == 0)
+		return x;
+	if (n >= 16)
+		return (uint32_t)(uint16_t)(lo << (n - 16)) << 16;
+	FX_HIDE(hi);
+	FX_HIDE(lo);
+	return ((uint32_t)(uint16_t)((uint16_t)(hi << n) | (uint16_t)(lo >> (16 - n))) << 16) |
+	       (uint16_t)(lo << n);
+}
+
+FX_INLINE uint32_t fx_shr_u32(uint32_t x, uint8_t n)
+{
+	return FX_NARROW ? fx_shr_u32_n(x, n) : x >> n;
+}
+
+FX_INLINE uint32_t fx_shl_u32(uint32_t x, uint8_t n)
+{
+	return FX_NARROW ? fx_shl_u32_n(x, n) : x << n;
+}
+
+/* a * b as two 32-bit words: returns the upper one, *lo the lower. Four 16 x 16 products. */
+static inline uint32_t fx_mul_u32_wide_n(uint32_t a, uint32_t b, uint32_t *lo)
+{
+	uint32_t p0 = fx_mul_u16(fx_lo16(a), fx_lo16(b));
+	uint32_t p1 = fx_mul_u16(fx_lo16(a), fx_hi16(b));
+	uint32_t p2 = fx_mul_u16(fx_hi16(a), fx_lo16(b));
+	uint32_t t = (p0 >> 16) + fx_lo16(p1) + fx_lo16(p2); /* below 3 * 2^16 */
+
+	*lo = fx_lo16(p0) | (t << 16);
+	return fx_mul_u16(fx_hi16(a), fx_hi16(b)) + (p1 >> 16) + (p2 >> 16) + (t >> 16);
+}
+
+static inline uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
+{
+	uint64_t p;
+
+	if (FX_NARROW)
+		return fx_mul_u32_wide_n(a, b, lo);
+	p = (uint64_t)a * b;
+	*lo = (uint32_t)p;
+	return (uint32_t)(p >> 32);
+}
+
+/* round(a * b / 2^n), halves rounded up, for n in 1..63; the caller knows the result fits in
+ * 32 bits. With a constant n the shift is a few moves. */
+FX_INLINE uint32_t fx_mul_u32_shr(uint32_t a, uint32_t b, uint8_t n)
+{
+	uint32_t lo, hi = fx_mul_u32_wide(a, b, &lo);
+	uint32_t bias_lo = n <= 32 ? (uint32_t)1 << (n - 1) : 0;
+	uint32_t bias_hi = n > 32 ? (uint32_t)1 << (n - 33) : 0;
+
+	lo += bias_lo;
+	hi += bias_hi + (lo < bias_lo);
+	if (n >= 32)
+		return fx_shr_u32(hi, (uint8_t)(n - 32));
+	return fx_shr_u32(lo, n) | fx_shl_u32(hi, (uint8_t)(32 - n));
+}
+
+/* A uint32_t that holds an int32_t modulo 2^32, back to int32_t without the
+ * implementation-defined conversion of an out-of-range value. */
+static inline int32_t fx_int32_of(uint32_t v)
+{
+	if (v < 0x80000000u)
+		return (int32_t)v;
+	return (int32_t)(v - 0x80000000u) - INT32_MAX - 1;
+}
+
+/* round(a b / 2^n) with ties away from zero, for n in 8..47 and |b| <= 65535: two 16 x 16
+ * products (|a| < 2^31); the caller knows the result fits in 32 bits. */
+FX_INLINE int32_t fx_mul_q_n(int32_t a, int32_t b, uint8_t n)
+{
+	uint32_t ua = a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a;
+	uint16_t ub = (uint16_t)(b >= 0 ? b : -b);
+	uint32_t lo = fx_mul_u16(fx_lo16(ua), ub);
+	uint32_t hi = fx_mul_u16(fx_hi16(ua), ub) + fx_hi16(lo); /* floor(|a b| / 2^16) */
+	uint32_t r;
+
+	if (n < 16)
+		r = fx_shl_u32(hi, (uint8_t)(16 - n)) +
+		    fx_shr_u32(fx_lo16(lo) + ((uint32_t)1 << (n - 1)), n);
+	else if (n == 16)
+		r = hi + (fx_lo16(lo) >> 15);
+	else
+		r = fx_shr_u32(hi + ((uint32_t)1 << (n - 17)), (uint8_t)(n - 16));
+	return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
+}
+
+FX_INLINE int32_t fx_mul_q(int32_t a, int32_t b, uint8_t n)
+{
+	uint64_t m;
+	uint32_t r;
+
+	if (FX_NARROW)
+		return fx_mul_q_n(a, b, n);
+	m = (uint64_t)(a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a) *
+	    (uint32_t)(b >= 0 ? b : -b);
+	r = (uint32_t)((m + ((uint64_t)1 << (n - 1))) >> n);
+	return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
+}
+
+/* floor(num / den), den >= 1, for a quotient known to be below 2^qbits (1..32): a restoring
+ * division over the quotient's bits only (avr-gcc's 32-bit division always takes 32 steps of a
+ * slower loop). */
+static inline uint32_t fx_udiv_small_n(uint32_t num, uint32_t den, uint8_t qbits)
+{
+	uint32_t rem = qbits >= 32 ? 0 : num >> qbits;
+	uint32_t q = 0;
+
+	num = qbits >= 32 ? num : num << (32 - qbits);
+	while (qbits-- != 0) {
+		rem = (rem << 1) | (num >> 31);
+		num <<= 1;
+		q <<= 1;
+		if (rem >= den) {
+			rem -= den;
+			q |= 1u;
+		}
+	}
+	return q;
+}
+
+static inline uint32_t fx_udiv_small(uint32_t num, uint32_t den, uint8_t qbits)
+{
+	return FX_NARROW ? fx_udiv_small_n(num, den, qbits) : num / den;
+}
+
+/* round(num / den) with ties away from zero, den >= 1, for |num| / den + 1 below 2^qbits. */
+static inline int32_t fx_div_round_small(int32_t num, uint32_t den, uint8_t qbits)
+{
+	uint32_t m = num >= 0 ? (uint32_t)num : (uint32_t)0 - (uint32_t)num;
+	int32_t q = (int32_t)fx_udiv_small(m + den / 2, den, qbits);
+
+	return num >= 0 ? q : -q;
+}
+
+/* round(a b / 2^32) with ties away from zero, for any int32_t a and uint32_t b whose product
+ * over 2^32 fits: four 16 x 16 products. */
+static inline int32_t fx_mul_shr32(int32_t a, uint32_t b)
+{
+	uint32_t m = a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a;
+	uint32_t lo, hi = fx_mul_u32_wide(m, b, &lo);
+	int32_t r = (int32_t)(hi + (lo >> 31));
+
+	return a >= 0 ? r : -r;
+}
+
+/* round(a c / 2^30) with ties away from zero, for a sine or cosine c [2^-30] (|c| <= 2^30) and
+ * |a| below 2^31: four 16 x 16 products. */
+static inline int32_t fx_mul_q30(int32_t a, int32_t c)
+{
+	uint32_t m = c >= 0 ? (uint32_t)c : (uint32_t)0 - (uint32_t)c;
+	int32_t r = m >= ((uint32_t)1 << 30) ? a : fx_mul_shr32(a, m << 2);
+
+	return c >= 0 ? r : -r;
+}
+
+/* A signed 48-bit value, hi 2^16 + lo with lo unsigned: a length [um * 2^16] keeps its whole
+ * micrometres (floored) in hi. avr-gcc's int64_t arithmetic calls library routines (40 to 130
+ * cycles an operation); these are a few instructions. hi wraps modulo 2^32 (the callers stay
+ * within +-2^31 um). */
+struct fx48 {
+	int32_t hi;
+	uint16_t lo;
+};
+
+FX_INLINE struct fx48 fx48_make(int32_t hi, uint16_t lo)
+{
+	struct fx48 r;
+
+	r.hi = hi;
+	r.lo = lo;
+	return r;
+}
+
+/* v [2^-16 of the unit] as a 48-bit value (hi = floor(v / 2^16)). */
+FX_INLINE struct fx48 fx48_of32(int32_t v)
+{
+	uint16_t h = fx_hi16((uint32_t)v);
+
+	return fx48_make(h < 0x8000u ? (int32_t)h : (int32_t)h - 65536, fx_lo16((uint32_t)v));
+}
+
+FX_INLINE struct fx48 fx48_add(struct fx48 a, struct fx48 b)
+{
+	uint32_t lo = (uint32_t)a.lo + b.lo;
+
+	return fx48_make(fx_int32_of((uint32_t)a.hi + (uint32_t)b.hi + fx_hi16(lo)), fx_lo16(lo));
+}
+
+FX_INLINE struct fx48 fx48_sub(struct fx48 a, struct fx48 b)
+{
+	uint32_t lo = 0x10000u + a.lo - b.lo;
+
+	return fx48_make(fx_int32_of((uint32_t)a.hi - (uint32_t)b.hi - 1u + fx_hi16(lo)),
+			 fx_lo16(lo));
+}
+
+FX_INLINE struct fx48 fx48_add32(struct fx48 a, int32_t d)
+{
+	return fx48_add(a, fx48_of32(d));
+}
+
+FX_INLINE struct fx48 fx48_neg(struct fx48 a)
+{
+	return fx48_sub(fx48_make(0, 0), a);
+}
+
+FX_INLINE int fx48_lt(struct fx48 a, struct fx48 b)
+{
+	return a.hi < b.hi || (a.hi == b.hi && a.lo < b.lo);
+}
+
+FX_INLINE int fx48_eq(struct fx48 a, struct fx48 b)
+{
+	return a.hi == b.hi && a.lo == b.lo;
+}
+
+FX_INLINE int fx48_is_neg(struct fx48 a)
+{
+	return a.hi < 0;
+}
+
+/* The value as an int32_t, when it fits (hi in -32768..32767). */
+FX_INLINE int fx48_fits32(struct fx48 a)
+{
+	return a.hi >= -32768 && a.hi <= 32767;
+}
+
+FX_INLINE int32_t fx48_to32(struct fx48 a)
+{
+	return fx_int32_of(((uint32_t)a.hi << 16) | a.lo);
+}
+
+/* round(v / 2^16), ties away from zero (saturated). */
+FX_INLINE int32_t fx48_round(struct fx48 a)
+{
+	if (a.hi >= 0 ? a.lo >= 0x8000u : a.lo > 0x8000u)
+		return a.hi == INT32_MAX ? a.hi : a.hi + 1;
+	return a.hi;
+}
+
 /* v / 2^n rounded to nearest (ties away from zero), n in 0..63. On the magnitude, in unsigned
  * arithmetic: shifting a negative value right is implementation-defined, and -INT64_MIN
  * overflows. */
@@ -104,6 +441,10 @@ uint32_t fx_isqrt64(uint64_t v);
 /* sin and cos of a heading, [2^-30], absolute error at most 4 units (about 4e-9). */
 void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30);
 
+/* sin and cos of a heading to 16 bits [2^-14], error at most 2 units (1.2e-4), exact at the four
+ * cardinal headings: a 65-entry table and linear interpolation, for the error model. */
+void fx_sincos_q14(uint32_t angle_turn32, int16_t *sin_q14, int16_t *cos_q14);
+
 /* The heading of the vector (x, y), [turn * 2^32]; any common unit for x and y; (0, 0) gives 0.
  * Error at most 2^-20 turn (6e-6 rad). */
 uint32_t fx_atan2(int32_t y, int32_t x);
@@ -126,9 +467,7 @@ static inline int32_t fx_angle_diff(uint32_t b_turn32, uint32_t a_turn32)
 /* A heading as -18000..18000 [0.01 degree], rounded to nearest. */
 static inline int32_t fx_turn32_to_cdeg(uint32_t angle_turn32)
 {
-	int32_t a = fx_angle_diff(angle_turn32, 0);
-
-	return (int32_t)fx_shr_round64((int64_t)a * 36000, 32);
+	return fx_mul_q(fx_angle_diff(angle_turn32, 0), 36000, 32);
 }
 
 #endif

@@ -1,12 +1,17 @@
-/* Odometry from two free encoder wheels (see odometry.h and docs/odometry.md). */
+/* Odometry from two free encoder wheels (see odometry.h and docs/odometry.md).
+ *
+ * The tick's arithmetic is 16 x 16-bit products and 32-bit additions (fixmath.h explains why):
+ * the heading is a 64-bit sum kept as four 16-bit limbs, the position and distance are whole
+ * micrometres and a fraction. */
 #include "odometry.h"
 
 #include <errno.h>
 
 #include "fixmath.h"
 
-/* 2 pi * 2^30, pi/4 * 2^32, 2^32/6, 2^32/120. */
-#define TWO_PI_Q30 6746518852LL
+/* 2^64 / (2 pi), rounded (error 0.3 in 2.9e18). */
+#define TURN64_PER_RAD 2935890503282001227ull
+/* pi/4 * 2^32, 2^32/6, 2^32/120: the general arc correction. */
 #define QUARTER_PI_Q32 3373259426LL
 #define SIXTH_Q32 715827883LL
 #define ONE_120TH_Q32 35791394LL
@@ -20,44 +25,72 @@ static int config_valid(const struct odometry_config *cfg)
 	       cfg->track_um >= ODOMETRY_TRACK_UM_MIN && cfg->track_um <= ODOMETRY_TRACK_UM_MAX;
 }
 
-/* The heading is kept as an exact integer (turn_acc_q16) whose conversion to turns needs the
- * turn period; computing the reciprocal here, once, keeps divisions out of the tick. */
-static void derive(struct odometry *o)
+/* The heading change of one count, k / (2 pi b) turn, as round(k 2^48 / (2 pi b)) [turn * 2^64]:
+ * the 86-bit product k * 2^64/(2 pi) divided by b 2^16 one bit at a time. Configuration time
+ * only. The result is below 2^55.4 (k <= 2^24, b >= 2^14); its rounding is a relative error
+ * below 2e-15 on the track. */
+static uint64_t turn_per_count(uint32_t k_q16, uint32_t track_um)
 {
-	/* 2 pi * 2^30 is rounded to 0.5 in 6.7e9: the period is then that of a track 2e-5 um
-	 * off the configured one, far below any calibration. */
-	int64_t period = ((int64_t)o->cfg.track_um * TWO_PI_Q30 + (1 << 13)) / (1 << 14);
-	uint64_t rem = 1, q = 0;
-	uint8_t bits = 0, i;
+	uint64_t lo = (TURN64_PER_RAD & 0xffffffffu) * k_q16;
+	uint64_t hi = (TURN64_PER_RAD >> 32) * k_q16 + (lo >> 32);
+	uint64_t den = (uint64_t)track_um << 16;
+	uint64_t rem = 0, q = 0;
 
-	while ((period >> bits) != 0)
-		bits++;
-	/* Long division 2^(40 + bits) / period, rounded: q lands in (2^40, 2^41]. */
-	for (i = 0; i < 40 + bits; i++) {
-		rem <<= 1;
+	for (int i = 85; i >= 0; i--) {
+		uint64_t bit = i >= 32 ? (hi >> (i - 32)) & 1u : (lo >> i) & 1u;
+
+		rem = rem << 1 | bit;
 		q <<= 1;
-		if (rem >= (uint64_t)period) {
-			rem -= (uint64_t)period;
-			q |= 1;
+		if (rem >= den) {
+			rem -= den;
+			q |= 1u;
 		}
 	}
-	if (2 * rem >= (uint64_t)period)
+	if (2 * rem >= den)
 		q++;
-	o->turn_period_q16 = period;
-	o->turn_inv = q;
-	o->turn_bits = bits;
+	return q;
 }
 
-/* acc * 2^32 / period rounded, for 0 <= acc < period < 2^40. The 80-bit product is split at
- * 2^20 so that both halves fit in 64 bits; the error stays below 0.51 unit. */
-static uint32_t heading_of_acc(const struct odometry *o, int64_t acc)
+static void derive_wheel(struct odometry_wheel *w, uint32_t k_q16, uint32_t track_um, int8_t sign)
 {
-	uint64_t a = (uint64_t)acc;
-	uint64_t hi = (a >> 20) * o->turn_inv;
-	uint64_t lo = ((a & 0xfffffu) * o->turn_inv + ((uint64_t)1 << 19)) >> 20;
-	uint8_t shift = (uint8_t)(o->turn_bits - 12);
+	uint64_t u = turn_per_count(k_q16, track_um);
 
-	return (uint32_t)((hi + lo + ((uint64_t)1 << (shift - 1))) >> shift);
+	w->k[0] = fx_lo16(k_q16);
+	w->k[1] = fx_hi16(k_q16);
+	w->turn_sign = sign;
+	for (uint8_t n = 0; n < ODOMETRY_TABLE_COUNTS; n++) {
+		uint64_t t = u * n;
+
+		w->travel_q16[n] = (int32_t)(k_q16 * n); /* below 2^29 */
+		w->turn_q64[n][0] = (uint32_t)t;
+		w->turn_q64[n][1] = (uint32_t)(t >> 32);
+	}
+}
+
+/* The right wheel forward turns the robot counter-clockwise (positive), the left one clockwise. */
+static void derive(struct odometry *o)
+{
+	derive_wheel(&o->left, o->cfg.left_um_per_count_q16, o->cfg.track_um, -1);
+	derive_wheel(&o->right, o->cfg.right_um_per_count_q16, o->cfg.track_um, 1);
+}
+
+/* h += d, or h -= d, modulo 2^64 (two 32-bit words, lower first). */
+static inline void add_q64(uint32_t h[2], const uint32_t d[2], uint8_t sub)
+{
+	uint32_t lo = h[0];
+
+	if (!sub) {
+		h[0] = lo + d[0];
+		h[1] += d[1] + (h[0] < lo);
+	} else {
+		h[0] = lo - d[0];
+		h[1] -= d[1] + (lo < d[0]);
+	}
+}
+
+static uint32_t heading_round(const uint32_t h[2])
+{
+	return h[1] + (h[0] >> 31);
 }
 
 /* Counter difference of a free-running uint16 counter, -32768..32767, without converting an
@@ -69,31 +102,111 @@ static int32_t count_delta(uint16_t now, uint16_t before)
 	return d < 32768u ? (int32_t)d : (int32_t)d - 65536;
 }
 
-static int64_t wheel_travel_q16(int32_t counts, uint32_t um_per_count_q16, int *err)
+static uint16_t magnitude16(int32_t counts)
 {
-	int64_t t = (int64_t)counts * um_per_count_q16;
+	return (uint16_t)(counts >= 0 ? counts : -counts);
+}
 
-	if (t > ODOMETRY_STEP_Q16_MAX) {
+/* The travel and heading change of m counts beyond the tables: two 16 x 16 products for the
+ * travel (clamped to ODOMETRY_STEP_Q16_MAX, *err set, beyond it), four for m u modulo 2^64. */
+static int32_t wheel_step_wide(const struct odometry_wheel *w, uint16_t m, uint32_t d[2], int *err)
+{
+	uint32_t lo = fx_mul_u16(m, w->k[0]);
+	uint32_t hi = fx_mul_u16(m, w->k[1]) + fx_hi16(lo);
+	const uint32_t *u = w->turn_q64[1];
+	uint32_t p0 = fx_mul_u16(m, fx_lo16(u[0]));
+	uint32_t p1 = fx_mul_u16(m, fx_hi16(u[0]));
+	uint32_t p2 = fx_mul_u16(m, fx_lo16(u[1]));
+	uint32_t t = fx_hi16(p0) + (uint32_t)fx_lo16(p1);
+
+	d[0] = fx_lo16(p0) | (t << 16);
+	d[1] = p2 + fx_hi16(p1) + fx_hi16(t) +
+	       ((uint32_t)(uint16_t)((uint32_t)m * fx_hi16(u[1])) << 16);
+	if (hi >= 0x8000u) {
 		*err = -ERANGE;
 		return ODOMETRY_STEP_Q16_MAX;
 	}
-	if (t < -(int64_t)ODOMETRY_STEP_Q16_MAX) {
-		*err = -ERANGE;
-		return -(int64_t)ODOMETRY_STEP_Q16_MAX;
-	}
-	return t;
+	return (int32_t)((hi << 16) | fx_lo16(lo));
 }
 
-/* sin(x) / x for x = dtheta / 2 [2^-30]: 1 - x^2/6 + x^4/120, whose next term x^6/5040 is below
- * 2e-10 while |dtheta| <= 0.2 rad per tick (60 rad/s at 300 Hz). */
-static int64_t half_sinc_q30(int32_t dtheta_turn32)
+/* One wheel's counts of this tick: returns its travel [um * 2^16], exact, and adds its heading
+ * change to h. Small counts are looked up. */
+static inline int32_t wheel_step(const struct odometry_wheel *w, int32_t counts, uint32_t h[2],
+				 int *err)
 {
-	int64_t x = fx_shr_round64((int64_t)dtheta_turn32 * QUARTER_PI_Q32, 32);
+	uint16_t m = magnitude16(counts);
+	uint8_t sub = (counts < 0) != (w->turn_sign < 0);
+	int32_t t;
+
+	if (m < ODOMETRY_TABLE_COUNTS) {
+		t = w->travel_q16[m];
+		add_q64(h, w->turn_q64[m], sub);
+	} else {
+		uint32_t d[2];
+
+		t = wheel_step_wide(w, m, d, err);
+		add_q64(h, d, sub);
+	}
+	return counts >= 0 ? t : -t;
+}
+
+/* round(|both| (1 - sin(x)/x)) [um * 2^17], x = dtheta/2, for t = |dtheta| < 2^24 [turn * 2^32]
+ * (0.0245 rad per tick): 1 - sin(x)/x = x^2/6 - x^4/120..., x = t pi / 2^32, and
+ * f = 2^32 x^2/6 = t^2 pi^2 / (6 2^32) is below 1.1e5, where x^4/120 is below 0.82 unit of f
+ * (left out: at most 0.82 unit of the result). Below t = 2^15, f is below 0.41: no correction. */
+static uint32_t arc_correction(uint32_t both, uint32_t t)
+{
+	uint16_t th = fx_hi16(t), tl = fx_lo16(t);
+	/* q = t^2 / 2^16 (below 2^32 for t < 2^24), the last bits of tl^2 dropped. */
+	uint32_t q = ((uint32_t)(uint16_t)((uint16_t)(uint8_t)th * (uint8_t)th) << 16) +
+		     (fx_mul_u16(th, tl) << 1) + fx_hi16(fx_mul_u16(tl, tl));
+	/* f = q pi^2/6 / 2^16 = q / 2^16 + q 42265.2 / 2^32. */
+	uint32_t f = fx_hi16(q) + fx_hi16(fx_mul_u16(fx_hi16(q), 42265u) +
+					  fx_hi16(fx_mul_u16(fx_lo16(q), 42265u)) + 0x8000u);
+	uint16_t bh = fx_hi16(both), fl = fx_lo16(f);
+	/* both f / 2^32 with f = fh 2^16 + fl, fh 0 or 1. */
+	uint32_t c = fx_hi16(fx_mul_u16(bh, fl) + fx_hi16(fx_mul_u16(fx_lo16(both), fl)) + 0x8000u);
+
+	return fx_hi16(f) ? c + bh : c;
+}
+
+/* The same for any t, in 64 bits (sin(x)/x to the x^4 term: its error stays below 2e-10 while
+ * |dtheta| <= 0.2 rad per tick). Runs only above 0.0245 rad per tick, which a robot turns at
+ * 1 kHz only above 24 rad/s. */
+static uint32_t arc_correction_wide(uint32_t both, uint32_t t)
+{
+	int64_t x = fx_shr_round64((int64_t)t * QUARTER_PI_Q32, 32);
 	int64_t x2 = fx_shr_round64(x * x, 30);
 	int64_t x4 = fx_shr_round64(x2 * x2, 30);
+	int64_t f = fx_shr_round64(x2 * SIXTH_Q32, 32) - fx_shr_round64(x4 * ONE_120TH_Q32, 32);
 
-	return FX_ONE_Q30 - fx_shr_round64(x2 * SIXTH_Q32, 32) +
-	       fx_shr_round64(x4 * ONE_120TH_Q32, 32);
+	return (uint32_t)fx_shr_round64((int64_t)both * f, 30);
+}
+
+/* (*whole, *frac) += d / 2^16, on a value kept as whole units (modulo 2^32) and a 16-bit
+ * fraction. */
+static void add_q16(uint32_t *whole, uint16_t *frac, uint32_t mag, uint8_t neg)
+{
+	uint32_t t;
+
+	if (!neg) {
+		t = (uint32_t)*frac + fx_lo16(mag);
+		*whole += fx_hi16(mag) + fx_hi16(t);
+	} else {
+		t = 0x10000u + *frac - fx_lo16(mag);
+		*whole -= fx_hi16(mag) + 1u - fx_hi16(t);
+	}
+	*frac = fx_lo16(t);
+}
+
+/* Whole units and a fraction of 2^bits, rounded to nearest with ties away from zero. */
+static int32_t round_whole(uint32_t whole, uint32_t frac, uint32_t half)
+{
+	int32_t w = fx_int32_of(whole);
+
+	if (w >= 0 ? frac >= half : frac > half)
+		return w == INT32_MAX ? w : w + 1;
+	return w;
 }
 
 int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_t left_count,
@@ -105,12 +218,15 @@ int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_
 	derive(o);
 	o->left_count = left_count;
 	o->right_count = right_count;
-	o->turn_acc_q16 = 0;
-	o->heading_base_turn32 = 0;
+	o->heading_q64[0] = 0;
+	o->heading_q64[1] = 0;
 	o->heading_turn32 = 0;
-	o->x_q16 = 0;
-	o->y_q16 = 0;
-	o->distance_q17 = 0;
+	o->x_um = 0;
+	o->y_um = 0;
+	o->x_frac = 0;
+	o->y_frac = 0;
+	o->distance_um = 0;
+	o->distance_frac = 0;
 	o->step.left_q16 = 0;
 	o->step.right_q16 = 0;
 	o->step.ds_um = 0;
@@ -123,10 +239,7 @@ int odometry_set_config(struct odometry *o, const struct odometry_config *cfg)
 {
 	if (!config_valid(cfg))
 		return -EDOM;
-	/* The accumulated differential travel only means something with the old track: fold it
-	 * into the base heading. */
-	o->heading_base_turn32 = o->heading_turn32;
-	o->turn_acc_q16 = 0;
+	/* The heading is kept as it is, to 2^-64 turn: only the change per count changes. */
 	o->cfg = *cfg;
 	derive(o);
 	return 0;
@@ -135,40 +248,40 @@ int odometry_set_config(struct odometry *o, const struct odometry_config *cfg)
 int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count)
 {
 	int err = 0;
-	int64_t left = wheel_travel_q16(count_delta(left_count, o->left_count),
-					o->cfg.left_um_per_count_q16, &err);
-	int64_t right = wheel_travel_q16(count_delta(right_count, o->right_count),
-					 o->cfg.right_um_per_count_q16, &err);
-	int64_t both = left + right; /* twice the midpoint travel [um * 2^16] */
 	uint32_t before = o->heading_turn32;
+	/* The heading is a function of the counts alone (a sum modulo 2^64, one turn), so coming
+	 * back to the same counts returns to the same heading bit for bit. */
+	int32_t left =
+		wheel_step(&o->left, count_delta(left_count, o->left_count), o->heading_q64, &err);
+	int32_t right = wheel_step(&o->right, count_delta(right_count, o->right_count),
+				   o->heading_q64, &err);
+	uint32_t al = (uint32_t)(left >= 0 ? left : -left);
+	uint32_t ar = (uint32_t)(right >= 0 ? right : -right);
+	/* Twice the midpoint travel [um * 2^16], as sign and magnitude (below 2^32). */
+	uint8_t same = (left < 0) == (right < 0);
+	uint32_t both = same ? al + ar : (al > ar ? al - ar : ar - al);
+	uint8_t neg = same ? left < 0 : (left < 0 ? al > ar : ar > al);
 	int32_t dtheta;
-	uint32_t mid;
-	int64_t chord_q17;
-	int32_t s, c;
 
 	o->left_count = left_count;
 	o->right_count = right_count;
 
-	/* The heading is a function of an exact integer sum, so returning to the same counts
-	 * returns to the same heading bit for bit. |right - left| <= 2^32 and the period is
-	 * above 2^32, so one correction each way is enough. When right == left the sum, hence the
-	 * heading, is unchanged: the conversion is skipped (the same bits, fewer cycles). */
-	if (right != left) {
-		o->turn_acc_q16 += right - left;
-		if (o->turn_acc_q16 >= o->turn_period_q16)
-			o->turn_acc_q16 -= o->turn_period_q16;
-		if (o->turn_acc_q16 < 0)
-			o->turn_acc_q16 += o->turn_period_q16;
-		o->heading_turn32 = o->heading_base_turn32 + heading_of_acc(o, o->turn_acc_q16);
-	}
+	o->heading_turn32 = heading_round(o->heading_q64);
 	dtheta = fx_angle_diff(o->heading_turn32, before);
 
 	/* Exact arc: the chord, ds * sin(dtheta/2) / (dtheta/2), along the mean heading. With no
-	 * travel of the midpoint (standing still, or turning on the spot) the chord is 0 and the
-	 * position does not move: the sine and cosine are skipped. sinc(0) is exactly 1. */
+	 * travel of the midpoint (standing still, or turning on the spot) the position does not
+	 * move: the sine and cosine are skipped. */
 	if (both != 0) {
-		chord_q17 = dtheta != 0 ? fx_shr_round64(both * half_sinc_q30(dtheta), 30) : both;
-		mid = before + (uint32_t)fx_shr_round(dtheta, 1);
+		uint32_t t = (uint32_t)(dtheta >= 0 ? dtheta : -(int64_t)dtheta);
+		uint32_t chord = both; /* [um * 2^17] */
+		uint32_t mid = before + (uint32_t)fx_shr_round(dtheta, 1);
+		int32_t s, c;
+
+		if (t >= ((uint32_t)1 << 24))
+			chord -= arc_correction_wide(both, t);
+		else if (t >= ((uint32_t)1 << 15))
+			chord -= arc_correction(both, t);
 		/* While the robot goes straight the mean heading repeats from tick to tick: the
 		 * last sine and cosine are kept with their angle (same input, same output). */
 		if (mid != o->trig_turn32 || !o->trig_valid) {
@@ -178,14 +291,43 @@ int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_coun
 		}
 		s = o->trig_sin_q30;
 		c = o->trig_cos_q30;
-		o->x_q16 += fx_shr_round64(chord_q17 * c, 31);
-		o->y_q16 += fx_shr_round64(chord_q17 * s, 31);
-		o->distance_q17 += both;
+		/* chord [um * 2^17] * cos [2^-30] / 2^31 = [um * 2^16], below 2^31. */
+		add_q16(&o->x_um, &o->x_frac,
+			fx_mul_u32_shr(chord, (uint32_t)(c >= 0 ? c : -c), 31), neg != (c < 0));
+		add_q16(&o->y_um, &o->y_frac,
+			fx_mul_u32_shr(chord, (uint32_t)(s >= 0 ? s : -s), 31), neg != (s < 0));
+		/* The distance: both [um * 2^17] into whole um and 17 bits of fraction. */
+		{
+			uint32_t fr = both & 0x1ffffu;
+			uint32_t wh = fx_shr_u32(both, 17);
+
+			if (!neg) {
+				fr += o->distance_frac;
+				if (fr >= 0x20000u) {
+					fr -= 0x20000u;
+					wh++;
+				}
+				o->distance_um += wh;
+			} else {
+				if (fr > o->distance_frac) {
+					fr = o->distance_frac + 0x20000u - fr;
+					wh++;
+				} else {
+					fr = o->distance_frac - fr;
+				}
+				o->distance_um -= wh;
+			}
+			o->distance_frac = fr;
+		}
 	}
 
-	o->step.left_q16 = (int32_t)left;
-	o->step.right_q16 = (int32_t)right;
-	o->step.ds_um = (int32_t)fx_shr_round64(both, 17);
+	o->step.left_q16 = left;
+	o->step.right_q16 = right;
+	{
+		int32_t ds = (int32_t)(fx_shr_u32(both, 17) + (fx_hi16(both) & 1u));
+
+		o->step.ds_um = neg ? -ds : ds;
+	}
 	o->step.dtheta_turn32 = dtheta;
 	return err;
 }
@@ -194,19 +336,21 @@ struct odometry_pose odometry_get_pose(const struct odometry *o)
 {
 	struct odometry_pose p;
 
-	p.x_um = fx_sat32(fx_shr_round64(o->x_q16, 16));
-	p.y_um = fx_sat32(fx_shr_round64(o->y_q16, 16));
+	p.x_um = round_whole(o->x_um, o->x_frac, 0x8000u);
+	p.y_um = round_whole(o->y_um, o->y_frac, 0x8000u);
 	p.heading_turn32 = o->heading_turn32;
 	return p;
 }
 
 void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose)
 {
-	o->x_q16 = (int64_t)pose->x_um * 65536;
-	o->y_q16 = (int64_t)pose->y_um * 65536;
-	o->heading_base_turn32 = pose->heading_turn32;
+	o->x_um = (uint32_t)pose->x_um;
+	o->y_um = (uint32_t)pose->y_um;
+	o->x_frac = 0;
+	o->y_frac = 0;
+	o->heading_q64[0] = 0;
+	o->heading_q64[1] = pose->heading_turn32;
 	o->heading_turn32 = pose->heading_turn32;
-	o->turn_acc_q16 = 0;
 }
 
 struct odometry_step odometry_get_step(const struct odometry *o)
@@ -216,5 +360,5 @@ struct odometry_step odometry_get_step(const struct odometry *o)
 
 int32_t odometry_get_distance_um(const struct odometry *o)
 {
-	return fx_sat32(fx_shr_round64(o->distance_q17, 17));
+	return round_whole(o->distance_um, o->distance_frac, 0x10000u);
 }

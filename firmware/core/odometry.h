@@ -37,26 +37,41 @@ struct odometry_step {
 	int32_t dtheta_turn32; /* heading change [turn * 2^32], counter-clockwise positive */
 };
 
+/* Counts per tick up to this many (exclusive) are looked up rather than multiplied: 32 covers
+ * 2.5 mm per tick with the reference robot's 78.5 um per count (2.5 m/s at 1 kHz). */
+#define ODOMETRY_TABLE_COUNTS 32
+
+/* Per wheel, derived from its factor and the track: the travel [um * 2^16] and the heading change
+ * [turn * 2^64] of n counts, n = 0..ODOMETRY_TABLE_COUNTS-1 (exact products), and the factor and
+ * the change of one count in 16-bit halves for the larger counts. 392 bytes. */
+struct odometry_wheel {
+	int32_t travel_q16[ODOMETRY_TABLE_COUNTS];
+	uint32_t turn_q64[ODOMETRY_TABLE_COUNTS][2]; /* lower and upper 32 bits */
+	uint16_t k[2];                               /* factor: low and high 16 bits */
+	int8_t turn_sign; /* +1: a count forward turns the robot counter-clockwise (right) */
+};
+
 struct odometry {
 	struct odometry_config cfg;
-	/* Derived from cfg: differential travel of one full turn, 2 pi track [um * 2^16], and its
-	 * reciprocal 2^(40 + turn_bits) / turn_period_q16 with turn_bits the period's bit length.
-	 */
-	int64_t turn_period_q16;
-	uint64_t turn_inv;
-	uint8_t turn_bits;
+	struct odometry_wheel left;
+	struct odometry_wheel right;
 
 	uint16_t left_count;
 	uint16_t right_count;
-	/* Heading = heading_base_turn32 + turn_acc_q16 * 2^32 / turn_period_q16, with turn_acc_q16
-	 * the exact sum of right - left travels since the last set_pose or set_config, kept in
-	 * [0, turn_period_q16). */
-	int64_t turn_acc_q16;
-	uint32_t heading_base_turn32;
-	uint32_t heading_turn32;
-	int64_t x_q16;        /* [um * 2^16] */
-	int64_t y_q16;        /* [um * 2^16] */
-	int64_t distance_q17; /* signed travel of the midpoint since init [um * 2^17], exact */
+	/* Heading [turn * 2^64], lower and upper 32 bits: the heading set last plus the exact sum
+	 * of the counts times the per-count changes above, modulo one turn (2^64). */
+	uint32_t heading_q64[2];
+	uint32_t heading_turn32; /* heading_q64 rounded to [turn * 2^32] */
+	/* Position [um * 2^16]: whole um (an int32_t kept in a uint32_t, so that it wraps without
+	 * overflow beyond +-2147 m) and the fraction. */
+	uint32_t x_um;
+	uint32_t y_um;
+	uint16_t x_frac;
+	uint16_t y_frac;
+	/* Signed travel of the midpoint since init [um * 2^17]: whole um (as x_um) and the
+	 * fraction, 0..2^17 - 1. Exact. */
+	uint32_t distance_um;
+	uint32_t distance_frac;
 	struct odometry_step step;
 	/* The last mean heading the pose was advanced along, and its sine and cosine [2^-30]. */
 	uint8_t trig_valid;

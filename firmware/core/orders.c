@@ -13,7 +13,7 @@ static int32_t abs32(int32_t v)
 
 int32_t orders_arc_um(const struct orders *o, int32_t dheading_turn32)
 {
-	return fx_mul_shr(dheading_turn32, o->pi_track_um, 32);
+	return fx_mul_shr32(dheading_turn32, (uint32_t)o->pi_track_um);
 }
 
 static struct profile_limits limits_of(uint8_t speed_cm_s, uint8_t accel_cm_s2, uint32_t jerk)
@@ -45,6 +45,8 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	if (profile_init(&o->dist, &pc, dist_um) || profile_init(&o->angle, &pc, angle_um))
 		return -1;
 	o->designation = 0xFFu;
+	o->aim_period = (uint8_t)(cfg->tick_hz >= 500 ? cfg->tick_hz / 250 : 1);
+	o->aim_wait = 0;
 	o->bearing_valid = 0;
 	o->trig_valid = 0;
 	o->state = ORDER_STATE_IDLE;
@@ -107,6 +109,7 @@ static void begin(struct orders *o, uint8_t designation)
 	o->frozen = 0;
 	o->ended = 0;
 	o->bearing_valid = 0; /* a new target */
+	o->aim_wait = o->aim_period;
 	o->border = 0;
 	o->recal.pending = 0;
 }
@@ -128,11 +131,10 @@ static void aim(struct orders *o, const struct orders_measure *m, uint32_t headi
 	profile_set_target(&o->angle, m->angle_um + orders_arc_um(o, d));
 }
 
-/* The bearing of the target from the estimate. fx_atan2 is a CORDIC (ten steps and a division,
- * a few thousand cycles on an AVR), so its result is kept with the position it was computed
- * from: turning on the spot moves the estimated position little or not at all (the two wheel
- * travels cancel), a second call in the same tick finds it too, and the same inputs give the
- * same output. */
+/* The bearing of the target from the estimate. fx_atan2 divides bit by bit (about a thousand
+ * cycles on an AVR), so its result is kept with the position it was computed from: turning on
+ * the spot moves the estimated position little or not at all (the two wheel travels cancel), a
+ * second call in the same tick finds it too, and the same inputs give the same output. */
 static uint32_t bearing(struct orders *o, const struct odometry_pose *p)
 {
 	if (!o->bearing_valid || p->x_um != o->bearing_x_um || p->y_um != o->bearing_y_um) {
@@ -146,8 +148,8 @@ static uint32_t bearing(struct orders *o, const struct odometry_pose *p)
 
 /* The target within the freeze radius of the estimate: floor(|(dx, dy)|) <= R exactly, as
  * dx^2 + dy^2 < (R + 1)^2 (no square root), and a component beyond R decides without a
- * multiplication, which is the case for all but the last few centimetres of a GOTO. With
- * |dx|, |dy| <= R < 2^31 the sum of the squares is below 2^63. */
+ * multiplication, which is the case for all but the last few centimetres of a GOTO. Up to
+ * R = 46 mm the squares add up in 32 bits. */
 static int within_freeze(const struct orders *o, const struct odometry_pose *p)
 {
 	int32_t dx = o->target_x_um - p->x_um;
@@ -157,6 +159,13 @@ static int within_freeze(const struct orders *o, const struct odometry_pose *p)
 
 	if (r < 0 || dx > r || dx < -r || dy > r || dy < -r)
 		return 0;
+	if (r < 46340) {
+		uint32_t ux = (uint32_t)(dx >= 0 ? dx : -dx), uy = (uint32_t)(dy >= 0 ? dy : -dy);
+
+		return fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
+			       fx_mul_u16((uint16_t)uy, (uint16_t)uy) <
+		       (uint32_t)(r + 1) * (uint32_t)(r + 1);
+	}
 	return (int64_t)dx * dx + (int64_t)dy * dy < r1 * r1;
 }
 
@@ -173,8 +182,8 @@ static int32_t projection(struct orders *o, const struct odometry_pose *p)
 		o->trig_turn32 = p->heading_turn32;
 		o->trig_valid = 1;
 	}
-	return fx_sat32(
-		fx_shr_round64((int64_t)dx * o->trig_cos_q30 + (int64_t)dy * o->trig_sin_q30, 30));
+	/* Each product rounded: within 1 um of the exact sum. */
+	return fx_mul_q30(dx, o->trig_cos_q30) + fx_mul_q30(dy, o->trig_sin_q30);
 }
 
 /* Too close to aim: no spinning on the spot, a straight correction along the current heading
@@ -200,7 +209,10 @@ void orders_goto(struct orders *o, const struct orders_measure *m, int32_t x_um,
 	}
 	enter(o, ORDER_STATE_ROTATE);
 	profile_stop(&o->dist);
-	aim(o, m, bearing(o, &m->pose));
+	/* The first aim (a bearing, the angle's target) waits for the next tick: the tick that
+	 * takes the order has the message and the limits to apply already. The turn starts one
+	 * tick later. */
+	o->aim_wait = 2;
 }
 
 void orders_goto_reverse(struct orders *o, const struct orders_measure *m, int32_t distance_um)
@@ -269,6 +281,12 @@ static void step_goto(struct orders *o, const struct orders_measure *m)
 {
 	if (o->frozen)
 		return;
+	/* The targets are points of the axes; between two re-aims they stay where they are. */
+	if (o->aim_wait > 1) {
+		o->aim_wait--;
+		return;
+	}
+	o->aim_wait = o->aim_period;
 	if (within_freeze(o, &m->pose)) {
 		o->frozen = 1;
 		return;
@@ -398,10 +416,14 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 				break;
 			}
 		}
-		heading_err = (uint32_t)abs32(fx_angle_diff(o->designation == PROTO_GOTO
-								    ? bearing(o, &m->pose)
-								    : o->target_heading_turn32,
-							    m->pose.heading_turn32));
+		/* GOTO: the bearing of the last re-aim (none yet on the order's first tick). */
+		if (o->designation == PROTO_GOTO && !o->bearing_valid)
+			break;
+		heading_err = (uint32_t)abs32(fx_angle_diff(
+			o->designation == PROTO_GOTO
+				? (o->bearing_valid ? o->bearing_turn32 : bearing(o, &m->pose))
+				: o->target_heading_turn32,
+			m->pose.heading_turn32));
 		if (heading_err > o->cfg.heading_window_turn32)
 			break;
 		if (o->designation == PROTO_GOTO_PANIER) {
@@ -410,6 +432,7 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 			profile_set_target(&o->dist, m->dist_um + o->cfg.push_max_um);
 		} else {
 			enter(o, ORDER_STATE_TRANSLATE);
+			o->aim_wait = 0; /* the distance target, now */
 			step_goto(o, m);
 		}
 		break;

@@ -107,6 +107,10 @@ struct orders {
 	uint16_t settle_count;
 	uint16_t settle_time;
 	uint8_t frozen; /* GOTO within the freeze radius: targets no longer follow the estimate */
+	/* A running GOTO re-aims every aim_period ticks (tick_hz / 250, at least 1): its targets
+	 * are points of the axes that move little from one tick to the next. */
+	uint8_t aim_period;
+	uint8_t aim_wait; /* ticks until the next re-aim */
 	/* The last bearing of the target and the estimated position it was computed from. */
 	uint8_t bearing_valid;
 	int32_t bearing_x_um;

@@ -14,6 +14,8 @@
 
 #include <stdint.h>
 
+#include "fixmath.h"
+
 #define PID_TICK_HZ_MIN 100
 #define PID_TICK_HZ_MAX 2000
 /* Errors beyond this are clipped [um] (4.19 m: more than the field's diagonal). */
@@ -27,13 +29,20 @@ struct pid_config {
 	uint16_t tick_hz;      /* [Hz] PID_TICK_HZ_MIN..PID_TICK_HZ_MAX */
 };
 
-/* Gains converted once to [2^-24 duty_q15] per um (P), per um*tick (I), per um/tick (D). */
+/* Gains converted once: P and D to [2^-12 duty_q15] per um and per um/tick, I to [2^-24 duty_q15]
+ * per um*tick (docs/control.md "PID"). */
 struct pid {
 	struct pid_config cfg;
-	int64_t kp_q24;
-	int64_t ki_q24;
-	int64_t kd_q24;
-	int64_t i_acc_q24; /* [2^-24 duty_q15] integral contribution, |.| <= out_limit_q15 * 2^24 */
+	int32_t kp_q12;
+	int32_t kd_q12;
+	uint64_t ki_q24;
+	uint32_t ki_small_q24; /* ki_q24 when it fits 32 bits (ki_wide 0) */
+	uint8_t ki_wide;
+	/* P and D are each clipped to 8 times the full duty (2^30 [2^-12 duty_q15]): beyond these
+	 * errors. */
+	int32_t p_err_max_um;
+	int32_t d_err_max_um;
+	struct fx48 i_acc_q24; /* [2^-24 duty_q15] integral contribution, |.| <= out_limit * 2^24 */
 	int32_t prev_err_um;
 	uint8_t has_prev; /* 0 after a reset: the first derivative is 0 */
 	int16_t out_q15;  /* last output */
@@ -55,7 +64,8 @@ void pid_reset(struct pid *c);
 /* One tick with the following error err_um [um] (any int32; clipped to +/-PID_ERR_MAX_UM).
  * Returns the duty [2^-15 full duty], within +/-out_limit_q15. Anti-windup: the integral's
  * contribution is clipped to the output limit, and the integral does not grow while the output
- * is saturated in the direction of the error. No division. Interrupt-safe: yes. */
+ * is saturated in the direction of the error. No division; 16 x 16-bit products while the error
+ * is below 65 mm. Interrupt-safe: yes. */
 int16_t pid_update(struct pid *c, int32_t err_um);
 
 #endif

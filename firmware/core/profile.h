@@ -18,6 +18,8 @@
 
 #include <stdint.h>
 
+#include "fixmath.h"
+
 /* Longest smoothing window of the S-curve [tick]; 4 bytes of RAM per tick and per profile.
  * When a/j is longer than this, the acceleration is lowered to j * CONFIG_PROFILE_JERK_TICKS_MAX
  * / tick_hz so that the jerk limit still holds. */
@@ -64,27 +66,41 @@ struct profile_params {
 	int32_t j_um_s3;           /* [um/s^3] jerk limit in effect for this motion */
 	uint16_t n_filt;           /* [tick] smoothing window, 1 for a trapezoid */
 	uint16_t hold_len;         /* [tick] n_filt for an S-curve, 0 for a trapezoid */
-	int64_t r_far_q16;         /* [um * 2^16] beyond this, braking never limits */
+	struct fx48 r_far_q16;     /* [um * 2^16] beyond this, braking never limits */
+	struct fx48 a_hold_q16;    /* a (hold_len + 1) [um/tick * 2^16] */
+	uint32_t hz2;              /* tick_hz^2 */
+	int32_t vel_full_um_s;     /* the output velocity at v_max_q16, and the output */
+	int32_t acc_full_um_s2;    /* acceleration of a step of a_q16 (the common cases) */
+};
+
+/* The braking step count n last found for one hold h (0, and hold_len), with g_h(n a) (the
+ * distance of braking from n a after h ticks of cruise) and n a, so that moving n by one is
+ * two additions: the generator's common case (docs/control.md). */
+struct profile_hint {
+	uint32_t n;
+	struct fx48 g_q16; /* [um * 2^16] */
+	int32_t an_q16;    /* [um/tick * 2^16] */
+	uint8_t valid;
 };
 
 struct profile {
 	struct profile_params prm;
-	int64_t target_q16; /* [um * 2^16], a whole number of um */
+	struct fx48 target_q16; /* [um * 2^16], a whole number of um */
 	/* The trapezoid (before smoothing). */
-	int64_t pos_in_q16; /* [um * 2^16] */
-	int32_t vel_in_q16; /* [um/tick * 2^16] */
-	uint16_t hold;      /* [tick] S-curve: no acceleration of sign -hold_sign for this long */
+	struct fx48 pos_in_q16; /* [um * 2^16] */
+	int32_t vel_in_q16;     /* [um/tick * 2^16] */
+	uint16_t hold; /* [tick] S-curve: no acceleration of sign -hold_sign for this long */
 	int8_t hold_sign;
 	uint8_t stopping;
 	uint16_t quiet; /* [tick] consecutive ticks with vel_in 0, saturated at n_filt */
-	/* The moving average: last n_filt trapezoid velocities, their sum, and the sum of the last
-	 * n_filt trapezoid positions (the set point times n_filt, exact). */
+	/* S-curve only, the moving average: last n_filt trapezoid velocities, their sum, and the
+	 * sum of the last n_filt trapezoid positions (the set point times n_filt, exact). */
 	uint16_t idx;
 	int64_t vel_sum_q16; /* [um/tick * 2^16] */
 	int64_t pos_sum_q16; /* [um * 2^16] */
 	int32_t hist_q16[CONFIG_PROFILE_JERK_TICKS_MAX];
 	struct profile_out out;
-	int64_t n_hint[2]; /* last braking step count found, for h = 0 and h = hold_len (a guess) */
+	struct profile_hint hint[2]; /* for h = 0 and h = hold_len */
 	uint8_t far_ready; /* r_far is that of the current limits (set by choose_window()) */
 };
 
@@ -114,10 +130,11 @@ int32_t profile_stop(struct profile *p);
  * recalibration moved the frame). Interrupt-safe: no (same context as profile_update). */
 void profile_reset(struct profile *p, int32_t pos_um);
 
-/* One control tick: advance the set point and return it (also kept in p->out). Bounded time:
- * when braking limits the motion, one 64-bit integer square root and two 64-bit divisions; in
- * S-curve mode three more 64-bit divisions for the outputs. Interrupt-safe: yes (it may be the
- * tick interrupt), provided the other functions are not called concurrently. */
+/* One control tick: advance the set point and return it (also kept in p->out). Bounded time: far
+ * from the target additions only; when braking limits the motion, a 32 / 16-bit division, and
+ * a square root only when the target or the limits jumped; in S-curve mode three 64-bit
+ * divisions more for the outputs. Interrupt-safe: yes (it may be the tick interrupt), provided
+ * the other functions are not called concurrently. */
 const struct profile_out *profile_update(struct profile *p);
 
 /* 1 when the set point is on the target, at rest. Interrupt-safe: yes. */

@@ -63,6 +63,7 @@ struct proto {
 	uint8_t selected;    /* designation whose reply is ready in tx[], or PROTO_NONE */
 	uint8_t write_crc;   /* CRC-8 of address + every byte of the last write */
 	uint8_t restart_crc; /* 1 when the read continues that write (repeated start) */
+	uint8_t read_crc;    /* the read's PEC so far: that write if so, address, bytes sent */
 
 	/* Interrupt side: own-address starts, write or read, wrapping: the tick sees the master
 	 * alive when it changes (SET_TIMEOUT). */
@@ -107,11 +108,17 @@ void proto_on_write_start(struct proto *p);
  * whole at its end, so that a rejected frame changes nothing. Interrupt-safe: yes. */
 void proto_on_byte(struct proto *p, uint8_t byte);
 
+/* A repeated start on the bus, for a port whose I2C slave reports it (optional): a write in
+ * progress ends and is judged now, and its reply packed, so that the own address with the
+ * read bit that follows only starts sending. Interrupt-safe: yes. */
+void proto_on_restart(struct proto *p);
+
 /* The I2C slave saw its own address with the read bit. A write in progress (repeated start)
  * ends first. Interrupt-safe: yes. */
 void proto_on_read_start(struct proto *p);
 
-/* The next byte to send to the master; 0xFF past the reply and its PEC. Interrupt-safe: yes. */
+/* The next byte to send to the master; 0xFF past the reply and its PEC, and outside a read.
+ * Interrupt-safe: yes. */
 uint8_t proto_read_byte(struct proto *p);
 
 /* STOP on the bus: a write ends and is judged, a read ends and its selection is used up.

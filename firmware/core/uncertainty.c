@@ -1,163 +1,189 @@
-/* The error radius of the odometry's pose (see uncertainty.h and docs/odometry.md). */
+/* The error radius of the odometry's pose (see uncertainty.h and docs/odometry.md).
+ *
+ * Everything is 32-bit, in units coarse enough for the caps: x and y in 4 um, the heading in
+ * 2^-16 rad; the systematic integrals are exact 48-bit sums. The products are 32 x 16 bits (two
+ * of the 16 x 16 multiplications an AVR does fast). A batch is propagated in UNCERTAINTY_STAGES
+ * short stages, one per tick, so that no tick pays for a whole batch. The propagation rounds to
+ * nearest; every step from the variances to the radius rounds up, so that it stays a bound. */
 #include "uncertainty.h"
 
 #include <errno.h>
 
 #include "fixmath.h"
 
-/* Caps on the standard deviations: 2^18 um (262 mm, beyond any radius reported) and 2^18
- * heading units (0.25 rad). Past them the radius reads 255 and the covariance is frozen, which
- * keeps every product below in range. */
-#define SIGMA_CAP ((int64_t)1 << 18)
-#define VAR_CAP_Q16 (SIGMA_CAP * SIGMA_CAP * 65536)
-#define SYS_CAP ((int64_t)1 << 62)
-/* 2^32 / pi, 2 pi * 2^20, 2^32 / 1000. */
-#define INV_PI_Q32 1367130551LL
-#define TWO_PI_Q20 6588397LL
-#define INV_1000_Q32 4294968u
+#define VAR_CAP ((int32_t)1 << 30) /* xx, yy: sigma 2^15 units, 131 mm */
+#define TT_CAP ((int32_t)1 << 28)  /* tt: sigma 2^14 units, 0.25 rad */
+#define PATH_HALF_Q8 ((uint32_t)UNCERTAINTY_BATCH_PATH_UM << 7)
+/* A wheel's travel in a batch stays within the stages' 16-bit lengths [um * 2^8]: 32.7 mm. */
+#define WHEEL_MAX_Q8 ((uint32_t)0x7fff << 8)
+/* 2 pi * 2^16 [2^-16 rad per turn], 2^32 / (2 pi) [turn * 2^32 per rad]. */
+#define TWO_PI_Q16 411775u
+#define TURN32_PER_RAD 683565276u
 
-/* a * b / 2^n from the 128-bit product, rounded to nearest (up = 0) or away from zero (up = 1),
- * saturated to int64. The covariance terms multiply values whose product may pass 2^63 although
- * the result does not. */
-static int64_t mul_shr_any(int64_t a, int64_t b, uint8_t n, int up)
+enum stage {
+	STAGE_IDLE,
+	/* The batch as one arc: direction, displacement, noise. */
+	STAGE_DIRECTION,
+	STAGE_DISPLACEMENT,
+	STAGE_NOISE,
+	/* The systematic integrals. */
+	STAGE_W1,
+	STAGE_W2,
+	/* Fp Sigma Fp^T. */
+	STAGE_FP_XX,
+	STAGE_FP_XY,
+	STAGE_FP_YY,
+	/* Fd Q Fd^T. */
+	STAGE_UV,
+	STAGE_Q_XX,
+	STAGE_Q_YY,
+	STAGE_Q_XY,
+	STAGE_Q_XT,
+	STAGE_Q_YT,
+	STAGE_Q_TT,
+	/* The radius. */
+	STAGE_EIGEN,
+	STAGE_SIGMA,
+	STAGE_SYS_RATIO,
+	STAGE_SYS_TRACK,
+	STAGE_RADIUS,
+};
+
+typedef char uncertainty_stages_counted[(STAGE_RADIUS == UNCERTAINTY_STAGES) ? 1 : -1];
+
+static uint32_t mag32(int32_t v)
 {
-	const uint64_t m32 = 0xffffffffu;
-	int neg = (a < 0) != (b < 0);
-	uint64_t ua = a >= 0 ? (uint64_t)a : (uint64_t)0 - (uint64_t)a;
-	uint64_t ub = b >= 0 ? (uint64_t)b : (uint64_t)0 - (uint64_t)b;
-	uint64_t lo, hi, res;
-
-	if (((ua | ub) >> 32) == 0) {
-		/* Both below 2^32: the product fits in 64 bits (one multiplication, not four). */
-		lo = ua * ub;
-		hi = 0;
-	} else {
-		uint64_t ll = (ua & m32) * (ub & m32);
-		uint64_t lh = (ua & m32) * (ub >> 32);
-		uint64_t hl = (ua >> 32) * (ub & m32);
-		uint64_t hh = (ua >> 32) * (ub >> 32);
-		uint64_t mid = (ll >> 32) + (lh & m32) + (hl & m32);
-
-		lo = (ll & m32) | (mid << 32);
-		hi = hh + (lh >> 32) + (hl >> 32) + (mid >> 32);
-	}
-
-	if (n > 0) {
-		uint64_t bias = up ? ((uint64_t)1 << n) - 1 : (uint64_t)1 << (n - 1);
-
-		lo += bias;
-		if (lo < bias)
-			hi++;
-		res = (lo >> n) | (hi << (64 - n));
-		hi >>= n;
-	} else {
-		res = lo;
-	}
-	if (hi != 0 || res > (uint64_t)INT64_MAX)
-		return neg ? -INT64_MAX : INT64_MAX;
-	return neg ? -(int64_t)res : (int64_t)res;
+	return v >= 0 ? (uint32_t)v : (uint32_t)0 - (uint32_t)v;
 }
 
-static int64_t mul_shr64(int64_t a, int64_t b, uint8_t n)
+/* round(v / 2^15), ties away from zero (a shift of the magnitude: avr-gcc divides a signed
+ * value by 2^15 with a loop). */
+static int32_t q15_of(int32_t v)
 {
-	return mul_shr_any(a, b, n, 0);
+	int32_t r = (int32_t)fx_shr_u32(mag32(v) + 0x4000u, 15);
+
+	return v >= 0 ? r : -r;
 }
 
-/* num / den rounded up, num >= 0, den > 0: the systematic coefficients are bounds. */
-static int64_t div_up(int64_t num, int64_t den)
+/* a + b for the systematic integrals, saturating at +-INT32_MAX. */
+static int32_t sat_add(int32_t a, int32_t b)
+{
+	if (b > 0 && a > INT32_MAX - b)
+		return INT32_MAX;
+	if (b < 0 && a < -INT32_MAX - b)
+		return -INT32_MAX;
+	return a + b;
+}
+
+/* w += a b exactly (|b| <= 2^15): a 48-bit sum kept as hi 2^16 + lo, hi saturating. */
+static void add48(struct uncertainty_sum48 *w, int32_t a, int32_t b)
+{
+	uint32_t ua = mag32(a);
+	uint16_t ub = (uint16_t)mag32(b);
+	uint32_t lo = fx_mul_u16(fx_lo16(ua), ub);
+	int32_t hi = (int32_t)(fx_mul_u16(fx_hi16(ua), ub) + fx_hi16(lo)); /* below 2^31 */
+	uint32_t t;
+
+	if ((a < 0) != (b < 0)) {
+		t = 0x10000u + w->lo - fx_lo16(lo);
+		w->hi = sat_add(w->hi, -(hi + 1 - (int32_t)fx_hi16(t)));
+	} else {
+		t = (uint32_t)w->lo + fx_lo16(lo);
+		w->hi = sat_add(w->hi, hi + (int32_t)fx_hi16(t));
+	}
+	w->lo = fx_lo16(t);
+}
+
+/* A 48-bit sum as int64_t and back (a recalibration's projection, not the tick). */
+static int64_t int64_of48(const struct uncertainty_sum48 *w)
+{
+	return (int64_t)w->hi * 65536 + w->lo;
+}
+
+static void set48(struct uncertainty_sum48 *w, int64_t v)
+{
+	int64_t hi = v >= 0 ? v / 65536 : -((-v + 65535) / 65536);
+
+	w->hi = fx_sat32(hi);
+	w->lo = (uint16_t)(v - hi * 65536);
+}
+
+/* w = its part along l = (-s, c): (l . w) l, with the sine and cosine to 2^-15 (exact at the
+ * four cardinal directions), so that the products of the 48-bit sums fit 64 bits. */
+static void lateral48(struct uncertainty_sum48 w[2], int32_t s, int32_t c)
+{
+	int64_t s15 = fx_shr_round64(s, 15), c15 = fx_shr_round64(c, 15);
+	int64_t l = fx_shr_round64(-s15 * int64_of48(&w[0]) + c15 * int64_of48(&w[1]), 15);
+
+	set48(&w[0], fx_shr_round64(-l * s15, 15));
+	set48(&w[1], fx_shr_round64(l * c15, 15));
+}
+
+/* |w| / 2^16, rounded up. */
+static uint32_t mag48(const struct uncertainty_sum48 *w)
+{
+	if (w->hi < 0)
+		return mag32(w->hi);
+	return (uint32_t)w->hi + (w->lo != 0);
+}
+
+/* ceil(sqrt(v)). Digit by digit, shifts and adds only (no multiply, slow on an AVR). */
+static uint32_t isqrt_up(uint32_t v)
+{
+	uint32_t res = 0, rem = v;
+	uint32_t bit = (uint32_t)1 << 30;
+
+	while (bit > rem)
+		bit >>= 2;
+	while (bit != 0) {
+		if (rem >= res + bit) {
+			rem -= res + bit;
+			res = (res >> 1) + bit;
+		} else {
+			res >>= 1;
+		}
+		bit >>= 2;
+	}
+	return rem != 0 ? res + 1 : res;
+}
+
+/* An upper bound of |(x, y)| for magnitudes x, y: both halved (rounded up) until their squares
+ * add up in 32 bits, which keeps the result within 2^-14 of the true length, above it. */
+static uint32_t hypot_up(uint32_t ux, uint32_t uy)
+{
+	uint8_t j = 0;
+
+	if (uy == 0)
+		return ux;
+	if (ux == 0)
+		return uy;
+	while (ux >= 0x8000u || uy >= 0x8000u) {
+		ux = (ux >> 1) + (ux & 1u);
+		uy = (uy >> 1) + (uy & 1u);
+		j++;
+	}
+	return isqrt_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
+			fx_mul_u16((uint16_t)uy, (uint16_t)uy))
+	       << j;
+}
+
+/* ceil(v * c / 2^32). */
+static uint32_t mul_coef_up(uint32_t v, uint32_t c)
+{
+	uint32_t lo, hi = fx_mul_u32_wide(v, c, &lo);
+
+	return lo != 0 ? hi + 1 : hi;
+}
+
+/* ceil(num / den), 64-bit, configuration time. */
+static uint64_t div_up(uint64_t num, uint64_t den)
 {
 	return (num + den - 1) / den;
 }
 
-static int64_t sat_add(int64_t a, int64_t b)
+static uint32_t coef_q32(uint64_t c)
 {
-	int64_t s;
-
-	if (b > 0 && a > SYS_CAP - b)
-		return SYS_CAP;
-	if (b < 0 && a < -SYS_CAP - b)
-		return -SYS_CAP;
-	s = a + b;
-	return s;
-}
-
-static uint64_t isqrt_up(uint64_t v)
-{
-	uint64_t r = fx_isqrt64(v);
-
-	return r * r < v ? r + 1 : r;
-}
-
-static uint64_t magnitude(int64_t v)
-{
-	return v >= 0 ? (uint64_t)v : (uint64_t)0 - (uint64_t)v;
-}
-
-/* An upper bound of |(x, y)|: halving (rounded up) until the squares fit keeps it a bound. */
-static uint64_t hypot_up(int64_t x, int64_t y)
-{
-	uint64_t ux = magnitude(x), uy = magnitude(y);
-	uint8_t j = 0;
-
-	while (ux >= ((uint64_t)1 << 31) || uy >= ((uint64_t)1 << 31)) {
-		ux = (ux + 1) >> 1;
-		uy = (uy + 1) >> 1;
-		j++;
-	}
-	return isqrt_up(ux * ux + uy * uy) << j;
-}
-
-/* sqrt of the largest eigenvalue of the xy block [um], rounded up:
- * lambda = (a + c + |(a - c, 2 b)|) / 2, with a, c, |b| <= 2^36 um^2 under the caps. */
-static uint64_t sigma_max_um(const struct uncertainty *u)
-{
-	int64_t a = (u->xx + 0xffff) / 65536;
-	int64_t c = (u->yy + 0xffff) / 65536;
-	int64_t b = (int64_t)((magnitude(u->xy) + 0xffffu) >> 16);
-	uint64_t lambda2;
-
-	/* Rounding may leave a variance a hair below zero. */
-	if (a < 0)
-		a = 0;
-	if (c < 0)
-		c = 0;
-	lambda2 = (uint64_t)a + (uint64_t)c + hypot_up(a - c, 2 * b);
-	return isqrt_up((lambda2 + 1) >> 1);
-}
-
-static void refresh_radius(struct uncertainty *u)
-{
-	uint64_t r_um;
-
-	if (u->saturated) {
-		u->radius_mm = UNCERTAINTY_RADIUS_MAX_MM;
-		return;
-	}
-	/* Systematic worst case (first order in the parameter errors), rounded up. */
-	r_um = (uint64_t)mul_shr_any((int64_t)hypot_up(u->w1[0], u->w1[1]), u->ratio_coef_q60, 60,
-				     1) +
-	       (uint64_t)mul_shr_any((int64_t)hypot_up(u->w2[0], u->w2[1]), u->track_coef_q60, 60,
-				     1) +
-	       (uint64_t)mul_shr_any((int64_t)hypot_up(u->d[0], u->d[1]), u->scale_coef_q60, 60, 1);
-	r_um += (sigma_max_um(u) * u->cfg.k_q8 + 255) >> 8;
-	if (r_um >= (uint64_t)UNCERTAINTY_RADIUS_MAX_MM * 1000) {
-		u->radius_mm = UNCERTAINTY_RADIUS_MAX_MM;
-		return;
-	}
-	/* ceil(r / 1000) with a reciprocal, exact below 2^19. */
-	u->radius_mm = (uint8_t)(((r_um + 999) * INV_1000_Q32) >> 32);
-}
-
-/* sigma^2 [unit^2 * 2^16] of a bound at the configured probability, sigma = bound / k. */
-static int64_t var_of_bound(struct uncertainty *u, uint64_t bound)
-{
-	uint64_t sigma = (bound * 256) / u->cfg.k_q8;
-
-	if (sigma > (uint64_t)SIGMA_CAP) {
-		u->saturated = 1;
-		return VAR_CAP_Q16;
-	}
-	return (int64_t)(sigma * sigma) * 65536;
+	return c > 0xffffffffu ? 0xffffffffu : (uint32_t)c;
 }
 
 static int config_valid(const struct uncertainty_config *cfg)
@@ -170,26 +196,68 @@ static int config_valid(const struct uncertainty_config *cfg)
 	       cfg->batch_ticks <= UNCERTAINTY_BATCH_TICKS_MAX;
 }
 
-/* Reciprocals computed once so that the batch update multiplies only. */
+/* Constants of the configuration, so that the stages multiply only. The systematic
+ * coefficients are rounded up (above 1 um per unit they saturate: a larger bound). */
 static void derive(struct uncertainty *u)
 {
-	int64_t b = u->cfg.track_um;
-	int64_t ratio = div_up((int64_t)u->cfg.ratio_error_ppm << 40, 1000000);
-	int64_t track = div_up((int64_t)u->cfg.track_error_um << 30, b);
+	uint64_t b = u->cfg.track_um;
+	uint64_t g = ((uint64_t)1 << 30) / b;
 
-	u->inv_track_q44 = fx_div_round64((int64_t)1 << 44, b);
-	u->ratio_coef_q60 = div_up(ratio << 20, b);
-	u->track_coef_q60 = div_up(track << 30, b);
-	u->scale_coef_q60 = div_up((int64_t)u->cfg.scale_error_ppm << 40, 1000000) << 20;
+	u->turn_per_um = (uint16_t)((((uint64_t)TURN32_PER_RAD << 16) / b + 0x8000u) >> 16);
+	u->inv_track_q28 = (uint16_t)(((uint64_t)1 << 28) / b);
+	u->g_q12 = (uint16_t)(g > 0xffffu ? 0xffffu : g);
+	/* |w1|, |w2| in 2^14 um^2: ratio / b and track / b^2 per unit, in [um * 2^-32]. */
+	u->ratio_coef_q32 =
+		coef_q32(div_up(div_up((uint64_t)u->cfg.ratio_error_ppm << 32, 1000000) << 14, b));
+	u->track_coef_q32 =
+		coef_q32(div_up(div_up((uint64_t)u->cfg.track_error_um << 31, b) << 15, b));
+	u->scale_coef_q32 = coef_q32(div_up((uint64_t)u->cfg.scale_error_ppm << 32, 1000000));
 }
 
-static void clear_batch(struct uncertainty *u)
+static void clear_batch(struct uncertainty_batch *b)
 {
-	u->batch_left_q16 = 0;
-	u->batch_right_q16 = 0;
-	u->batch_abs_left_q16 = 0;
-	u->batch_abs_right_q16 = 0;
-	u->batch_n = 0;
+	b->left_q8 = 0;
+	b->right_q8 = 0;
+	b->abs_left_q8 = 0;
+	b->abs_right_q8 = 0;
+	b->ticks = 0;
+}
+
+/* sigma^2 of a bound at the configured probability, sigma = bound / k, in the covariance's
+ * unit: for a position (pos = 1) sigma rounded down to the um (a bound of 2 mm reads 2 mm),
+ * the variance in [(4 um)^2]; for a heading sigma rounded up to the unit of 2^-16 rad (which is
+ * coarse: the bound read back must not be below the one set). */
+static int32_t var_of_bound(struct uncertainty *u, uint32_t bound, uint8_t pos, int32_t cap)
+{
+	uint64_t sigma = (((uint64_t)bound << 8) + (pos ? 0 : u->cfg.k_q8 - 1u)) / u->cfg.k_q8;
+	uint64_t var =
+		pos ? (sigma * sigma) / (UNCERTAINTY_POS_UM * UNCERTAINTY_POS_UM) : sigma * sigma;
+
+	if (var > (uint64_t)cap) {
+		u->saturated = 1;
+		return cap;
+	}
+	return (int32_t)var;
+}
+
+/* A heading bound [turn * 2^32] in [2^-16 rad], rounded up. */
+static uint32_t heading_units(uint32_t bound_turn32)
+{
+	return (uint32_t)(((uint64_t)bound_turn32 * TWO_PI_Q16 + 0xffffffffu) >> 32);
+}
+
+static void run_stage(struct uncertainty *u);
+
+/* After a reset the radius is refreshed at once: the batch in flight is finished, then the
+ * last stages run, all in this call. A recalibration's tick pays for up to a whole batch (a few
+ * per match), so that the master reading POSITION when the order ends sees the new radius. */
+static void request_radius(struct uncertainty *u)
+{
+	while (u->stage != STAGE_IDLE)
+		run_stage(u);
+	u->stage = STAGE_EIGEN;
+	while (u->stage != STAGE_IDLE)
+		run_stage(u);
 }
 
 int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg)
@@ -208,32 +276,41 @@ int uncertainty_set_config(struct uncertainty *u, const struct uncertainty_confi
 		return -EDOM;
 	u->cfg = *cfg;
 	derive(u);
-	refresh_radius(u);
+	request_radius(u);
 	return 0;
 }
 
 void uncertainty_reset(struct uncertainty *u, uint32_t radius_um, uint32_t heading_turn32)
 {
 	u->saturated = 0;
-	u->xx = var_of_bound(u, radius_um);
+	u->xx = var_of_bound(u, radius_um, 1, VAR_CAP);
 	u->yy = u->xx;
 	u->xy = 0;
 	u->xt = 0;
 	u->yt = 0;
-	u->tt = var_of_bound(u, ((uint64_t)heading_turn32 * TWO_PI_Q20 + 0xffffffffu) >> 32);
-	u->travel_q17 = 0;
-	u->turn_q16 = 0;
-	u->w1[0] = u->w1[1] = 0;
-	u->w2[0] = u->w2[1] = 0;
-	u->d[0] = u->d[1] = 0;
-	clear_batch(u);
-	refresh_radius(u);
+	u->tt = var_of_bound(u, heading_units(heading_turn32), 0, TT_CAP);
+	u->travel2_um = 0;
+	u->turn_um = 0;
+	for (int i = 0; i < 2; i++) {
+		u->w1[i].hi = 0;
+		u->w1[i].lo = 0;
+		u->w2[i].hi = 0;
+		u->w2[i].lo = 0;
+		u->d[i] = 0;
+	}
+	clear_batch(&u->acc);
+	u->stage = STAGE_IDLE;
+	u->radius_um = radius_um;
+	/* What the covariance gives back, but without its rounding: the bound that was set. */
+	u->radius_mm = u->saturated || radius_um > (uint32_t)UNCERTAINTY_RADIUS_MAX_MM * 1000
+			       ? UNCERTAINTY_RADIUS_MAX_MM
+			       : (uint8_t)((radius_um + 999) / 1000);
 }
 
 void uncertainty_reset_axis(struct uncertainty *u, enum uncertainty_axis axis, uint32_t bound_um)
 {
 	int i = axis == UNCERTAINTY_AXIS_X ? 0 : 1;
-	int64_t v = var_of_bound(u, bound_um);
+	int32_t v = var_of_bound(u, bound_um, 1, VAR_CAP);
 
 	/* Dropping the correlations leaves the other coordinate's variance as it was, larger than
 	 * its variance given this one: conservative. */
@@ -245,161 +322,444 @@ void uncertainty_reset_axis(struct uncertainty *u, enum uncertainty_axis axis, u
 		u->yt = 0;
 	}
 	u->xy = 0;
-	u->w1[i] = 0;
-	u->w2[i] = 0;
+	u->w1[i].hi = 0;
+	u->w1[i].lo = 0;
+	u->w2[i].hi = 0;
+	u->w2[i].lo = 0;
 	u->d[i] = 0;
-	refresh_radius(u);
+	request_radius(u);
 }
 
 void uncertainty_reset_heading(struct uncertainty *u, uint32_t bound_turn32)
 {
-	u->tt = var_of_bound(u, ((uint64_t)bound_turn32 * TWO_PI_Q20 + 0xffffffffu) >> 32);
+	u->tt = var_of_bound(u, heading_units(bound_turn32), 0, TT_CAP);
 	u->xt = 0;
 	u->yt = 0;
-	u->travel_q17 = 0;
-	u->turn_q16 = 0;
-	refresh_radius(u);
+	u->travel2_um = 0;
+	u->turn_um = 0;
+	request_radius(u);
 }
 
-/* a * b / 2^30 for a unit vector component b [2^-30]. */
-static int64_t mul_unit(int64_t a, int32_t b)
+/* The covariance turned into (along, lateral) coordinates of a direction, the along variance set
+ * from the bound and its correlations dropped, the lateral variance and the lateral-heading
+ * covariance kept. In 64 bits with the Q30 sine and cosine: it runs at a recalibration, not
+ * every tick. */
+static int32_t round_q30(int64_t v)
 {
-	return mul_shr64(a, b, 30);
+	return fx_sat32(fx_shr_round64(v, 30));
+}
+
+/* The along variance set to r; with cap, only when it is larger than r (the lateral unit vector
+ * is then the direction itself turned a quarter: l^T S l is the along variance of the turned
+ * direction). Returns 0 when nothing was changed. */
+static int set_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um, int cap)
+{
+	int32_t s, c;
+	int64_t r = var_of_bound(u, bound_um, 1, VAR_CAP);
+	int64_t ss, cc, cs, lat, lt, along;
+
+	fx_sincos(direction_turn32, &s, &c);
+	ss = fx_shr_round64((int64_t)s * s, 30);
+	cc = fx_shr_round64((int64_t)c * c, 30);
+	cs = fx_shr_round64((int64_t)c * s, 30);
+	along = fx_shr_round64(cc * u->xx + 2 * cs * u->xy + ss * u->yy, 30);
+	if (cap && along <= r)
+		return 0;
+	/* Lateral unit vector l = (-s, c): l^T S l and the lateral-heading covariance. Dropping the
+	 * along-lateral correlation leaves the lateral variance larger than it would be given the
+	 * measurement: conservative. */
+	lat = fx_shr_round64(ss * u->xx - 2 * cs * u->xy + cc * u->yy, 30);
+	if (lat < 0)
+		lat = 0;
+	lt = fx_shr_round64(-(int64_t)s * u->xt + (int64_t)c * u->yt, 30);
+	u->xx = round_q30(r * cc + lat * ss);
+	u->yy = round_q30(r * ss + lat * cc);
+	u->xy = round_q30((r - lat) * cs);
+	u->xt = round_q30(-lt * s);
+	u->yt = round_q30(lt * c);
+	/* The systematic terms keep their lateral part. */
+	{
+		int64_t l = fx_shr_round64(-(int64_t)s * u->d[0] + (int64_t)c * u->d[1], 30);
+
+		u->d[0] = round_q30(-l * s);
+		u->d[1] = round_q30(l * c);
+	}
+	lateral48(u->w1, s, c);
+	lateral48(u->w2, s, c);
+	request_radius(u);
+	return 1;
 }
 
 void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um)
 {
-	int32_t s, c;
-	int64_t r = var_of_bound(u, bound_um);
-	int64_t lat, lt, cs;
-	int64_t *vec[3] = {u->w1, u->w2, u->d};
+	set_along(u, direction_turn32, bound_um, 0);
+}
 
-	fx_sincos(direction_turn32, &s, &c);
-	/* Lateral unit vector l = (-s, c): the lateral variance l^T S l and the lateral-heading
-	 * covariance. The along ones are replaced; dropping the along-lateral correlation leaves
-	 * the lateral variance larger than it would be given the measurement: conservative. */
-	lat = mul_unit(mul_unit(u->xx, s), s) - 2 * mul_unit(mul_unit(u->xy, c), s) +
-	      mul_unit(mul_unit(u->yy, c), c);
-	if (lat < 0)
-		lat = 0;
-	lt = -mul_unit(u->xt, s) + mul_unit(u->yt, c);
-	cs = mul_shr64(c, s, 30);
-	u->xx = mul_unit(mul_unit(r, c), c) + mul_unit(mul_unit(lat, s), s);
-	u->yy = mul_unit(mul_unit(r, s), s) + mul_unit(mul_unit(lat, c), c);
-	u->xy = mul_unit(r - lat, (int32_t)cs);
-	u->xt = -mul_unit(lt, s);
-	u->yt = mul_unit(lt, c);
-	/* Rounding may leave a hair below the exact values: the radius rounds up anyway. */
-	for (uint8_t i = 0; i < 3; i++) {
-		int64_t *v = vec[i];
-		int64_t l = -mul_unit(v[0], s) + mul_unit(v[1], c);
-
-		v[0] = -mul_unit(l, s);
-		v[1] = mul_unit(l, c);
-	}
-	refresh_radius(u);
+int uncertainty_cap_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um)
+{
+	return set_along(u, direction_turn32, bound_um, 1);
 }
 
 uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u)
 {
-	/* sigma [rad * 2^20] = sqrt(tt / 2^16); bound = k sigma; turn32 = rad * 2^32 / (2 pi). */
-	uint64_t sigma = isqrt_up((uint64_t)(u->tt > 0 ? u->tt : 0) >> 16);
-	uint64_t bound = (sigma * u->cfg.k_q8 + 255) >> 8; /* [rad * 2^20] */
+	/* sigma [2^-16 rad] = sqrt(tt); bound = k sigma, rounded up; turn32 = rad 2^32 / (2 pi):
+	 * 2^16 / (2 pi) = 10430.4 per unit, 10431 rounds up. */
+	uint32_t sigma = isqrt_up((uint32_t)(u->tt > 0 ? u->tt : 0));
+	uint32_t ks = sigma * u->cfg.k_q8; /* sigma <= 2^14 under the cap */
+	uint32_t bound = (ks + 255) >> 8;
 
-	if (u->saturated || bound >= ((uint64_t)1 << 22))
+	if (u->saturated || bound >= 205887u) /* beyond half a turn */
 		return (uint32_t)1 << 31;
-	/* 2^12 / (2 pi) = 651.9 per rad * 2^20 -> turn * 2^32: 652 rounds up. */
-	return (uint32_t)(bound * 652);
+	return bound * 10431u;
 }
 
-/* One covariance step over the batch, taken as one arc: Sigma' = Fp Sigma Fp^T + Fd Q Fd^T with
- * Q = diag(kR |dsR|, kL |dsL|) (Chong & Kleeman 1997, eq. for the circular-arc model; Kelly
- * 2000, section 3). h = 1/(2b), u = (dx, dy) h, g = 2^20 / b heading units per um. */
-static void propagate(struct uncertainty *u, uint32_t heading_end_turn32)
+/* Travel [um * 2^8] rounded to um, and clamped to 16 bits (32 mm: a batch is shorter). */
+static int32_t um_of_q8(int32_t v)
 {
-	int64_t both = u->batch_left_q16 + u->batch_right_q16;
-	int64_t diff = u->batch_right_q16 - u->batch_left_q16;
-	int64_t dtheta_q30 = mul_shr64(diff, u->inv_track_q44, 30); /* [rad * 2^30] */
-	uint32_t mid =
-		heading_end_turn32 - (uint32_t)fx_sat32(mul_shr64(dtheta_q30, INV_PI_Q32, 32));
-	int32_t s, c;
-	int64_t ds_um = fx_shr_round64(both, 17);
-	int64_t dx, dy, ux, uy, g, qr, ql, qp, qm, mx, my, xt, yt, t, s_mid, r_mid;
+	uint32_t m = (mag32(v) + 0x80u) >> 8;
+	int32_t r = m > 0x7fffu ? 0x7fff : (int32_t)m;
 
-	fx_sincos(mid, &s, &c);
-	dx = fx_shr_round64(ds_um * c, 30);
-	dy = fx_shr_round64(ds_um * s, 30);
+	return v >= 0 ? r : -r;
+}
 
-	/* Systematic: first-order position error per unit parameter error, integrated along the
-	 * path with the heading error at the batch's midpoint. */
-	s_mid = fx_shr_round64(2 * u->travel_q17 + both, 18);
-	r_mid = fx_shr_round64(2 * u->turn_q16 + diff, 17);
-	u->w1[0] = sat_add(u->w1[0], -s_mid * dy);
-	u->w1[1] = sat_add(u->w1[1], s_mid * dx);
-	u->w2[0] = sat_add(u->w2[0], -r_mid * dy);
-	u->w2[1] = sat_add(u->w2[1], r_mid * dx);
-	u->d[0] = sat_add(u->d[0], dx);
-	u->d[1] = sat_add(u->d[1], dy);
-	u->travel_q17 = sat_add(u->travel_q17, both);
-	u->turn_q16 = sat_add(u->turn_q16, diff);
+static int16_t clamp16(int32_t v)
+{
+	return fx_sat16(v);
+}
 
-	if (u->saturated)
-		return;
+/* The batch as one arc through its mean heading; directions to 16 bits are plenty for an error
+ * model. */
+static void stage_direction(struct uncertainty *u)
+{
+	const struct uncertainty_batch *b = &u->run;
+	int32_t lum = um_of_q8(b->left_q8), rum = um_of_q8(b->right_q8);
+	/* [turn * 2^32]; a batch's heading change is far below a quarter turn (clamped). */
+	int32_t dtheta = fx_mul_s16_u16(clamp16(rum - lum), u->turn_per_um);
 
-	/* Fp Sigma Fp^T, with Fp = [1 0 -dy/2^20; 0 1 dx/2^20; 0 0 1]. */
-	t = u->tt;
-	xt = u->xt;
-	yt = u->yt;
-	mx = mul_shr64(dx, t, 20);
-	my = mul_shr64(dy, t, 20);
-	u->xx += -2 * mul_shr64(dy, xt, 20) + mul_shr64(dy, my, 20);
-	u->xy += mul_shr64(dx, xt, 20) - mul_shr64(dy, yt, 20) - mul_shr64(dx, my, 20);
-	u->yy += 2 * mul_shr64(dx, yt, 20) + mul_shr64(dx, mx, 20);
-	u->xt = xt - my;
-	u->yt = yt + mx;
+	u->s2_um = lum + rum;
+	u->diff_um = rum - lum;
+	fx_sincos_q14(b->heading_turn32 - (uint32_t)(dtheta / 2), &u->s_q14, &u->c_q14);
+}
 
-	/* Fd Q Fd^T with the columns (c/2 - uy, s/2 + ux, g) and (c/2 + uy, s/2 - ux, -g). */
-	qr = mul_shr64(u->cfg.noise_right_mm2_per_m_q16, u->batch_abs_right_q16, 16);
-	ql = mul_shr64(u->cfg.noise_left_mm2_per_m_q16, u->batch_abs_left_q16, 16);
-	qp = qr + ql;
-	qm = qr - ql;
-	ux = mul_shr64(dx, u->inv_track_q44, 15); /* [2^-30] */
-	uy = mul_shr64(dy, u->inv_track_q44, 15);
-	g = u->inv_track_q44 * 64; /* [heading units per um * 2^30] */
-	u->xx += mul_shr64(qp, fx_shr_round64((int64_t)c * c, 32) + mul_shr64(uy, uy, 30), 30) -
-		 mul_shr64(qm, mul_shr64(c, uy, 30), 30);
-	u->xy += mul_shr64(qp, fx_shr_round64((int64_t)c * s, 32) - mul_shr64(ux, uy, 30), 30) +
-		 mul_shr64(qm, mul_shr64(c, ux, 30) - mul_shr64(s, uy, 30), 31);
-	u->yy += mul_shr64(qp, fx_shr_round64((int64_t)s * s, 32) + mul_shr64(ux, ux, 30), 30) +
-		 mul_shr64(qm, mul_shr64(s, ux, 30), 30);
-	u->xt += mul_shr64(g, mul_shr64(qm, c, 31) - mul_shr64(qp, uy, 30), 30);
-	u->yt += mul_shr64(g, mul_shr64(qm, s, 31) + mul_shr64(qp, ux, 30), 30);
-	u->tt += mul_shr64(mul_shr64(qp, g, 30), g, 30);
+static void stage_displacement(struct uncertainty *u)
+{
+	u->dx_um = clamp16(fx_mul_q(u->s2_um, u->c_q14, 15));
+	u->dy_um = clamp16(fx_mul_q(u->s2_um, u->s_q14, 15));
+}
 
-	if (u->xx > VAR_CAP_Q16 || u->yy > VAR_CAP_Q16 || u->tt > VAR_CAP_Q16)
+/* The noise of the batch's wheel travels, Var = k |ds| (Chong & Kleeman): k [um^2/um * 2^16]
+ * |ds| [um] / 16 [(4 um)^2]. */
+static void stage_noise(struct uncertainty *u)
+{
+	const struct uncertainty_batch *b = &u->run;
+	int32_t qr = fx_mul_q((int32_t)u->cfg.noise_right_mm2_per_m_q16,
+			      um_of_q8((int32_t)b->abs_right_q8), 20);
+	int32_t ql = fx_mul_q((int32_t)u->cfg.noise_left_mm2_per_m_q16,
+			      um_of_q8((int32_t)b->abs_left_q8), 20);
+
+	u->qp = qr + ql;
+	u->qm = qr - ql;
+}
+
+/* First-order position error per unit parameter error, integrated along the path with the
+ * heading error at the batch's midpoint (exact on straight lines), in exact integers: 4 times the
+ * midpoint's travel and right - left travel [um] times the displacement [um]. */
+static void stage_w1(struct uncertainty *u)
+{
+	int32_t s4 = sat_add(sat_add(u->travel2_um, u->travel2_um), u->s2_um);
+
+	add48(&u->w1[0], -s4, u->dy_um);
+	add48(&u->w1[1], s4, u->dx_um);
+	u->travel2_um = sat_add(u->travel2_um, u->s2_um);
+}
+
+static void stage_w2(struct uncertainty *u)
+{
+	int32_t r4 = sat_add(sat_add(u->turn_um, u->turn_um), u->diff_um);
+
+	r4 = sat_add(r4, r4);
+	add48(&u->w2[0], -r4, u->dy_um);
+	add48(&u->w2[1], r4, u->dx_um);
+	u->d[0] = sat_add(u->d[0], u->dx_um);
+	u->d[1] = sat_add(u->d[1], u->dy_um);
+	u->turn_um = sat_add(u->turn_um, u->diff_um);
+}
+
+/* Fp Sigma Fp^T, Fp = [1 0 -DY; 0 1 DX; 0 0 1] with (DX, DY) the displacement [4 um] per 2^16
+ * heading units. xx, xy and yy take the old xt, yt; those change last. m = (DX, DY) tt. */
+static void stage_fp_xx(struct uncertainty *u)
+{
+	int32_t dy = u->dy_um / UNCERTAINTY_POS_UM;
+
+	u->my = fx_mul_q(u->tt, dy, 16);
+	u->xx += -2 * fx_mul_q(u->xt, dy, 16) + fx_mul_q(u->my, dy, 16);
+}
+
+static void stage_fp_xy(struct uncertainty *u)
+{
+	int32_t dx = u->dx_um / UNCERTAINTY_POS_UM, dy = u->dy_um / UNCERTAINTY_POS_UM;
+
+	u->xy += fx_mul_q(u->xt, dx, 16) - fx_mul_q(u->yt, dy, 16) - fx_mul_q(u->my, dx, 16);
+}
+
+static void stage_fp_yy(struct uncertainty *u)
+{
+	int32_t dx = u->dx_um / UNCERTAINTY_POS_UM;
+	int32_t mx = fx_mul_q(u->tt, dx, 16);
+
+	u->yy += 2 * fx_mul_q(u->yt, dx, 16) + fx_mul_q(mx, dx, 16);
+	u->xt -= u->my;
+	u->yt += mx;
+}
+
+/* Fd Q Fd^T with the columns (C - U, S + V, G) and (C + U, S - V, -G) per 4 um of wheel
+ * travel: C, S = cos, sin / 2 and U, V = (dy, dx) / (2 b) [2^-15] (the Q14 cosine read as Q15
+ * is half of it), G the heading per 4 um of right - left travel [2^-16 rad]. Chong & Kleeman
+ * 1997, Kelly 2000 section 3. The squares and products [2^-30] are taken to 2^-15. */
+static void stage_uv(struct uncertainty *u)
+{
+	u->u_q15 = clamp16(fx_mul_q(u->dy_um, u->inv_track_q28, 14));
+	u->v_q15 = clamp16(fx_mul_q(u->dx_um, u->inv_track_q28, 14));
+}
+
+static void stage_q_xx(struct uncertainty *u)
+{
+	int16_t c = u->c_q14;
+
+	u->xx += fx_mul_q(u->qp, q15_of(fx_mul_s16(c, c) + fx_mul_s16(u->u_q15, u->u_q15)), 15) -
+		 2 * fx_mul_q(u->qm, q15_of(fx_mul_s16(c, u->u_q15)), 15);
+}
+
+static void stage_q_yy(struct uncertainty *u)
+{
+	int16_t s = u->s_q14;
+
+	u->yy += fx_mul_q(u->qp, q15_of(fx_mul_s16(s, s) + fx_mul_s16(u->v_q15, u->v_q15)), 15) +
+		 2 * fx_mul_q(u->qm, q15_of(fx_mul_s16(s, u->v_q15)), 15);
+}
+
+static void stage_q_xy(struct uncertainty *u)
+{
+	int16_t c = u->c_q14, s = u->s_q14;
+
+	u->xy += fx_mul_q(u->qp, q15_of(fx_mul_s16(c, s) - fx_mul_s16(u->u_q15, u->v_q15)), 15) +
+		 fx_mul_q(u->qm, q15_of(fx_mul_s16(c, u->v_q15) - fx_mul_s16(u->u_q15, s)), 15);
+}
+
+static void stage_q_xt(struct uncertainty *u)
+{
+	int32_t e = fx_mul_q(u->qm, u->c_q14, 15) - fx_mul_q(u->qp, u->u_q15, 15); /* [4 um] */
+
+	u->xt += fx_mul_q(e, u->g_q12, 12);
+}
+
+static void stage_q_yt(struct uncertainty *u)
+{
+	int32_t e = fx_mul_q(u->qm, u->s_q14, 15) + fx_mul_q(u->qp, u->v_q15, 15);
+
+	u->yt += fx_mul_q(e, u->g_q12, 12);
+}
+
+static void stage_q_tt(struct uncertainty *u)
+{
+	u->tt += fx_mul_q(fx_mul_q(u->qp, u->g_q12, 12), u->g_q12, 12);
+	if (u->xx > VAR_CAP || u->yy > VAR_CAP || u->tt > TT_CAP)
 		u->saturated = 1;
+}
+
+/* The largest eigenvalue of the xy block, lambda = (a + c + |(a - c, 2 b)|) / 2: the length
+ * first (rounded up), then lambda and sigma. */
+static void stage_eigen(struct uncertainty *u)
+{
+	int32_t a = u->xx > 0 ? u->xx : 0, c = u->yy > 0 ? u->yy : 0;
+	uint32_t b = mag32(u->xy);
+
+	u->h = hypot_up(mag32(a - c), b > 0x7fffffffu ? 0xfffffffeu : 2 * b);
+}
+
+/* k sigma_max [um], rounded up at every step. */
+static void stage_sigma(struct uncertainty *u)
+{
+	int32_t a = u->xx > 0 ? u->xx : 0, c = u->yy > 0 ? u->yy : 0;
+	uint32_t h = u->h;
+	/* ceil((a + c + h) / 2), a sum that may pass 2^32 */
+	uint32_t lambda = ((uint32_t)a >> 1) + ((uint32_t)c >> 1) + (h >> 1) +
+			  (((uint32_t)a & 1u) + ((uint32_t)c & 1u) + (h & 1u) + 1u) / 2;
+	uint32_t sigma, ks;
+
+	/* k sigma [um], rounded up: sigma to 1/4 um while it is below 16 mm, where the mm of the
+	 * radius depends on it; to 4 um above. */
+	if (lambda < ((uint32_t)1 << 24)) {
+		sigma = isqrt_up(lambda << 8); /* [2^-2 um] */
+		ks = fx_mul_u16((uint16_t)sigma, u->cfg.k_q8);
+		u->radius_um = fx_shr_u32(ks, 10) + ((ks & 1023u) != 0);
+		return;
+	}
+	sigma = isqrt_up(lambda); /* [4 um] */
+	if (sigma >= 0x10000u) {
+		u->radius_um = 0xffffffffu;
+		return;
+	}
+	ks = fx_mul_u16((uint16_t)sigma, u->cfg.k_q8);
+	u->radius_um = fx_shr_u32(ks, 6) + ((ks & 63u) != 0);
+}
+
+/* The systematic worst case over the allowed parameters (triangle inequality), one term per
+ * stage, added to k sigma; each term is below 2^32 (a length times at most 1). */
+static void add_systematic(struct uncertainty *u, uint32_t x, uint32_t y, uint32_t coef)
+{
+	if (u->radius_um < (uint32_t)UNCERTAINTY_RADIUS_MAX_MM * 1000)
+		u->radius_um += mul_coef_up(hypot_up(x, y), coef);
+}
+
+/* The radius in mm, rounded up: ceil(r / 1000) by binary subtraction (r < 255 mm). */
+static void stage_radius(struct uncertainty *u)
+{
+	uint32_t r = u->radius_um;
+	uint32_t k = (uint32_t)1000 << 7;
+	uint8_t mm = 0, bit = 128;
+
+	add_systematic(u, mag32(u->d[0]), mag32(u->d[1]), u->scale_coef_q32);
+	r = u->radius_um;
+	if (u->saturated || r >= (uint32_t)UNCERTAINTY_RADIUS_MAX_MM * 1000) {
+		u->radius_mm = UNCERTAINTY_RADIUS_MAX_MM;
+		return;
+	}
+	while (bit != 0) {
+		if (r >= k) {
+			r -= k;
+			mm |= bit;
+		}
+		k >>= 1;
+		bit >>= 1;
+	}
+	u->radius_mm = r != 0 ? (uint8_t)(mm + 1) : mm;
+}
+
+FX_NOINLINE static void run_stage(struct uncertainty *u)
+{
+	switch (u->stage) {
+	case STAGE_DIRECTION:
+		stage_direction(u);
+		break;
+	case STAGE_DISPLACEMENT:
+		stage_displacement(u);
+		break;
+	case STAGE_NOISE:
+		stage_noise(u);
+		break;
+	case STAGE_W1:
+		stage_w1(u);
+		break;
+	case STAGE_W2:
+		stage_w2(u);
+		/* Past a cap the covariance is frozen (the radius reads 255): no more products. */
+		if (u->saturated)
+			u->stage = STAGE_RADIUS - 1;
+		break;
+	case STAGE_FP_XX:
+		stage_fp_xx(u);
+		break;
+	case STAGE_FP_XY:
+		stage_fp_xy(u);
+		break;
+	case STAGE_FP_YY:
+		stage_fp_yy(u);
+		break;
+	case STAGE_UV:
+		stage_uv(u);
+		break;
+	case STAGE_Q_XX:
+		stage_q_xx(u);
+		break;
+	case STAGE_Q_YY:
+		stage_q_yy(u);
+		break;
+	case STAGE_Q_XY:
+		stage_q_xy(u);
+		break;
+	case STAGE_Q_XT:
+		stage_q_xt(u);
+		break;
+	case STAGE_Q_YT:
+		stage_q_yt(u);
+		break;
+	case STAGE_Q_TT:
+		stage_q_tt(u);
+		break;
+	case STAGE_EIGEN:
+		stage_eigen(u);
+		break;
+	case STAGE_SIGMA:
+		stage_sigma(u);
+		break;
+	case STAGE_SYS_RATIO:
+		add_systematic(u, mag48(&u->w1[0]), mag48(&u->w1[1]), u->ratio_coef_q32);
+		break;
+	case STAGE_SYS_TRACK:
+		add_systematic(u, mag48(&u->w2[0]), mag48(&u->w2[1]), u->track_coef_q32);
+		break;
+	case STAGE_RADIUS:
+		stage_radius(u);
+		u->stage = STAGE_IDLE;
+		return;
+	default:
+		return;
+	}
+	u->stage++;
+}
+
+/* Hands the accumulated batch to the stages (finishing the one in flight first if there is one).
+ * A batch without travel propagates nothing: Fp is the identity, the noise is zero. */
+FX_NOINLINE static void start_batch(struct uncertainty *u)
+{
+	while (u->stage != STAGE_IDLE)
+		run_stage(u);
+	if (u->acc.abs_left_q8 != 0 || u->acc.abs_right_q8 != 0) {
+		u->run = u->acc;
+		u->stage = STAGE_DIRECTION;
+	}
+	clear_batch(&u->acc);
+}
+
+/* Travel [um * 2^16] to [um * 2^8], rounded: the error model needs no more, and the batch's
+ * sums then hold 8.4 m. */
+static int32_t q8_of_q16(int32_t v)
+{
+	int32_t r = (int32_t)((mag32(v) + 0x80u) >> 8);
+
+	return v >= 0 ? r : -r;
 }
 
 void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q16,
 			uint32_t heading_turn32)
 {
-	u->batch_left_q16 += left_q16;
-	u->batch_right_q16 += right_q16;
-	u->batch_abs_left_q16 += left_q16 >= 0 ? left_q16 : -(int64_t)left_q16;
-	u->batch_abs_right_q16 += right_q16 >= 0 ? right_q16 : -(int64_t)right_q16;
-	u->batch_n++;
-	if (u->batch_n < u->cfg.batch_ticks && u->batch_abs_left_q16 + u->batch_abs_right_q16 <
-						       ((int64_t)UNCERTAINTY_BATCH_PATH_UM << 16))
-		return;
-	if (u->batch_abs_left_q16 == 0 && u->batch_abs_right_q16 == 0) {
-		/* A batch without travel propagates nothing (the steps and the noise are zero,
-		 * Fp is the identity) and the radius is already that of the current state. */
-		clear_batch(u);
-		return;
+	struct uncertainty_batch *b = &u->acc;
+	int32_t l = q8_of_q16(left_q16), r = q8_of_q16(right_q16);
+
+	/* A batch starts with its first tick of travel. One that waits for the stages (below) is
+	 * handed over at once, the stages in flight finished in this tick, before a wheel's travel
+	 * in it would pass 32.7 mm: at 1 kHz only above 1.5 m/s (docs/odometry.md). */
+	if ((b->ticks | l | r) != 0) {
+		if (b->ticks == 0xffu || b->abs_left_q8 + mag32(l) > WHEEL_MAX_Q8 ||
+		    b->abs_right_q8 + mag32(r) > WHEEL_MAX_Q8)
+			start_batch(u);
+		b->left_q8 += l;
+		b->right_q8 += r;
+		b->abs_left_q8 += mag32(l);
+		b->abs_right_q8 += mag32(r);
+		b->heading_turn32 = heading_turn32;
+		b->ticks++;
+		/* A batch that is due waits until the stages are done. */
+		if (u->stage == STAGE_IDLE &&
+		    (b->ticks >= u->cfg.batch_ticks ||
+		     (b->abs_left_q8 >> 1) + (b->abs_right_q8 >> 1) >= PATH_HALF_Q8)) {
+			start_batch(u); /* its first stage runs next tick */
+			return;
+		}
 	}
-	propagate(u, heading_turn32);
-	clear_batch(u);
-	refresh_radius(u);
+	if (u->stage != STAGE_IDLE)
+		run_stage(u);
 }
 
 uint8_t uncertainty_get_radius_mm(const struct uncertainty *u)

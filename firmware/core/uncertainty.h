@@ -15,6 +15,11 @@
 #define UNCERTAINTY_BATCH_PATH_UM ((int32_t)1 << 14)
 /* Largest accepted noise coefficient [mm^2/m * 2^16] (16 mm^2/m). */
 #define UNCERTAINTY_NOISE_Q16_MAX ((uint32_t)1 << 20)
+/* A batch's propagation and the radius refresh are spread over this many ticks after the batch
+ * ends, one short stage per tick (docs/odometry.md). */
+#define UNCERTAINTY_STAGES 20
+/* Units of the covariance: x and y in 4 um, the heading in 2^-16 rad. */
+#define UNCERTAINTY_POS_UM 4
 
 enum uncertainty_axis { UNCERTAINTY_AXIS_X, UNCERTAINTY_AXIS_Y };
 
@@ -32,29 +37,57 @@ struct uncertainty_config {
 	uint8_t batch_ticks; /* covariance update every that many ticks, 1..64 */
 };
 
+/* A batch of wheel travels [um * 2^8] (8.4 m before they could overflow): signed sums, and
+ * absolute sums for the noise. */
+struct uncertainty_batch {
+	int32_t left_q8, right_q8;
+	uint32_t abs_left_q8, abs_right_q8;
+	uint32_t heading_turn32; /* at its end */
+	uint8_t ticks;
+};
+
 struct uncertainty {
 	struct uncertainty_config cfg;
-	/* Derived from cfg: 2^44 / track, and the systematic coefficients [2^-60 per um]. */
-	int64_t inv_track_q44;
-	int64_t ratio_coef_q60; /* ratio_error / track */
-	int64_t track_coef_q60; /* track_error / track^2 */
-	int64_t scale_coef_q60; /* scale_error */
+	/* Derived from cfg. */
+	uint16_t turn_per_um; /* heading per um of right - left travel [turn * 2^32 / um * 2^-16] */
+	uint16_t inv_track_q28;  /* 2^28 / track */
+	uint16_t g_q12;          /* 2^30 / track: heading [2^-16 rad] per 4 um of right - left */
+	uint32_t ratio_coef_q32; /* systematic radius [um] per 2^14 um^2 of w1, w2, per um of d */
+	uint32_t track_coef_q32;
+	uint32_t scale_coef_q32;
 
-	/* Covariance of (x [um], y [um], heading [rad * 2^20]) [unit^2 * 2^16]. */
-	int64_t xx, xy, yy, xt, yt, tt;
-	uint8_t saturated; /* a variance passed its cap: the radius reads 255 until a reset */
+	/* Covariance of (x, y) [4 um] and heading [2^-16 rad]: xx, xy, yy [(4 um)^2], xt, yt
+	 * [4 um * 2^-16 rad], tt [(2^-16 rad)^2]. Capped at xx, yy <= 2^30 (sigma 131 mm) and
+	 * tt <= 2^28 (sigma 0.25 rad): past them the radius reads 255 until a reset. */
+	int32_t xx, xy, yy, xt, yt, tt;
+	uint8_t saturated;
 
-	/* Systematic part: signed travel of the midpoint [um * 2^17] and right - left travel
-	 * [um * 2^16] since the last heading reset, and the first-order position error per unit
-	 * parameter error (w1: wheel ratio, w2: track, [um^2]; d: scale, [um]). */
-	int64_t travel_q17;
-	int64_t turn_q16;
-	int64_t w1[2], w2[2], d[2];
+	/* Systematic part: twice the signed travel of the midpoint [um] and the right - left travel
+	 * [um] since the last heading reset, and the first-order position error per unit parameter
+	 * error: w1 (wheel ratio) and w2 (track) [um^2 / 4] as exact 48-bit sums (hi 2^16 + lo,
+	 * saturating), d (scale) [um]. */
+	int32_t travel2_um;
+	int32_t turn_um;
+	struct uncertainty_sum48 {
+		int32_t hi;
+		uint16_t lo;
+	} w1[2], w2[2];
+	int32_t d[2];
 
-	/* Travels of the batch in progress [um * 2^16]: signed, and absolute for the noise. */
-	int64_t batch_left_q16, batch_right_q16;
-	int64_t batch_abs_left_q16, batch_abs_right_q16;
-	uint8_t batch_n;
+	struct uncertainty_batch acc; /* accumulating */
+	struct uncertainty_batch run; /* being propagated */
+	uint8_t stage;                /* of run: 0 idle, 1..UNCERTAINTY_STAGES */
+	/* Between stages: twice the midpoint travel and right - left travel [um], the direction
+	 * [2^-14] and displacement [um] of the batch, its noise (right + left, right - left)
+	 * [(4 um)^2], Fp's DY tt, Fd's U, V [2^-15], the eigenvalue's length, the radius [um]. */
+	int32_t s2_um, diff_um;
+	int16_t c_q14, s_q14;
+	int32_t dx_um, dy_um;
+	int32_t qp, qm;
+	int32_t my;
+	int16_t u_q15, v_q15;
+	uint32_t h;
+	uint32_t radius_um;
 
 	uint8_t radius_mm;
 };
@@ -68,9 +101,13 @@ int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg
 int uncertainty_set_config(struct uncertainty *u, const struct uncertainty_config *cfg);
 
 /* One tick, after odometry_update: the wheel travels of the tick (odometry_step.left_q16,
- * right_q16 [um * 2^16]) and the heading after the tick
- * [turn * 2^32]. Accumulates; every batch_ticks ticks, or UNCERTAINTY_BATCH_PATH_UM of travel,
- * propagates the covariance and refreshes the radius. interrupt-safe: no (tick only). */
+ * right_q16 [um * 2^16]) and the heading after the tick [turn * 2^32]. Accumulates; a batch ends
+ * every batch_ticks ticks, or after UNCERTAINTY_BATCH_PATH_UM of travel, and is propagated over
+ * the next UNCERTAINTY_STAGES ticks, one stage per call, the last refreshing the radius. A batch
+ * that is due while the previous one is still being propagated goes on accumulating until the
+ * stages are done, or until a wheel's travel in it would pass 32.7 mm, where the stages in flight
+ * are finished at once (at 1 kHz, only above 1.5 m/s). Under 2 000 cycles on an AVR, except
+ * then. interrupt-safe: no (tick only). */
 void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q16,
 			uint32_t heading_turn32);
 
@@ -79,19 +116,21 @@ void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q
 uint8_t uncertainty_get_radius_mm(const struct uncertainty *u);
 
 /* Full recalibration: position known within radius_um, heading within heading_turn32 (both
- * bounds at the configured probability; sigma = bound / k), systematic terms cleared, the batch
+ * bounds at the configured probability; sigma = bound / k), systematic terms cleared, the batches
  * in progress dropped. The radius then reads ceil(radius_um / 1000).
  * interrupt-safe: no (between two ticks). */
 void uncertainty_reset(struct uncertainty *u, uint32_t radius_um, uint32_t heading_turn32);
 
 /* One coordinate known again (e.g. after a border contact): its variance is set from bound_um,
  * its correlations and its systematic errors cleared; the other coordinate keeps its
- * (conservative) variance. interrupt-safe: no (between two ticks). */
+ * (conservative) variance. The radius follows within UNCERTAINTY_STAGES ticks.
+ * interrupt-safe: no (between two ticks). */
 void uncertainty_reset_axis(struct uncertainty *u, enum uncertainty_axis axis, uint32_t bound_um);
 
 /* The heading known again within bound_turn32 (e.g. after aligning on a border): its variance is
  * set, its correlations cleared, and the systematic heading drift restarts from zero; position
- * errors already accumulated are kept. interrupt-safe: no (between two ticks). */
+ * errors already accumulated are kept. The radius follows within UNCERTAINTY_STAGES ticks.
+ * interrupt-safe: no (between two ticks). */
 void uncertainty_reset_heading(struct uncertainty *u, uint32_t bound_turn32);
 
 /* The position component along a direction known again within bound_um (e.g. across a field
@@ -106,5 +145,11 @@ void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, u
  * 2^31 (half a turn): how well the heading is known, to decide whether a measurement improves
  * it. interrupt-safe: no. */
 uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u);
+
+/* The position component along a direction known to lie within bound_um (e.g. across a basket
+ * approach, the switch's window): as uncertainty_reset_along(), but only when its variance is
+ * larger than the bound's. Returns 1 when it was capped, 0 when left as it was.
+ * interrupt-safe: no (between two ticks). */
+int uncertainty_cap_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um);
 
 #endif

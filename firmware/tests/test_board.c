@@ -112,8 +112,10 @@ static void test_goto_arrives(void **state)
 		if (!(status() & STATUS_BUSY_TRAJET))
 			break;
 	}
-	/* A 3.8 degree turn is inside the heading window: translation starts at once. */
-	assert_true(saw_rotate == 0 && saw_translate > 0 && saw_settle > 0);
+	/* A 3.8 degree turn is inside the heading window: translation starts at once, once the
+	 * bearing is known: the order's first tick aims on the next (docs/control.md), so at most
+	 * one tick shows ROTATE. */
+	assert_true(saw_rotate <= 1 && saw_translate > 0 && saw_settle > 0);
 	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
 	assert_int_equal(status(), 0);
 	position(&x, &y, &a, &r);

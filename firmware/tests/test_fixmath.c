@@ -199,6 +199,51 @@ static void check_isqrt(uint64_t v)
 		assert_true((r + 1) * (r + 1) > v);
 }
 
+/* The primitives an 8-bit AVR builds from 16-bit pieces (fixmath.h, the *_n functions) give the
+ * bits of the 64-bit arithmetic a PC uses for them, on random operands and on the edges. */
+static void test_narrow_primitives_match(void **state)
+{
+	static const uint32_t edges[] = {0,           1,           2,          0x7fff,
+					 0x8000,      0xffff,      0x10000,    0x7fffffff,
+					 0x80000000u, 0xfffffffeu, 0xffffffffu};
+
+	(void)state;
+	for (int i = 0; i < 400000; i++) {
+		uint32_t a = i < 121 ? edges[i / 11] : (uint32_t)rng_next() >> (rng_next() & 31);
+		uint32_t b = i < 121 ? edges[i % 11] : (uint32_t)rng_next() >> (rng_next() & 31);
+		uint8_t n = (uint8_t)(rng_next() % 32);
+		uint32_t lo_n, lo, hi_n = fx_mul_u32_wide_n(a, b, &lo_n);
+		uint64_t p = (uint64_t)a * b;
+
+		assert_true(hi_n == (uint32_t)(p >> 32) && lo_n == (uint32_t)p);
+		assert_true(fx_mul_u32_wide(a, b, &lo) == hi_n && lo == lo_n);
+		assert_true(fx_shr_u32_n(a, n) == a >> n);
+		assert_true(fx_shl_u32_n(a, n) == (uint32_t)(a << n));
+		{
+			/* fx_mul_q: |b| <= 65535, n in 8..47, the result fitting 32 bits. */
+			int32_t sa = (int32_t)(a >> 1) * (rng_next() & 1 ? 1 : -1);
+			int32_t sb = (int32_t)(b & 0xffff) * (rng_next() & 1 ? 1 : -1);
+			uint8_t q = (uint8_t)(16 + rng_next() % 32);
+
+			assert_true(fx_mul_q_n(sa, sb, q) == fx_mul_q(sa, sb, q));
+			q = (uint8_t)(8 + rng_next() % 8);
+			sa /= 65536;
+			assert_true(fx_mul_q_n(sa, sb, q) == fx_mul_q(sa, sb, q));
+		}
+		if (b != 0) {
+			uint32_t quot = a / b;
+			uint8_t bits = 0;
+
+			while (bits < 32 && (quot >> bits) != 0)
+				bits++;
+			bits = (uint8_t)(bits + rng_next() % (33 - bits));
+			if (bits == 0)
+				bits = 1;
+			assert_true(fx_udiv_small_n(a, b, bits) == quot);
+		}
+	}
+}
+
 static void test_isqrt_edges(void **state)
 {
 	(void)state;
@@ -416,6 +461,7 @@ int main(void)
 		cmocka_unit_test(test_shr_round_ties_and_signs),
 		cmocka_unit_test(test_mul_shr_rounds_and_saturates),
 		cmocka_unit_test(test_div_round),
+		cmocka_unit_test(test_narrow_primitives_match),
 		cmocka_unit_test(test_isqrt_edges),
 		cmocka_unit_test(test_sincos_against_reference),
 		cmocka_unit_test(test_atan2_octants_and_edges),

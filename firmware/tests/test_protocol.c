@@ -310,6 +310,26 @@ static void test_restart_pec_covers_the_write(void **state)
 }
 
 /* A bus error before any data byte: the rejected designation reads 0xFF, not GOTO's 0. */
+/* A byte fetched outside a read (a port out of step) is 0xFF and changes nothing: the read that
+ * follows returns the selected reply and its PEC. Found by fuzz/fuzz_protocol. */
+static void test_read_byte_outside_a_read(void **state)
+{
+	struct proto p;
+	struct proto_snapshot s;
+	uint8_t got[2];
+
+	(void)state;
+	memset(&s, 0, sizeof(s));
+	s.sensors = 0x81;
+	proto_init(&p);
+	proto_publish(&p, &s);
+	write_frame(&p, (const uint8_t[]){PROTO_INFO_CHOC}, 1, 1);
+	assert_int_equal(proto_read_byte(&p), 0xFF);
+	assert_int_equal(proto_read_byte(&p), 0xFF);
+	read_frame(&p, got, 2);
+	assert_memory_equal(got, ((const uint8_t[]){0x81, 0xCF}), 2);
+}
+
 static void test_abort_before_any_byte(void **state)
 {
 	struct proto p;
@@ -339,6 +359,7 @@ int main(void)
 		cmocka_unit_test(test_read_restart_read),
 		cmocka_unit_test(test_restart_pec_covers_the_write),
 		cmocka_unit_test(test_abort_before_any_byte),
+		cmocka_unit_test(test_read_byte_outside_a_read),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -31,27 +31,44 @@ static long double k_of(uint32_t q16)
 }
 
 /* At 1 mm per tick on each wheel a batch ends every ceil(16384 / 2000) = 9 ticks
- * (UNCERTAINTY_BATCH_PATH_UM); the radius is refreshed at the end of each batch. */
+ * (UNCERTAINTY_BATCH_PATH_UM); it is propagated, and the radius refreshed, over the
+ * UNCERTAINTY_STAGES ticks that follow. */
 #define BATCH 9
+
+/* The covariance's units: (4 um)^2 for x and y, (2^-16 rad)^2 for the heading. */
+#define UM2(v) ((long double)(v)*UNCERTAINTY_POS_UM * UNCERTAINTY_POS_UM)
+#define RAD2(v) ((long double)(v) / 4294967296.0L)
 
 /* Ticks of constant wheel travels [um per tick]; the heading passed is that of the ideal robot,
  * integrated here from the same travels. */
 static long double heading_rad;
 
+static uint32_t heading_turn32(void)
+{
+	long double turns = heading_rad / (2 * PI_L);
+
+	turns -= (long double)(long long)turns;
+	if (turns < 0)
+		turns += 1;
+	return (uint32_t)(long long)(turns * 4294967296.0L);
+}
+
 static void drive(struct uncertainty *u, long double dl_um, long double dr_um, long ticks,
 		  uint32_t track_um)
 {
 	for (long i = 0; i < ticks; i++) {
-		long double turns;
-
 		heading_rad += (dr_um - dl_um) / track_um;
-		turns = heading_rad / (2 * PI_L);
-		turns -= (long double)(long long)turns;
-		if (turns < 0)
-			turns += 1;
 		uncertainty_update(u, (int32_t)(dl_um * 65536), (int32_t)(dr_um * 65536),
-				   (uint32_t)(long long)(turns * 4294967296.0L));
+				   heading_turn32());
 	}
+}
+
+/* Standing still until the travel so far has gone through the stages: the batch in progress
+ * ends after batch_ticks, and each batch takes UNCERTAINTY_STAGES ticks more. */
+static void settle(struct uncertainty *u)
+{
+	for (int i = 0; i < u->cfg.batch_ticks + 2 * UNCERTAINTY_STAGES + 2; i++)
+		uncertainty_update(u, 0, 0, heading_turn32());
 }
 
 /* Straight line of L = 2 m at 1 m/s and 1 kHz along heading 0: Var(y) = (kR + kL) L^3 / (3 b^2)
@@ -69,24 +86,27 @@ static void test_straight_lateral_sigma(void **state)
 	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
 	heading_rad = 0;
 	drive(&u, 1000, 1000, 2000, TRACK_UM);
-	yy = u.yy / 65536.0L;
-	xx = u.xx / 65536.0L;
+	settle(&u);
+	yy = UM2(u.yy);
+	xx = UM2(u.xx);
 	print_message("lateral var %.0Lf um^2 (closed form %.0Lf), along %.0Lf (%.0Lf)\n", yy,
 		      var_lat, xx, var_long);
 	assert_true(absl(yy / var_lat - 1) <= 0.02L);
 	assert_true(absl(xx / var_long - 1) <= 0.02L);
-	/* The heading variance is (kR + kL) L / b^2 [rad^2], here in (rad * 2^20)^2 * 2^16. */
-	assert_true(absl(u.tt / (k * len / TRACK_UM / TRACK_UM * 1099511627776.0L * 65536) - 1) <=
-		    0.02L);
-	/* radius = ceil(k sigma_max), sigma_max^2 = the lateral variance here. */
-	/* sigma = ceil(sqrt(yy)), xx being 70 times smaller and xy zero on this path. */
+	/* The heading variance is (kR + kL) L / b^2 [rad^2]. */
+	assert_true(absl(RAD2(u.tt) / (k * len / TRACK_UM / TRACK_UM) - 1) <= 0.02L);
+	/* radius = ceil(k sigma_max), sigma_max^2 = the lateral variance here (xx being 70 times
+	 * smaller and xy zero on this path): a bound, rounded up to the mm, so it is k sigma
+	 * rounded up, or one more where the rounding of sigma (to 4 um) crossed a mm. */
 	sigma = 0;
 	while (sigma * sigma < yy)
 		sigma += 1;
 	print_message("radius %u mm, k sigma %.3Lf mm\n", uncertainty_get_radius_mm(&u),
 		      3.03L * sigma / 1000);
-	assert_int_equal(uncertainty_get_radius_mm(&u),
-			 (unsigned)((776.0L / 256 * sigma + 999.0L) / 1000));
+	assert_true(uncertainty_get_radius_mm(&u) >=
+		    (unsigned)((776.0L / 256 * sigma + 999.0L) / 1000));
+	assert_true(uncertainty_get_radius_mm(&u) <=
+		    (unsigned)((776.0L / 256 * (sigma + 4) + 999.0L) / 1000));
 }
 
 /* The same straight along 3/8 turn: the variance across the path is the same. */
@@ -101,9 +121,32 @@ static void test_straight_any_heading(void **state)
 	uncertainty_init(&u, &cfg_noise);
 	heading_rad = 3 * PI_L / 4;
 	drive(&u, 1000, 1000, 2000, TRACK_UM);
+	settle(&u);
 	/* n^T Sigma n with n = (-sin, cos). */
-	across = (s * s * u.xx - 2 * s * c * u.xy + c * c * u.yy) / 65536.0L;
+	across = UM2(s * s * u.xx - 2 * s * c * u.xy + c * c * u.yy);
 	assert_true(absl(across / var_lat - 1) <= 0.02L);
+}
+
+/* The same 2 m at 4 mm per tick (4 m/s at 1 kHz, 1 m/s at 250 Hz): batches that wait for the
+ * stages would pass the 32.7 mm a wheel may travel in one, so they are handed over before it
+ * and the variances keep their closed forms. */
+static void test_straight_fast(void **state)
+{
+	struct uncertainty u;
+	const long double len = 2e6L, k = k_of(cfg_noise.noise_left_mm2_per_m_q16) * 2;
+	long double var_lat = k * len * len * len / (3.0L * TRACK_UM * TRACK_UM);
+	long double var_long = k * len / 4;
+
+	(void)state;
+	uncertainty_init(&u, &cfg_noise);
+	heading_rad = 0;
+	drive(&u, 4000, 4000, 500, TRACK_UM);
+	settle(&u);
+	print_message("at 4 mm per tick: lateral var %.0Lf um^2 (closed form %.0Lf), along %.0Lf "
+		      "(%.0Lf)\n",
+		      UM2(u.yy), var_lat, UM2(u.xx), var_long);
+	assert_true(absl(UM2(u.yy) / var_lat - 1) <= 0.02L);
+	assert_true(absl(UM2(u.xx) / var_long - 1) <= 0.02L);
 }
 
 /* In place, each wheel rolls pi b per turn: Var(theta) = (kR + kL) pi b n / b^2 and
@@ -123,13 +166,11 @@ static void test_rotation_in_place_grows(void **state)
 	assert_int_equal(r0, 1);
 	heading_rad = 0;
 	drive(&u, -1000, 1000, ticks, TRACK_UM);
-	assert_true(absl((u.xx + u.yy) / 65536.0L /
-				 (k * ticks * 1000.0L / 4 +
-				  2 * (1000 * 256.0L / 776) * (1000 * 256.0L / 776)) -
+	settle(&u);
+	assert_true(absl(UM2(u.xx + u.yy) / (k * ticks * 1000.0L / 4 +
+					     2 * (1000 * 256.0L / 776) * (1000 * 256.0L / 776)) -
 			 1) <= 0.02L);
-	assert_true(
-		absl(u.tt / (k * ticks * 1000.0L / TRACK_UM / TRACK_UM * 1099511627776.0L * 65536) -
-		     1) <= 0.02L);
+	assert_true(absl(RAD2(u.tt) / (k * ticks * 1000.0L / TRACK_UM / TRACK_UM) - 1) <= 0.02L);
 	print_message("after 10 turns: radius %u mm\n", uncertainty_get_radius_mm(&u));
 	assert_true(uncertainty_get_radius_mm(&u) > r0);
 }
@@ -146,13 +187,16 @@ static void test_systematic_ratio(void **state)
 	uncertainty_init(&u, &cfg);
 	heading_rad = 0;
 	drive(&u, 1000, 1000, 323 * BATCH, 300000);
+	settle(&u);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 15);
 	/* Going on to 3.105 m: 16.07 mm -> 17. */
 	drive(&u, 1000, 1000, 22 * BATCH, 300000);
+	settle(&u);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 17);
 	/* Backing up along the same line undoes it (the heading error is proportional to the
 	 * net distance): back at the start, the radius is 0 again. */
 	drive(&u, -1000, -1000, 345 * BATCH, 300000);
+	settle(&u);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
 }
 
@@ -168,15 +212,18 @@ static void test_systematic_track(void **state)
 	uncertainty_init(&u, &cfg);
 	heading_rad = 0;
 	drive(&u, -1000, 1000, ticks, TRACK_UM);
+	settle(&u);
 	/* ticks * 1 mm is pi b within 0.5 mm: the turn is 2 pi within 3.6e-3 rad. Turning in
 	 * place moves nothing yet. */
 	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
 	drive(&u, 1000, 1000, 1000, TRACK_UM);
+	settle(&u);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 23);
 	/* Turning back cancels the heading error (it is proportional to the net turn): the
 	 * offset already made stays but stops growing. */
 	drive(&u, 1000, -1000, ticks, TRACK_UM);
 	drive(&u, 1000, 1000, 1000, TRACK_UM);
+	settle(&u);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 23);
 }
 
@@ -211,7 +258,9 @@ static void test_resets(void **state)
 {
 	struct uncertainty u, v;
 	uint8_t before;
-	long double sigma = 2000 * 256.0L / 776;
+	/* sigma = bound / k rounded down to the um, 2000 * 256 / 776 -> 659 um; the variance in
+	 * (4 um)^2 rounded down. */
+	const int32_t sigma = 659;
 
 	(void)state;
 	uncertainty_init(&u, &cfg_noise);
@@ -224,11 +273,14 @@ static void test_resets(void **state)
 	uncertainty_reset(&u, 0, 0);
 	heading_rad = 0;
 	drive(&u, 1000, 1000, 3000, TRACK_UM);
+	settle(&u);
 	before = uncertainty_get_radius_mm(&u);
 	uncertainty_reset_axis(&u, UNCERTAINTY_AXIS_Y, 2000);
-	assert_true(absl(u.yy / 65536.0L - (long double)(long long)sigma * (long long)sigma) <= 1);
+	assert_int_equal(u.yy, sigma * sigma / 16);
 	assert_int_equal(u.xy, 0);
 	assert_int_equal(u.yt, 0);
+	/* The radius follows within the stages. */
+	settle(&u);
 	assert_true(uncertainty_get_radius_mm(&u) < before);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 2);
 
@@ -237,29 +289,34 @@ static void test_resets(void **state)
 	uncertainty_reset_heading(&v, 0);
 	assert_int_equal(v.tt, 0);
 	drive(&u, 1000, 1000, 1000, TRACK_UM);
+	settle(&u);
 	heading_rad = 0;
 	drive(&v, 1000, 1000, 1000, TRACK_UM);
+	settle(&v);
 	assert_true(v.yy < u.yy);
 	assert_true(uncertainty_get_radius_mm(&v) <= uncertainty_get_radius_mm(&u));
 
 	/* A full reset with a heading bound: sigma_theta = bound / k. 2^20 turn32 is 1.534e-3
-	 * rad, i.e. 1608.5 units of 2^-20 rad, sigma 530.6 units. */
+	 * rad, 100.53 units of 2^-16 rad, rounded up to 101; sigma 101 * 256 / 776 = 33.3, rounded
+	 * up to 34. */
 	uncertainty_reset(&u, 0, 1u << 20);
-	assert_true(absl(u.tt / 65536.0L - 530.0L * 530.0L) <= 1);
+	assert_int_equal(u.tt, 34 * 34);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
 	/* ... which adds (sigma_theta d)^2 to the lateral variance: after 1 m (111 whole
-	 * batches), 506 um^2 + 922 um^2 from the wheels' noise: k sigma = 3.19 mm -> 4. */
+	 * batches), sigma 518 um from the heading and 921 um from the wheels' noise: k sigma
+	 * = 3.20 mm -> 4. */
 	heading_rad = 0;
 	drive(&u, 1000, 1000, 111 * BATCH, TRACK_UM);
+	settle(&u);
 	{
-		long double len = 111 * BATCH * 1000.0L, st = 530.0L / 1048576;
+		long double len = 111 * BATCH * 1000.0L, st = 34.0L / 65536;
 		long double want = st * st * len * len + k_of(cfg_noise.noise_left_mm2_per_m_q16) *
 								 2 * len * len * len /
 								 (3.0L * TRACK_UM * TRACK_UM);
 
 		print_message("heading residual then 1 m: var %.0Lf (%.0Lf), radius %u\n",
-			      u.yy / 65536.0L, want, uncertainty_get_radius_mm(&u));
-		assert_true(absl(u.yy / 65536.0L / want - 1) <= 0.02L);
+			      UM2(u.yy), want, uncertainty_get_radius_mm(&u));
+		assert_true(absl(UM2(u.yy) / want - 1) <= 0.02L);
 	}
 	assert_int_equal(uncertainty_get_radius_mm(&u), 4);
 }
@@ -315,9 +372,10 @@ static void test_config_checks(void **state)
  * the bound's. Checked on an oblique straight line (30 degrees), against the rotated matrix. */
 static void test_reset_along(void **state)
 {
-	struct uncertainty u, v;
+	struct uncertainty u, v, orig;
 	long double c = cosl(PI_L / 6), s = sinl(PI_L / 6);
-	long double lat, lt, sigma = 2000 * 256 / 776; /* bound 2 mm at k = 3.03, var_of_bound */
+	/* Bound 2 mm at k = 3.03: sigma 659 um (var_of_bound), the variance in (4 um)^2. */
+	long double lat, lt, sigma = 2000 * 256 / 776;
 	uint8_t before;
 
 	(void)state;
@@ -325,24 +383,29 @@ static void test_reset_along(void **state)
 	uncertainty_reset(&u, 0, 1u << 21); /* a heading error to make it oblique and large */
 	heading_rad = PI_L / 6;
 	drive(&u, 1000, 1000, 2000, TRACK_UM);
+	settle(&u);
+	orig = u;
 	before = uncertainty_get_radius_mm(&u);
-	lat = (s * s * u.xx - 2 * c * s * u.xy + c * c * u.yy) / 65536.0L;
-	lt = (-s * u.xt + c * u.yt) / 65536.0L;
+	lat = UM2(s * s * u.xx - 2 * c * s * u.xy + c * c * u.yy);
+	lt = -s * u.xt + c * u.yt;
 	v = u;
 	/* Along the direction of travel: the large lateral error stays, the radius hardly moves. */
 	uncertainty_reset_along(&v, 1u << 29 /* 45 deg: not the travel */, 2000);
 	uncertainty_reset_along(&u, (uint32_t)(4294967296.0L / 12), 2000);
-	assert_true(absl((c * c * u.xx + 2 * c * s * u.xy + s * s * u.yy) / 65536.0L -
-			 sigma * sigma) <= 2);
-	assert_true(absl((s * s * u.xx - 2 * c * s * u.xy + c * c * u.yy) / 65536.0L / lat - 1) <=
-		    1e-6L);
-	assert_true(absl((c * u.xt + s * u.yt) / 65536.0L) <= 2);
-	assert_true(absl((-s * u.xt + c * u.yt) / 65536.0L / lt - 1) <= 1e-6L);
+	/* Within the covariance's units, (4 um)^2 and 4 um * 2^-16 rad, and their rounding. */
+	assert_true(absl(UM2(c * c * u.xx + 2 * c * s * u.xy + s * s * u.yy) - sigma * sigma) <=
+		    3 * UM2(1));
+	assert_true(absl(UM2(s * s * u.xx - 2 * c * s * u.xy + c * c * u.yy) - lat) <= 3 * UM2(1));
+	assert_true(absl(c * u.xt + s * u.yt) <= 2);
+	assert_true(absl(-s * u.xt + c * u.yt - lt) <= 2);
+	/* The radius follows within the stages. */
+	settle(&u);
 	assert_true(uncertainty_get_radius_mm(&u) <= before);
 	assert_true(uncertainty_get_radius_mm(&u) + 2 >= before);
 	/* Across the travel: the lateral error is the one removed. */
 	u = v;
 	uncertainty_reset_along(&u, (uint32_t)(4294967296.0L / 12) + (1u << 30), 2000);
+	settle(&u);
 	assert_true(uncertainty_get_radius_mm(&u) < before / 2);
 	/* The systematic terms keep only their part across the direction known. */
 	u = v;
@@ -354,6 +417,17 @@ static void test_reset_along(void **state)
 	u.d[1] = 1000;
 	uncertainty_reset_along(&u, 0, 2000);
 	assert_true(u.d[0] == 0 && u.d[1] == 1000);
+
+	/* A cap: the lateral component (large) is brought down to a 2 mm bound, the along one
+	 * (below it) is left as it was. */
+	u = orig;
+	v = orig;
+	assert_int_equal(uncertainty_cap_along(&u, (uint32_t)(4294967296.0L / 12), 2000), 0);
+	assert_memory_equal(&u, &v, sizeof u);
+	assert_int_equal(
+		uncertainty_cap_along(&u, (uint32_t)(4294967296.0L / 12) + (1u << 30), 2000), 1);
+	settle(&u);
+	assert_true(uncertainty_get_radius_mm(&u) < before / 2);
 }
 
 /* The heading bound reads back the bound a reset put in, rounded up. */
@@ -379,6 +453,7 @@ int main(void)
 		cmocka_unit_test(test_heading_bound),
 		cmocka_unit_test(test_straight_lateral_sigma),
 		cmocka_unit_test(test_straight_any_heading),
+		cmocka_unit_test(test_straight_fast),
 		cmocka_unit_test(test_rotation_in_place_grows),
 		cmocka_unit_test(test_systematic_ratio),
 		cmocka_unit_test(test_systematic_track),

@@ -181,10 +181,12 @@ static void compare_odometry(const struct run *r)
 	const struct avr_layout *l = avrsim_layout(r->h);
 	const struct odometry *o = &r->ref->board.odometry;
 	uint16_t b = avrsim_board(r->h);
-	uint8_t x[8], y[8], hd[4], lc[2], rc[2], d[4];
+	uint8_t x[4], y[4], xf[2], yf[2], hd[4], lc[2], rc[2], d[4];
 
-	avrsim_peek(r->h, (uint16_t)(b + l->odo_x_q16), x, 8);
-	avrsim_peek(r->h, (uint16_t)(b + l->odo_y_q16), y, 8);
+	avrsim_peek(r->h, (uint16_t)(b + l->odo_x_um), x, 4);
+	avrsim_peek(r->h, (uint16_t)(b + l->odo_y_um), y, 4);
+	avrsim_peek(r->h, (uint16_t)(b + l->odo_x_frac), xf, 2);
+	avrsim_peek(r->h, (uint16_t)(b + l->odo_y_frac), yf, 2);
 	avrsim_peek(r->h, (uint16_t)(b + l->odo_heading), hd, 4);
 	avrsim_peek(r->h, (uint16_t)(b + l->odo_left_count), lc, 2);
 	avrsim_peek(r->h, (uint16_t)(b + l->odo_right_count), rc, 2);
@@ -192,13 +194,15 @@ static void compare_odometry(const struct run *r)
 		fail_msg("tick %u: the AVR integrated counts %u, %u, the native core %u, %u",
 			 r->tick, (unsigned)le(lc, 2), (unsigned)le(rc, 2), o->left_count,
 			 o->right_count);
-	if (le(x, 8) != o->x_q16 || le(y, 8) != o->y_q16 ||
+	if ((uint32_t)le(x, 4) != o->x_um || (uint32_t)le(y, 4) != o->y_um ||
+	    (uint16_t)le(xf, 2) != o->x_frac || (uint16_t)le(yf, 2) != o->y_frac ||
 	    (uint32_t)le(hd, 4) != o->heading_turn32)
-		fail_msg(
-			"tick %u: AVR estimate x %lld y %lld heading %lu [um * 2^16, turn * 2^32], "
-			"native x %lld y %lld heading %lu",
-			r->tick, (long long)le(x, 8), (long long)le(y, 8), (unsigned long)le(hd, 4),
-			(long long)o->x_q16, (long long)o->y_q16, (unsigned long)o->heading_turn32);
+		fail_msg("tick %u: AVR estimate x %lu + %u y %lu + %u heading %lu [um, 2^-16 um, "
+			 "turn * 2^32], native x %lu + %u y %lu + %u heading %lu",
+			 r->tick, (unsigned long)le(x, 4), (unsigned)le(xf, 2),
+			 (unsigned long)le(y, 4), (unsigned)le(yf, 2), (unsigned long)le(hd, 4),
+			 (unsigned long)o->x_um, o->x_frac, (unsigned long)o->y_um, o->y_frac,
+			 (unsigned long)o->heading_turn32);
 	avrsim_peek(r->h, (uint16_t)(b + l->duty), d, 4);
 	if ((int16_t)le(d, 2) != r->ref->board.last_out.duty_q15[0] ||
 	    (int16_t)le(d + 2, 2) != r->ref->board.last_out.duty_q15[1])

@@ -75,6 +75,7 @@ void proto_on_byte(struct proto *p, uint8_t byte);
 void proto_on_read_start(struct proto *p);
 uint8_t proto_read_byte(struct proto *p);
 void proto_on_stop(struct proto *p);
+void proto_on_restart(struct proto *p);
 void proto_on_abort(struct proto *p);
 int proto_poll(struct proto *p, struct proto_msg *out);
 void proto_publish(struct proto *p, const struct proto_snapshot *s);

@@ -337,6 +337,12 @@ class Simulator:
         """A STOP: proto_on_stop()."""
         lib.proto_on_stop(self._proto)
 
+    def bus_restart(self) -> None:
+        """A repeated START as the AVR's TWI reports it, before the next address byte:
+        proto_on_restart(). Without it, the next bus_start() ends the write or the read (what
+        the host port does)."""
+        lib.proto_on_restart(self._proto)
+
     def bus_abort(self) -> None:
         """A bus error in the middle of a transaction (lost arbitration, a misplaced START or
         STOP): proto_on_abort()."""

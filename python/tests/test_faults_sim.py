@@ -159,14 +159,14 @@ INJECTED = [
     injected("stalled right motor", stuck(1), MOTEUR, "SLIP", 35),  # 30 ms
     # At 30 cm/s no wheel turns, so nothing slips: the current passes 6 A before the
     # following error has lasted its 100 ms.
-    injected("both wheels jammed", stuck(0, 1), MOTEUR, "OVERCURRENT", 90, speed=30),  # 78 ms
+    injected("both wheels jammed", stuck(0, 1), MOTEUR, "OVERCURRENT", 90, speed=30),  # 79 ms
     # A suspicion first (PB_MOTEUR): a robot blocked on one side can look the same.
     injected("left free encoder wire cut", cut(0), MOTEUR, "ENCODER_LOST", 10),  # 7 ms
     injected("right free encoder wire cut", cut(1), MOTEUR, "ENCODER_LOST", 10),  # 7 ms
     injected("left motor encoder wire cut", cut_motor(0), MOTEUR, "SLIP", 32),  # 27 ms
     injected("right motor encoder wire cut", cut_motor(1), MOTEUR, "SLIP", 32),  # 27 ms
     # 24 V down to 8 V: about 0.55 m/s at full duty, the profile runs away at 1 m/s.
-    injected("battery sag to 8 V", sag(8), MOTEUR, "FOLLOWING", 500, at_s=0.3),  # 458 ms
+    injected("battery sag to 8 V", sag(8), MOTEUR, "FOLLOWING", 500, at_s=0.3),  # 460 ms
 ]
 
 
@@ -198,7 +198,7 @@ def test_a_cut_free_encoder_wire_is_grave_at_the_next_order(wheel: int) -> None:
     t1 = sim.time_s
     board.goto(0, -300)  # the wheel has not counted since: confirmed
     assert board.wait_idle(5) == Status.PB_GRAVE
-    assert latency_ms(sim, t1 + 0.002, Status.PB_GRAVE) <= 120  # measured: 98 ms from the order
+    assert latency_ms(sim, t1 + 0.002, Status.PB_GRAVE) <= 120  # measured: 97 ms from the order
     assert cause(sim) == "ENCODER_LOST"
     check_motors_off_and_stays(sim, first_tick(sim, Status.PB_GRAVE), Status.PB_GRAVE)
     with pytest.raises(OrderRejected, match="REFUSED_PB_GRAVE"):

@@ -13,7 +13,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from asserv import OrderState, Reject, Status, codec
+from asserv import Filtre, OrderState, Reject, Status, codec
 from asserv.driver import Board
 from asserv.sim import Simulator
 
@@ -87,6 +87,7 @@ class Transaction:
     segments: tuple[Segment, ...]
     abort_after: int | None
     idle_s: float
+    port_restart: bool = False  # the port reports each repeated start (the AVR's TWI does)
 
 
 def frame(name: str, *args: int) -> st.SearchStrategy[bytes]:
@@ -160,7 +161,7 @@ def transactions(draw: st.DrawFn) -> Transaction:
     if not last.read and draw(st.integers(0, 5)) == 0:
         abort_after = draw(st.integers(0, len(last.data)))
     idle = draw(st.sampled_from([0.0, 0.0003, 0.002, 0.05, 0.3]))
-    return Transaction(segments, abort_after, idle)
+    return Transaction(segments, abort_after, idle, draw(st.booleans()))
 
 
 class Model:
@@ -215,9 +216,13 @@ def play(sim: Simulator, model: Model, tx: Transaction) -> None:
     last_write = b""
     prev_read: bool | None = None
     for k, seg in enumerate(tx.segments):
+        if k and tx.port_restart:
+            sim.bus_restart()  # the port reports the repeated start: the write ends here
+            if prev_read is False:
+                model.judge(last_write, sim.time_s)
         sim.bus_start(read=seg.read)
-        if prev_read is False:
-            model.judge(last_write, sim.time_s)  # the repeated start ended that write
+        if prev_read is False and not tx.port_restart:
+            model.judge(last_write, sim.time_s)  # the next address ended that write
         if seg.read:
             prefix = bytes([ADDR_W]) + last_write if prev_read is False else b""
             model.check_read(bytes(sim.bus_read_byte() for _ in range(seg.n)), prefix)
@@ -276,7 +281,9 @@ def test_random_bus_traffic_changes_nothing_it_should_not(txs: list[Transaction]
     board = Board(sim.bus)
     why = board.last_reject()
     assert (why.reason, why.designation, why.count) == (*model.last, min(model.count, 255))
-    # And the board still takes an order and carries it out.
+    # And the board still takes an order and carries it out (with the standard gains: the soft
+    # ones, for pushing, may settle a millimetre off).
+    board.set_filtre(Filtre.FILTRE_STD)
     board.set_timeout(0)
     board.set_vitesse_traj(100, 100)
     board.set_vitesse_rot(100, 100)

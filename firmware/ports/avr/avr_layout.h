@@ -17,8 +17,10 @@ struct avr_layout {
 	/* Offsets from the start of struct board [bytes]. */
 	uint16_t tick_hz; /* uint16, cfg.tick_hz */
 	uint16_t tick;
-	uint16_t odo_x_q16;       /* int64 */
-	uint16_t odo_y_q16;       /* int64 */
+	uint16_t odo_x_um;        /* uint32, whole um of the estimate */
+	uint16_t odo_y_um;        /* uint32 */
+	uint16_t odo_x_frac;      /* uint16, [2^-16 um] */
+	uint16_t odo_y_frac;      /* uint16 */
 	uint16_t odo_heading;     /* uint32, heading_turn32 */
 	uint16_t odo_left_count;  /* uint16, the counts of the last update */
 	uint16_t odo_right_count; /* uint16 */

@@ -2,8 +2,10 @@
  * layer (hal_i2c.h). While TWINT is set the TWI holds SCL low, so each case releases TWINT
  * first and only then calls the protocol layer: the clock is held only for the interrupt's
  * entry, except after the own address with the read bit, where the first reply byte must be in
- * TWDR before the release (proto_on_read_start() packs the reply). Later reply bytes are fetched
- * one ahead, while the master clocks the previous one out. */
+ * TWDR before the release. The reply is packed before that when it can be: at the repeated start
+ * that ends the selecting write (proto_on_restart(), while the master sends the address), so
+ * that proto_on_read_start() only starts the PEC; the PEC is then summed as the bytes go out.
+ * Later reply bytes are fetched one ahead, while the master clocks the previous one out. */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 
@@ -56,12 +58,14 @@ ISR(TWI_vect)
 	case TW_SR_STOP:
 		/* The TWI gives the same status for a STOP and a repeated start. After a STOP the
 		 * bus is idle, SCL high; a repeated start is followed by the next address, whose
-		 * clock the TWI holds low until this release. A repeated start needs nothing here:
-		 * the next proto_on_write_start() or proto_on_read_start() ends the write, and the
-		 * read's PEC then covers it. */
+		 * clock the TWI holds low until this release. After a repeated start the write is
+		 * judged here, while the master sends the next address, so that a read that follows
+		 * only has to start sending; its PEC still covers the write. */
 		TWCR = TWCR_GO;
 		if (scl)
 			proto_on_stop(p);
+		else
+			proto_on_restart(p);
 		break;
 	case TW_ST_SLA_ACK:
 	case TW_ST_ARB_LOST_SLA_ACK:
