@@ -246,6 +246,8 @@ static void end_write(struct proto *p)
 
 static void end_read(struct proto *p)
 {
+	if (p->in_read)
+		p->transactions++; /* counted here rather than while SCL is held at its start */
 	p->in_read = 0;
 	p->selected = PROTO_NONE;
 	p->tx_len = 0;
@@ -310,21 +312,21 @@ void proto_on_read_start(struct proto *p)
 	p->tx_len++; /* the PEC's place */
 	p->tx_pos = 0;
 	p->in_read = 1;
-	p->transactions++;
 }
 
 uint8_t proto_read_byte(struct proto *p)
 {
 	uint8_t b;
 
-	if (!p->in_read)
-		return 0xFFu; /* no read addressed to the board: leave the selected reply alone */
 	if (p->tx_pos + 1u < p->tx_len) {
 		b = p->tx[p->tx_pos++];
 		p->read_crc = crc8_byte(p->read_crc, b);
 		return b;
 	}
-	if (p->tx_pos < p->tx_len) {
+	/* Only in a read: outside one (a port out of step) the reply has no PEC slot yet, and
+	 * the PEC would overwrite its last byte. The branch above only moves what the read's
+	 * start resets. */
+	if (p->tx_pos < p->tx_len && p->in_read) {
 		/* The PEC, over every byte before it. */
 		p->tx[p->tx_pos++] = p->read_crc;
 		return p->read_crc;

@@ -65,8 +65,8 @@ struct proto {
 	uint8_t restart_crc; /* 1 when the read continues that write (repeated start) */
 	uint8_t read_crc;    /* the read's PEC so far: that write if so, address, bytes sent */
 
-	/* Interrupt side: own-address starts, write or read, wrapping: the tick sees the master
-	 * alive when it changes (SET_TIMEOUT). */
+	/* Interrupt side: transactions addressed to the board, wrapping (a write at its start, a
+	 * read at its end): the tick sees the master alive when it changes (SET_TIMEOUT). */
 	volatile uint8_t transactions;
 
 	/* Interrupt side: rejections. */
@@ -117,8 +117,8 @@ void proto_on_restart(struct proto *p);
  * ends first. Interrupt-safe: yes. */
 void proto_on_read_start(struct proto *p);
 
-/* The next byte to send to the master; 0xFF past the reply and its PEC, and outside a read.
- * Interrupt-safe: yes. */
+/* The next byte to send to the master; 0xFF past the reply and its PEC. Outside a read it
+ * changes nothing the next read returns. Interrupt-safe: yes. */
 uint8_t proto_read_byte(struct proto *p);
 
 /* STOP on the bus: a write ends and is judged, a read ends and its selection is used up.
