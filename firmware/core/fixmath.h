@@ -464,6 +464,15 @@ static inline int32_t fx_angle_diff(uint32_t b_turn32, uint32_t a_turn32)
 	return (int32_t)(d - FX_HALF_TURN32) - INT32_MAX - 1;
 }
 
+/* The size of the angle between two headings, |b - a|, in 0..1/2 turn (1/2 turn is 2^31: no
+ * negation of INT32_MIN). */
+static inline uint32_t fx_angle_dist(uint32_t b_turn32, uint32_t a_turn32)
+{
+	uint32_t d = b_turn32 - a_turn32;
+
+	return d <= FX_HALF_TURN32 ? d : 0u - d;
+}
+
 /* A heading as -18000..18000 [0.01 degree], rounded to nearest. */
 static inline int32_t fx_turn32_to_cdeg(uint32_t angle_turn32)
 {

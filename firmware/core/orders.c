@@ -351,8 +351,7 @@ static uint8_t update_border(struct orders *o, const struct orders_measure *m)
 	switch (o->state) {
 	case ORDER_STATE_ROTATE:
 		if (!profile_is_done(&o->angle) ||
-		    (uint32_t)abs32(
-			    fx_angle_diff(border_heading(o->border_side), m->pose.heading_turn32)) >
+		    fx_angle_dist(border_heading(o->border_side), m->pose.heading_turn32) >
 			    o->cfg.heading_window_turn32)
 			break;
 		enter(o, ORDER_STATE_PUSH);
@@ -419,11 +418,11 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 		/* GOTO: the bearing of the last re-aim (none yet on the order's first tick). */
 		if (o->designation == PROTO_GOTO && !o->bearing_valid)
 			break;
-		heading_err = (uint32_t)abs32(fx_angle_diff(
+		heading_err = fx_angle_dist(
 			o->designation == PROTO_GOTO
 				? (o->bearing_valid ? o->bearing_turn32 : bearing(o, &m->pose))
 				: o->target_heading_turn32,
-			m->pose.heading_turn32));
+			m->pose.heading_turn32);
 		if (heading_err > o->cfg.heading_window_turn32)
 			break;
 		if (o->designation == PROTO_GOTO_PANIER) {

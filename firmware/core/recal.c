@@ -174,8 +174,7 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 	if (r->last_valid && r->last_line == best && r->last_sensor != i &&
 	    abs32(s_mid - r->last_mid_um) <= r->cfg.pair_window_um &&
 	    pair_heading(r, l, i, r->last_sensor, s_mid, r->last_mid_um, sn, cs, &heading) == 0 &&
-	    (uint32_t)abs32(fx_angle_diff(heading, pose->heading_turn32)) <=
-		    r->cfg.max_angle_turn32) {
+	    fx_angle_dist(heading, pose->heading_turn32) <= r->cfg.max_angle_turn32) {
 		int64_t base = abs32(r->cfg.sensors[i].y_um - r->cfg.sensors[r->last_sensor].y_um);
 		int64_t err_um = (int64_t)abs32(step_um) + r->cfg.pair_bound_um;
 

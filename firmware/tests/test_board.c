@@ -514,11 +514,31 @@ static void test_timeout_polls_keep_it_going(void **state)
 	assert_int_equal(s, 0);
 	assert_int_equal(debug_end_reason(), END_REASON_DONE);
 	send((const uint8_t[]){PROTO_SET_TIMEOUT, 0, 0}, 3);
-	/* Not straight behind: a bearing of exactly half a turn is the known undefined behaviour
-	 * of orders.c (fuzz/known-ub.supp). */
-	goto_mm(-1000, 50);
+	/* Straight behind: a heading error of exactly half a turn (fx_angle_dist). */
+	goto_mm(-1000, 0);
 	silence(5000);
 	assert_int_equal(debug_end_reason(), END_REASON_DONE);
+}
+
+/* GOTO_PANIER +90 (180 degrees) from heading 0: a heading error of exactly half a turn, whose
+ * magnitude is 2^31 (was the negation of INT32_MIN, undefined: found by fuzzing). The robot
+ * turns and reaches the heading. */
+static void test_half_turn(void **state)
+{
+	struct sim_field f;
+	int16_t x, y;
+	int8_t a;
+	uint8_t r;
+
+	(void)state;
+	setup_field(&f);
+	f.obstacle_count = 0; /* no basket: the push ends by itself */
+	start(&f);
+	send((const uint8_t[]){PROTO_GOTO_PANIER, 90}, 2);
+	for (int i = 0; i < 3000; i++)
+		host_tick(&h);
+	position(&x, &y, &a, &r);
+	assert_true(a == 90 || a == -90);
 }
 
 /* SET_NEW_POS moves the estimate by minus the error, between two ticks, and the robot does not
@@ -650,6 +670,7 @@ int main(void)
 		cmocka_unit_test(test_timeout_off_by_default),
 		cmocka_unit_test(test_timeout_stops_a_silent_master),
 		cmocka_unit_test(test_timeout_polls_keep_it_going),
+		cmocka_unit_test(test_half_turn),
 		cmocka_unit_test(test_set_new_pos),
 		cmocka_unit_test(test_set_new_pos_stays_in_range),
 		cmocka_unit_test(test_set_odometrie),
