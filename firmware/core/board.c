@@ -414,9 +414,7 @@ static void recal_lines(struct board *b, const struct board_inputs *in, struct o
 		      !o->border && o->state == ORDER_STATE_TRANSLATE;
 	struct recal_fix fix;
 
-	recal_update(&b->recal, in->lines, enabled, &m->pose, m->dist_um,
-		     uncertainty_get_radius_mm(&b->uncertainty),
-		     enabled ? uncertainty_get_heading_bound_turn32(&b->uncertainty) : 0, &fix);
+	recal_update(&b->recal, in->lines, enabled, &m->pose, m->dist_um, &b->uncertainty, &fix);
 	if (!fix.what)
 		return;
 	set_pose(b, &fix.pose, m);

@@ -5,14 +5,6 @@
 
 #define N_FAULT_TIMES 8u
 
-/* |v|, with |INT32_MIN| saturated to INT32_MAX. */
-static int32_t mag32(int32_t v)
-{
-	if (v == INT32_MIN)
-		return INT32_MAX;
-	return v < 0 ? -v : v;
-}
-
 /* a + b, saturated: the leaky sums must not wrap however long a disagreement lasts. */
 static int32_t add_sat(int32_t a, int32_t b)
 {
@@ -144,12 +136,12 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 			continue;
 		}
 		if (f->lost_motor_um[s] < LOST_SUM_MAX &&
-		    mag32(f->lost_other_um[s]) < LOST_SUM_MAX) {
-			f->lost_motor_um[s] += (int32_t)fx_hi16((uint32_t)mag32(m[s]) + 0x8000u);
+		    fx_abs32(f->lost_other_um[s]) < LOST_SUM_MAX) {
+			f->lost_motor_um[s] += (int32_t)fx_hi16((uint32_t)fx_abs32(m[s]) + 0x8000u);
 			f->lost_other_um[s] += fx_shr_round(fr[o], 16);
 		}
 		if (!(f->lost_suspect & bit) &&
-		    mag32(f->lost_other_um[s]) * 3 < f->lost_motor_um[s])
+		    fx_abs32(f->lost_other_um[s]) * 3 < f->lost_motor_um[s])
 			continue;
 		if (f->lost_motor_um[s] > f->cfg.lost_min_um) {
 			f->cause = FAULTS_CAUSE_ENCODER_LOST;
@@ -163,8 +155,8 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 		if (f->lost_motor_um[s] > 0)
 			lost_pending = 1;
 	}
-	if (!lost_pending && (mag32(f->slip_dist_q16) > (f->cfg.slip_max_um << 16) ||
-			      mag32(f->slip_angle_q16) > (f->cfg.slip_max_um << 16))) {
+	if (!lost_pending && (fx_abs32(f->slip_dist_q16) > (f->cfg.slip_max_um << 16) ||
+			      fx_abs32(f->slip_angle_q16) > (f->cfg.slip_max_um << 16))) {
 		f->cause = FAULTS_CAUSE_SLIP;
 		f->slip_dist_q16 = 0;
 		f->slip_angle_q16 = 0;
@@ -218,8 +210,8 @@ uint8_t faults_check(struct faults *f, const struct faults_inputs *in)
 		return FAULTS_GRAVE;
 	}
 	ev = slip_and_lost(f, in);
-	over = mag32(in->current_ma[0]) > f->cfg.current_max_ma ||
-	       mag32(in->current_ma[1]) > f->cfg.current_max_ma;
+	over = fx_abs32(in->current_ma[0]) > f->cfg.current_max_ma ||
+	       fx_abs32(in->current_ma[1]) > f->cfg.current_max_ma;
 	if (counted(&f->current_count, over, f->cfg.current_ticks) && ev == FAULTS_NONE) {
 		f->current_count = 0;
 		if (!in->moving)
@@ -228,8 +220,8 @@ uint8_t faults_check(struct faults *f, const struct faults_inputs *in)
 		f->cause = FAULTS_CAUSE_OVERCURRENT;
 	}
 	blocked = in->moving && !in->pushing &&
-		  (mag32(in->dist_err_um) > f->cfg.following_max_um ||
-		   mag32(in->angle_err_um) > f->cfg.following_max_um);
+		  (fx_abs32(in->dist_err_um) > f->cfg.following_max_um ||
+		   fx_abs32(in->angle_err_um) > f->cfg.following_max_um);
 	if (counted(&f->following_count, blocked, f->cfg.following_ticks) && ev == FAULTS_NONE) {
 		ev = FAULTS_MOTOR;
 		f->cause = FAULTS_CAUSE_FOLLOWING;

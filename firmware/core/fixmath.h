@@ -31,6 +31,20 @@ static inline int32_t fx_sat32(int64_t v)
 	return (int32_t)v;
 }
 
+/* |v| as a signed value, |INT32_MIN| saturated to INT32_MAX (no undefined negation). */
+static inline int32_t fx_abs32(int32_t v)
+{
+	if (v == INT32_MIN)
+		return INT32_MAX;
+	return v < 0 ? -v : v;
+}
+
+/* |v| exactly, as an unsigned value. */
+static inline uint32_t fx_mag32(int32_t v)
+{
+	return v >= 0 ? (uint32_t)v : (uint32_t)0 - (uint32_t)v;
+}
+
 static inline int16_t fx_sat16(int32_t v)
 {
 	if (v > INT16_MAX)

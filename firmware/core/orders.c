@@ -6,11 +6,6 @@
 
 #define CM_TO_UM 10000
 
-static int32_t abs32(int32_t v)
-{
-	return v < 0 ? -v : v;
-}
-
 int32_t orders_arc_um(const struct orders *o, int32_t dheading_turn32)
 {
 	return fx_mul_shr32(dheading_turn32, (uint32_t)o->pi_track_um);
@@ -263,9 +258,9 @@ static int settled(struct orders *o, const struct orders_measure *m)
 	int32_t ed = o->sp_dist.pos_um - m->dist_um;
 	int32_t ea = o->sp_angle.pos_um - m->angle_um;
 
-	if (abs32(ed) < o->cfg.arrive_window_um && abs32(ea) < o->cfg.arrive_window_um &&
-	    abs32(m->dist_speed_um_s) < o->cfg.arrive_speed_um_s &&
-	    abs32(m->angle_speed_um_s) < o->cfg.arrive_speed_um_s) {
+	if (fx_abs32(ed) < o->cfg.arrive_window_um && fx_abs32(ea) < o->cfg.arrive_window_um &&
+	    fx_abs32(m->dist_speed_um_s) < o->cfg.arrive_speed_um_s &&
+	    fx_abs32(m->angle_speed_um_s) < o->cfg.arrive_speed_um_s) {
 		if (o->settle_count < 0xFFFFu)
 			o->settle_count++;
 	} else {

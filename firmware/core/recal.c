@@ -7,11 +7,6 @@
 /* 2^32 / (2 pi): turn * 2^32 per rad. */
 #define TURN32_PER_RAD 683565276LL
 
-static int32_t abs32(int32_t v)
-{
-	return v < 0 ? -v : v;
-}
-
 static int line_vertical(const struct recal_line *l)
 {
 	return l->x0_um == l->x1_um;
@@ -32,7 +27,8 @@ int recal_init(struct recal *r, const struct recal_config *cfg, int32_t dist_um)
 	    cfg->pair_bound_um > 100000u)
 		return -1;
 	for (uint8_t i = 0; i < cfg->n_sensors; i++)
-		if (abs32(cfg->sensors[i].x_um) > 1000000 || abs32(cfg->sensors[i].y_um) > 1000000)
+		if (fx_abs32(cfg->sensors[i].x_um) > 1000000 ||
+		    fx_abs32(cfg->sensors[i].y_um) > 1000000)
 			return -1;
 	r->cfg = *cfg;
 	fx_sincos(cfg->max_angle_turn32, &r->sin_max_q30, &c);
@@ -72,7 +68,7 @@ static int32_t across(const struct recal_line *l, int32_t x, int32_t y, int32_t 
 		lo = hi;
 		hi = t;
 	}
-	*near = abs32(d) <= reach && a >= lo - reach && a <= hi + reach;
+	*near = fx_abs32(d) <= reach && a >= lo - reach && a <= hi + reach;
 	return d;
 }
 
@@ -128,12 +124,11 @@ static int pair_heading(const struct recal *r, const struct recal_line *l, uint8
 /* Sensor i left a line: the crossing from s_in to s_out (distance axis), judged by the rules of
  * recal.h, applied to fix->pose when usable. */
 static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, int32_t dist_um,
-		     int32_t step_um, uint8_t radius_mm, uint32_t heading_bound_turn32,
-		     struct recal_fix *fix)
+		     int32_t step_um, const struct uncertainty *u, struct recal_fix *fix)
 {
 	struct odometry_pose *pose = &fix->pose;
 	int32_t travel = s_out - s_in, s_mid = s_in + travel / 2;
-	int32_t reach = (int32_t)radius_mm * 1000 + r->cfg.margin_um;
+	int32_t reach = (int32_t)uncertainty_get_radius_mm(u) * 1000 + r->cfg.margin_um;
 	int32_t sn, cs, x, y, crossed, off;
 	uint8_t n = 0, best = 0;
 	const struct recal_line *l;
@@ -162,8 +157,10 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 	l = &r->cfg.lines[best];
 	/* The angle to the normal: the heading's component along the line is its sine. */
 	off = line_vertical(l) ? sn : cs;
-	crossed = (int32_t)fx_shr_round64((int64_t)travel * abs32(line_vertical(l) ? cs : sn), 30);
-	if (abs32(off) > r->sin_max_q30 || abs32(crossed - l->width_um) > r->cfg.width_tol_um) {
+	crossed =
+		(int32_t)fx_shr_round64((int64_t)travel * fx_abs32(line_vertical(l) ? cs : sn), 30);
+	if (fx_abs32(off) > r->sin_max_q30 ||
+	    fx_abs32(crossed - l->width_um) > r->cfg.width_tol_um) {
 		r->ignored++;
 		return;
 	}
@@ -172,14 +169,15 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 	 * when it is known better than the estimate's, before the position. */
 	hb = 0;
 	if (r->last_valid && r->last_line == best && r->last_sensor != i &&
-	    abs32(s_mid - r->last_mid_um) <= r->cfg.pair_window_um &&
+	    fx_abs32(s_mid - r->last_mid_um) <= r->cfg.pair_window_um &&
 	    pair_heading(r, l, i, r->last_sensor, s_mid, r->last_mid_um, sn, cs, &heading) == 0 &&
 	    fx_angle_dist(heading, pose->heading_turn32) <= r->cfg.max_angle_turn32) {
-		int64_t base = abs32(r->cfg.sensors[i].y_um - r->cfg.sensors[r->last_sensor].y_um);
-		int64_t err_um = (int64_t)abs32(step_um) + r->cfg.pair_bound_um;
+		int64_t base =
+			fx_abs32(r->cfg.sensors[i].y_um - r->cfg.sensors[r->last_sensor].y_um);
+		int64_t err_um = (int64_t)fx_abs32(step_um) + r->cfg.pair_bound_um;
 
 		hb = (uint32_t)((err_um * TURN32_PER_RAD + base - 1) / base);
-		if (hb < heading_bound_turn32) {
+		if (hb < uncertainty_get_heading_bound_turn32(u)) {
 			pose->heading_turn32 = heading;
 			fix->what |= RECAL_FIX_HEADING;
 			fix->heading_bound_turn32 = hb;
@@ -188,7 +186,7 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 	fix_position(r, i, l, pose, dist_um - s_mid);
 	fix->what |= RECAL_FIX_POSITION;
 	fix->normal_turn32 = line_vertical(l) ? 0 : QUARTER_TURN32;
-	fix->bound_um = r->cfg.bound_um + (uint32_t)abs32(step_um) / 2;
+	fix->bound_um = r->cfg.bound_um + (uint32_t)fx_abs32(step_um) / 2;
 	fix->line = best;
 	r->crossings++;
 	r->last_valid = 1;
@@ -198,8 +196,7 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 }
 
 void recal_update(struct recal *r, uint8_t lines, int enabled, const struct odometry_pose *pose,
-		  int32_t dist_um, uint8_t radius_mm, uint32_t heading_bound_turn32,
-		  struct recal_fix *fix)
+		  int32_t dist_um, const struct uncertainty *u, struct recal_fix *fix)
 {
 	uint8_t mask = (uint8_t)((1u << r->cfg.n_sensors) - 1u);
 	uint8_t now = lines & mask;
@@ -225,8 +222,7 @@ void recal_update(struct recal *r, uint8_t lines, int enabled, const struct odom
 				r->armed |= bit;
 			} else if (r->armed & bit) {
 				r->armed &= (uint8_t)~bit;
-				crossing(r, i, r->entry_um[i], edge_um, dist_um, step, radius_mm,
-					 heading_bound_turn32, fix);
+				crossing(r, i, r->entry_um[i], edge_um, dist_um, step, u, fix);
 			}
 		}
 	}

@@ -15,6 +15,7 @@
 #include <stdint.h>
 
 #include "odometry.h"
+#include "uncertainty.h"
 
 #define RECAL_MAX_SENSORS 4
 #define RECAL_MAX_LINES 8
@@ -81,11 +82,11 @@ struct recal {
 int recal_init(struct recal *r, const struct recal_config *cfg, int32_t dist_um);
 
 /* One tick: lines (bit n = sensor n on a line), enabled (the running order allows line
- * recalibration and drives straight), the estimate, the distance axis, the error radius [mm] and
- * the heading's bound. Fills fix (fix->what == 0 when nothing is to be applied); the caller
- * applies fix->pose and resets the uncertainty. interrupt-safe: no (tick only). */
+ * recalibration and drives straight), the estimate, the distance axis, and the uncertainty, whose
+ * error radius and heading bound are read only when a sensor leaves a line. Fills fix
+ * (fix->what == 0 when nothing is to be applied); the caller applies fix->pose and resets the
+ * uncertainty. interrupt-safe: no (tick only). */
 void recal_update(struct recal *r, uint8_t lines, int enabled, const struct odometry_pose *pose,
-		  int32_t dist_um, uint8_t radius_mm, uint32_t heading_bound_turn32,
-		  struct recal_fix *fix);
+		  int32_t dist_um, const struct uncertainty *u, struct recal_fix *fix);
 
 #endif

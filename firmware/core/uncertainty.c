@@ -51,16 +51,11 @@ enum stage {
 
 typedef char uncertainty_stages_counted[(STAGE_RADIUS == UNCERTAINTY_STAGES) ? 1 : -1];
 
-static uint32_t mag32(int32_t v)
-{
-	return v >= 0 ? (uint32_t)v : (uint32_t)0 - (uint32_t)v;
-}
-
 /* round(v / 2^15), ties away from zero (a shift of the magnitude: avr-gcc divides a signed
  * value by 2^15 with a loop). */
 static int32_t q15_of(int32_t v)
 {
-	int32_t r = (int32_t)fx_shr_u32(mag32(v) + 0x4000u, 15);
+	int32_t r = (int32_t)fx_shr_u32(fx_mag32(v) + 0x4000u, 15);
 
 	return v >= 0 ? r : -r;
 }
@@ -78,8 +73,8 @@ static int32_t sat_add(int32_t a, int32_t b)
 /* w += a b exactly (|b| <= 2^15): a 48-bit sum kept as hi 2^16 + lo, hi saturating. */
 static void add48(struct uncertainty_sum48 *w, int32_t a, int32_t b)
 {
-	uint32_t ua = mag32(a);
-	uint16_t ub = (uint16_t)mag32(b);
+	uint32_t ua = fx_mag32(a);
+	uint16_t ub = (uint16_t)fx_mag32(b);
 	uint32_t lo = fx_mul_u16(fx_lo16(ua), ub);
 	int32_t hi = (int32_t)(fx_mul_u16(fx_hi16(ua), ub) + fx_hi16(lo)); /* below 2^31 */
 	uint32_t t;
@@ -123,7 +118,7 @@ static void lateral48(struct uncertainty_sum48 w[2], int32_t s, int32_t c)
 static uint32_t mag48(const struct uncertainty_sum48 *w)
 {
 	if (w->hi < 0)
-		return mag32(w->hi);
+		return fx_mag32(w->hi);
 	return (uint32_t)w->hi + (w->lo != 0);
 }
 
@@ -416,7 +411,7 @@ uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u)
 /* Travel [um * 2^8] rounded to um, and clamped to 16 bits (32 mm: a batch is shorter). */
 static int32_t um_of_q8(int32_t v)
 {
-	uint32_t m = (mag32(v) + 0x80u) >> 8;
+	uint32_t m = (fx_mag32(v) + 0x80u) >> 8;
 	int32_t r = m > 0x7fffu ? 0x7fff : (int32_t)m;
 
 	return v >= 0 ? r : -r;
@@ -572,9 +567,9 @@ static void stage_q_tt(struct uncertainty *u)
 static void stage_eigen(struct uncertainty *u)
 {
 	int32_t a = u->xx > 0 ? u->xx : 0, c = u->yy > 0 ? u->yy : 0;
-	uint32_t b = mag32(u->xy);
+	uint32_t b = fx_mag32(u->xy);
 
-	u->h = hypot_up(mag32(a - c), b > 0x7fffffffu ? 0xfffffffeu : 2 * b);
+	u->h = hypot_up(fx_mag32(a - c), b > 0x7fffffffu ? 0xfffffffeu : 2 * b);
 }
 
 /* k sigma_max [um], rounded up at every step. */
@@ -619,7 +614,7 @@ static void stage_radius(struct uncertainty *u)
 	uint32_t k = (uint32_t)1000 << 7;
 	uint8_t mm = 0, bit = 128;
 
-	add_systematic(u, mag32(u->d[0]), mag32(u->d[1]), u->scale_coef_q32);
+	add_systematic(u, fx_mag32(u->d[0]), fx_mag32(u->d[1]), u->scale_coef_q32);
 	r = u->radius_um;
 	if (u->saturated || r >= (uint32_t)UNCERTAINTY_RADIUS_MAX_MM * 1000) {
 		u->radius_mm = UNCERTAINTY_RADIUS_MAX_MM;
@@ -726,7 +721,7 @@ FX_NOINLINE static void start_batch(struct uncertainty *u)
  * sums then hold 8.4 m. */
 static int32_t q8_of_q16(int32_t v)
 {
-	int32_t r = (int32_t)((mag32(v) + 0x80u) >> 8);
+	int32_t r = (int32_t)((fx_mag32(v) + 0x80u) >> 8);
 
 	return v >= 0 ? r : -r;
 }
@@ -741,13 +736,13 @@ void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q
 	 * handed over at once, the stages in flight finished in this tick, before a wheel's travel
 	 * in it would pass 32.7 mm: at 1 kHz only above 1.5 m/s (docs/odometry.md). */
 	if ((b->ticks | l | r) != 0) {
-		if (b->ticks == 0xffu || b->abs_left_q8 + mag32(l) > WHEEL_MAX_Q8 ||
-		    b->abs_right_q8 + mag32(r) > WHEEL_MAX_Q8)
+		if (b->ticks == 0xffu || b->abs_left_q8 + fx_mag32(l) > WHEEL_MAX_Q8 ||
+		    b->abs_right_q8 + fx_mag32(r) > WHEEL_MAX_Q8)
 			start_batch(u);
 		b->left_q8 += l;
 		b->right_q8 += r;
-		b->abs_left_q8 += mag32(l);
-		b->abs_right_q8 += mag32(r);
+		b->abs_left_q8 += fx_mag32(l);
+		b->abs_right_q8 += fx_mag32(r);
 		b->heading_turn32 = heading_turn32;
 		b->ticks++;
 		/* A batch that is due waits until the stages are done. */

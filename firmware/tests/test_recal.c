@@ -63,11 +63,23 @@ static int on_line(const struct recal_config *c, double x, double y)
 	return 0;
 }
 
+/* An uncertainty whose radius reads radius_mm and whose heading bound is heading_bound (the
+ * reset's bounds, 99 %, no noise). */
+static void uncertainty_known(struct uncertainty *u, uint8_t radius_mm, uint32_t heading_bound)
+{
+	static const struct uncertainty_config quiet = {0, 0, 280000, 0, 0, 0, 776, 16};
+
+	assert_int_equal(uncertainty_init(u, &quiet), 0);
+	uncertainty_reset(u, (uint32_t)radius_mm * 1000, heading_bound);
+	assert_int_equal(uncertainty_get_radius_mm(u), radius_mm);
+}
+
 static struct run drive(const struct recal_config *c, double x0, double y0, double heading_deg,
 			double step_um, int n, double ex, double ey, double eh_deg,
 			uint8_t radius_mm, uint32_t heading_bound, int enabled)
 {
 	struct recal r;
+	struct uncertainty u;
 	struct run out = {0};
 	double h = heading_deg * PI / 180, he = (heading_deg + eh_deg) * PI / 180;
 	struct odometry_pose p;
@@ -76,6 +88,7 @@ static struct run drive(const struct recal_config *c, double x0, double y0, doub
 	p.heading_turn32 =
 		(uint32_t)(int64_t)llround((heading_deg + eh_deg) / 360.0 * 4294967296.0);
 	assert_int_equal(recal_init(&r, c, 0), 0);
+	uncertainty_known(&u, radius_mm, heading_bound);
 	for (int i = 1; i <= n; i++) {
 		double s = i * step_um;
 		double tx = x0 + s * cos(h), ty = y0 + s * sin(h);
@@ -93,8 +106,7 @@ static struct run drive(const struct recal_config *c, double x0, double y0, doub
 		est_y += step_um * sin(he);
 		p.x_um = (int32_t)lround(est_x);
 		p.y_um = (int32_t)lround(est_y);
-		recal_update(&r, lines, enabled, &p, (int32_t)lround(s), radius_mm, heading_bound,
-			     &fix);
+		recal_update(&r, lines, enabled, &p, (int32_t)lround(s), &u, &fix);
 		if (fix.what) {
 			out.fixes++;
 			out.what |= fix.what;
@@ -178,10 +190,12 @@ static void test_wrong_width_ignored(void **state)
 {
 	struct recal_config c;
 	struct recal rr;
+	struct uncertainty u;
 
 	(void)state;
 	base_config(&c);
 	assert_int_equal(recal_init(&rr, &c, 0), 0);
+	uncertainty_known(&u, 10, 0);
 	{
 		struct odometry_pose p = {0, 0, 0};
 		struct recal_fix fix;
@@ -190,7 +204,7 @@ static void test_wrong_width_ignored(void **state)
 		/* 60 mm on the line, then off: the board knows a 20 mm line there. */
 		for (int i = 0; i <= 100; i++) {
 			p.x_um = -30000 + i * 1000;
-			recal_update(&rr, (i >= 1 && i <= 60) ? 3 : 0, 1, &p, p.x_um + 30000, 10, 0,
+			recal_update(&rr, (i >= 1 && i <= 60) ? 3 : 0, 1, &p, p.x_um + 30000, &u,
 				     &fix);
 			fixes += fix.what != 0;
 		}
