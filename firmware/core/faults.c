@@ -97,8 +97,12 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 	 * angle axis scaled from the encoder track to the drive track), summed with a leak so
 	 * that a short disagreement (a seam, backlash) is forgotten. Halves are taken after the
 	 * sum to keep the rounding out of the comparison. */
-	free_a = in->free_ratio_q16 <= 0xffff ? fx_mul_q(fr[1] - fr[0], in->free_ratio_q16, 16)
-					      : fx_mul_shr(fr[1] - fr[0], in->free_ratio_q16, 16);
+	/* Clamped like the steps: a large ratio (SET_ODOMETRIE's shortest encoder track against a
+	 * long drive track) would saturate the product to INT32_MIN, and the difference below
+	 * overflow (found by fuzz/fuzz_board). */
+	free_a = clamp_step(in->free_ratio_q16 <= 0xffff
+				    ? fx_mul_q(fr[1] - fr[0], in->free_ratio_q16, 16)
+				    : fx_mul_shr(fr[1] - fr[0], in->free_ratio_q16, 16));
 	diff_d = (m[0] + m[1]) - (fr[0] + fr[1]);
 	diff_a = (m[1] - m[0]) - free_a;
 	f->slip_dist_q16 =

@@ -225,6 +225,13 @@ static void test_extreme_inputs_saturate(void **state)
 	in.dist_err_um = INT32_MIN;
 	assert_int_equal(ticks_to(FAULTS_MOTOR, 1000), 100);
 	assert_int_equal(f.cause, FAULTS_CAUSE_FOLLOWING);
+	/* A huge track ratio with the free wheels turning apart at full range. */
+	setup();
+	in.free_ratio_q16 = INT32_MAX;
+	in.free_step_q16[0] = INT32_MAX;
+	in.free_step_q16[1] = INT32_MIN;
+	assert_true(ticks_to(FAULTS_MOTOR, 10) > 0);
+	assert_int_equal(f.cause, FAULTS_CAUSE_SLIP);
 }
 
 static void test_repeated_motor_faults_are_grave(void **state)
