@@ -96,22 +96,96 @@ static inline int16_t fx_sat16(int32_t v)
 #define FX_NOINLINE
 #endif
 
-static inline uint32_t fx_mul_u16(uint16_t a, uint16_t b)
+/* On an AVR with a hardware multiplier (FX_AVR_MUL) the 16 x 16-bit products are written in
+ * assembly. avr-gcc 5.4 calls a library routine for each (__umulhisi3 and its signed variants):
+ * operands moved into its fixed registers, the call and the return, about 30 cycles, and the
+ * caller keeps fewer values in registers across it. In line, the four MUL (8 x 8 bits into
+ * r1:r0) and their sums take 18 cycles, in whatever registers the operands already are. r1 is
+ * avr-gcc's zero register: it is cleared again before each carry that needs a zero and at the
+ * end. A signed product is the unsigned one of the same bits less 2^16 b for a negative a (and
+ * 2^16 a for a negative b), modulo 2^32: two subtractions, where the MULS/MULSU forms would
+ * tie the operands to r16..r23. Constant operands keep the C, which GCC folds. */
+#if defined(__GNUC__) && defined(__AVR_HAVE_MUL__)
+#define FX_AVR_MUL 1
+#else
+#define FX_AVR_MUL 0
+#endif
+
+#if FX_AVR_MUL
+/* p = a b (unsigned), as a 32-bit word of the operand's type; a and b 16-bit registers. */
+#define FX_AVR_MUL_U16(p, a, b)                                                                    \
+	__asm__("mul  %A1, %A2\n\t"                                                                \
+		"movw %A0, r0\n\t"                                                                 \
+		"mul  %B1, %B2\n\t"                                                                \
+		"movw %C0, r0\n\t"                                                                 \
+		"mul  %A1, %B2\n\t"                                                                \
+		"add  %B0, r0\n\t"                                                                 \
+		"adc  %C0, r1\n\t"                                                                 \
+		"clr  __zero_reg__\n\t"                                                            \
+		"adc  %D0, __zero_reg__\n\t"                                                       \
+		"mul  %B1, %A2\n\t"                                                                \
+		"add  %B0, r0\n\t"                                                                 \
+		"adc  %C0, r1\n\t"                                                                 \
+		"clr  __zero_reg__\n\t"                                                            \
+		"adc  %D0, __zero_reg__"                                                           \
+		: "=&r"(p)                                                                         \
+		: "r"(a), "r"(b)                                                                   \
+		: "r0")
+
+/* p -= 2^16 b if a is negative: a and b 16-bit registers. */
+#define FX_AVR_FIX_SIGN(p, a, b)                                                                   \
+	__asm__("sbrs %B1, 7\n\t"                                                                  \
+		"rjmp 1f\n\t"                                                                      \
+		"sub  %C0, %A2\n\t"                                                                \
+		"sbc  %D0, %B2\n"                                                                  \
+		"1:"                                                                               \
+		: "+r"(p)                                                                          \
+		: "r"(a), "r"(b))
+#endif
+
+FX_INLINE uint32_t fx_mul_u16(uint16_t a, uint16_t b)
 {
+#if FX_AVR_MUL
+	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
+		uint32_t p;
+
+		FX_AVR_MUL_U16(p, a, b);
+		return p;
+	}
+#endif
 	FX_HIDE(a);
 	FX_HIDE(b);
 	return (uint32_t)a * b;
 }
 
-static inline int32_t fx_mul_s16(int16_t a, int16_t b)
+FX_INLINE int32_t fx_mul_s16(int16_t a, int16_t b)
 {
+#if FX_AVR_MUL
+	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
+		int32_t p;
+
+		FX_AVR_MUL_U16(p, a, b);
+		FX_AVR_FIX_SIGN(p, a, b);
+		FX_AVR_FIX_SIGN(p, b, a);
+		return p;
+	}
+#endif
 	FX_HIDE(a);
 	FX_HIDE(b);
 	return (int32_t)a * b;
 }
 
-static inline int32_t fx_mul_s16_u16(int16_t a, uint16_t b)
+FX_INLINE int32_t fx_mul_s16_u16(int16_t a, uint16_t b)
 {
+#if FX_AVR_MUL
+	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
+		int32_t p;
+
+		FX_AVR_MUL_U16(p, a, b);
+		FX_AVR_FIX_SIGN(p, a, b);
+		return p;
+	}
+#endif
 	FX_HIDE(a);
 	FX_HIDE(b);
 	return (int32_t)a * (int32_t)b;
@@ -182,10 +256,102 @@ static inline uint32_t fx_mul_u32_wide_n(uint32_t a, uint32_t b, uint32_t *lo)
 	return fx_mul_u16(fx_hi16(a), fx_hi16(b)) + (p1 >> 16) + (p2 >> 16) + (t >> 16);
 }
 
-static inline uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
+/* On the AVR, in assembly: the 16 byte products summed column by column (all a_i b_j with
+ * i + j = k into result bytes k and k + 1, the carry into byte k + 2), 83 cycles where the C
+ * above takes over 200 with its spills. The sum of the columns up to k is below
+ * 2^18 256^k, so a carry never goes past byte k + 2, which is still zero (cleared first) when
+ * column k starts. The zero that the carries add comes from byte 7, untouched until the last
+ * two columns: column 6 goes before column 5 (no carry out of byte 7 either way, the product
+ * being below 2^64), and column 5's carries clear r1 (EOR leaves the carry flag alone). */
+FX_INLINE uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
 {
 	uint64_t p;
 
+#if FX_AVR_MUL
+	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
+		uint32_t l, h;
+
+		__asm__("clr  %C0\n\t"
+			"clr  %D0\n\t"
+			"movw %A1, %C0\n\t"
+			"movw %C1, %C0\n\t"
+			/* column 0 */
+			"mul  %A2, %A3\n\t"
+			"movw %A0, r0\n\t"
+			/* column 1 */
+			"mul  %A2, %B3\n\t"
+			"add  %B0, r0\n\t"
+			"adc  %C0, r1\n\t"
+			"adc  %D0, %D1\n\t"
+			"mul  %B2, %A3\n\t"
+			"add  %B0, r0\n\t"
+			"adc  %C0, r1\n\t"
+			"adc  %D0, %D1\n\t"
+			/* column 2 */
+			"mul  %A2, %C3\n\t"
+			"add  %C0, r0\n\t"
+			"adc  %D0, r1\n\t"
+			"adc  %A1, %D1\n\t"
+			"mul  %B2, %B3\n\t"
+			"add  %C0, r0\n\t"
+			"adc  %D0, r1\n\t"
+			"adc  %A1, %D1\n\t"
+			"mul  %C2, %A3\n\t"
+			"add  %C0, r0\n\t"
+			"adc  %D0, r1\n\t"
+			"adc  %A1, %D1\n\t"
+			/* column 3 */
+			"mul  %A2, %D3\n\t"
+			"add  %D0, r0\n\t"
+			"adc  %A1, r1\n\t"
+			"adc  %B1, %D1\n\t"
+			"mul  %B2, %C3\n\t"
+			"add  %D0, r0\n\t"
+			"adc  %A1, r1\n\t"
+			"adc  %B1, %D1\n\t"
+			"mul  %C2, %B3\n\t"
+			"add  %D0, r0\n\t"
+			"adc  %A1, r1\n\t"
+			"adc  %B1, %D1\n\t"
+			"mul  %D2, %A3\n\t"
+			"add  %D0, r0\n\t"
+			"adc  %A1, r1\n\t"
+			"adc  %B1, %D1\n\t"
+			/* column 4 */
+			"mul  %B2, %D3\n\t"
+			"add  %A1, r0\n\t"
+			"adc  %B1, r1\n\t"
+			"adc  %C1, %D1\n\t"
+			"mul  %C2, %C3\n\t"
+			"add  %A1, r0\n\t"
+			"adc  %B1, r1\n\t"
+			"adc  %C1, %D1\n\t"
+			"mul  %D2, %B3\n\t"
+			"add  %A1, r0\n\t"
+			"adc  %B1, r1\n\t"
+			"adc  %C1, %D1\n\t"
+			/* column 6 */
+			"mul  %D2, %D3\n\t"
+			"add  %C1, r0\n\t"
+			"adc  %D1, r1\n\t"
+			/* column 5 */
+			"mul  %C2, %D3\n\t"
+			"add  %B1, r0\n\t"
+			"adc  %C1, r1\n\t"
+			"clr  __zero_reg__\n\t"
+			"adc  %D1, __zero_reg__\n\t"
+			"mul  %D2, %C3\n\t"
+			"add  %B1, r0\n\t"
+			"adc  %C1, r1\n\t"
+			"clr  __zero_reg__\n\t"
+			"adc  %D1, __zero_reg__"
+			: "=&r"(l), "=&r"(h)
+			: "r"(a), "r"(b)
+			: "r0");
+		*lo = l;
+		return h;
+	}
+#endif
 	if (FX_NARROW)
 		return fx_mul_u32_wide_n(a, b, lo);
 	p = (uint64_t)a * b;
