@@ -359,7 +359,7 @@ static const uint16_t atan_curve[33] = {
  * (under 200): within the 4096 documented. */
 static uint32_t atan_octant(uint32_t x, uint32_t y)
 {
-	uint32_t rem = y, q = 0;
+	uint32_t rem = y, q = 0, p;
 	uint8_t k;
 	int16_t d;
 	int32_t a;
@@ -371,6 +371,9 @@ static uint32_t atan_octant(uint32_t x, uint32_t y)
 		rem -= x;
 		q = 1;
 	}
+#if FX_AVR_ASM
+	q = fx_avr_div_steps(&rem, q, x, 0, 20); /* q's upper bits are zero */
+#else
 	for (uint8_t i = 0; i < 20; i++) {
 		rem <<= 1; /* rem < x <= 2^31: no overflow */
 		q <<= 1;
@@ -379,12 +382,17 @@ static uint32_t atan_octant(uint32_t x, uint32_t y)
 			q |= 1u;
 		}
 	}
+#endif
 	/* q = t 2^20 <= 2^20; the nearest entry, 2^15 apart. */
-	k = (uint8_t)((q + 0x4000u) >> 15);
+	/* The shifts by 13 and 15 bits through fx_shr_u32: avr-gcc shifts a 32-bit word one bit
+	 * per turn of a loop otherwise, 250 cycles for the three. */
+	k = (uint8_t)fx_shr_u32(q + 0x4000u, 15);
 	d = (int16_t)((int32_t)q - ((int32_t)k << 15)); /* |d| <= 2^14 */
-	a = (int32_t)atan_table[k] + fx_mul_q(d, atan_slope[k], 4);
-	d2 = (uint16_t)((uint32_t)fx_mul_s16(d, d) >> 13); /* d^2 [2^-27], <= 2^15 */
-	return (uint32_t)(a - (int32_t)(fx_mul_u16(d2, atan_curve[k]) >> 15));
+	/* round(d slope / 16), ties away from zero (fx_mul_q(d, slope, 4)): one 16 x 16 product */
+	p = fx_shr_u32(fx_mul_u16(d >= 0 ? (uint16_t)d : (uint16_t)-d, atan_slope[k]) + 8u, 4);
+	a = (int32_t)atan_table[k] + (d >= 0 ? (int32_t)p : -(int32_t)p);
+	d2 = (uint16_t)fx_shr_u32((uint32_t)fx_mul_s16(d, d), 13); /* d^2 [2^-27], <= 2^15 */
+	return (uint32_t)(a - (int32_t)fx_shr_u32(fx_mul_u16(d2, atan_curve[k]), 15));
 }
 
 uint32_t fx_atan2(int32_t y, int32_t x)
