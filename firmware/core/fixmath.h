@@ -697,8 +697,9 @@ static inline int32_t fx_div_round(int32_t num, int32_t den)
 /* num / den rounded to nearest (ties away from zero), 64-bit; den != 0. */
 int64_t fx_div_round64(int64_t num, int64_t den);
 
-/* floor(sqrt(v)). */
+/* floor(sqrt(v)), of a 64-bit and of a 32-bit value. */
 uint32_t fx_isqrt64(uint64_t v);
+uint32_t fx_isqrt32(uint32_t v);
 
 /* sin and cos of a heading, [2^-30], absolute error at most 4 units (about 4e-9). */
 void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30);

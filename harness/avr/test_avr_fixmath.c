@@ -45,6 +45,7 @@ static const char *const op_name[FXA_OPS] = {
 	[FXA_SINCOS_Q14] = "fx_sincos_q14",
 	[FXA_ATAN2] = "fx_atan2",
 	[FXA_ISQRT64] = "fx_isqrt64",
+	[FXA_ISQRT32] = "fx_isqrt32",
 	[FXA_TURN32_TO_CDEG] = "fx_turn32_to_cdeg",
 };
 
@@ -198,6 +199,9 @@ static void on_host(uint8_t op, uint8_t n, const uint32_t in[3], uint32_t r[2])
 		break;
 	case FXA_ISQRT64:
 		r[0] = fx_isqrt64((uint64_t)c << 32 | a);
+		break;
+	case FXA_ISQRT32:
+		r[0] = fx_isqrt32(a);
 		break;
 	case FXA_TURN32_TO_CDEG:
 		r[0] = (uint32_t)fx_turn32_to_cdeg(a);
@@ -390,22 +394,28 @@ static void test_angles(void **state)
 	}
 }
 
+static void check_isqrt(struct target *t, uint64_t v)
+{
+	check(t, FXA_ISQRT64, 0, (uint32_t)v, 0, (uint32_t)(v >> 32));
+	if ((v >> 32) == 0)
+		check(t, FXA_ISQRT32, 0, (uint32_t)v, 0, 0);
+}
+
 static void test_square_roots(void **state)
 {
 	struct target *t = *state;
 
 	for (size_t i = 0; i < N_EDGES; i++)
 		for (size_t j = 0; j < N_EDGES; j += 4)
-			check(t, FXA_ISQRT64, 0, edges32[i], 0, edges32[j]);
+			check_isqrt(t, (uint64_t)edges32[j] << 32 | edges32[i]);
 	for (uint32_t k = 0; k < RANDOM_PER_OP; k++) {
 		uint64_t r = rnd_bits(32), v = rnd_bits(64);
 
-		check(t, FXA_ISQRT64, 0, (uint32_t)v, 0, (uint32_t)(v >> 32));
+		check_isqrt(t, v);
+		check_isqrt(t, (uint32_t)v);
 		/* around a square: r^2 - 1, r^2 */
-		v = r * r;
-		check(t, FXA_ISQRT64, 0, (uint32_t)v, 0, (uint32_t)(v >> 32));
-		v--;
-		check(t, FXA_ISQRT64, 0, (uint32_t)v, 0, (uint32_t)(v >> 32));
+		check_isqrt(t, r * r);
+		check_isqrt(t, r * r - 1);
 	}
 }
 

@@ -94,6 +94,9 @@ static void run(uint8_t op)
 	case FXA_ISQRT64:
 		r0 = fx_isqrt64((uint64_t)c << 32 | a);
 		break;
+	case FXA_ISQRT32:
+		r0 = fx_isqrt32(a);
+		break;
 	case FXA_TURN32_TO_CDEG:
 		r0 = (uint32_t)fx_turn32_to_cdeg(a);
 		break;

@@ -45,6 +45,7 @@ enum fxa_op {
 	FXA_SINCOS_Q14,      /* fx_sincos_q14(a, &r0, &r1) (16-bit results) */
 	FXA_ATAN2,           /* r0 = fx_atan2(a, b) */
 	FXA_ISQRT64,         /* r0 = fx_isqrt64(c 2^32 + a) */
+	FXA_ISQRT32,         /* r0 = fx_isqrt32(a) */
 	FXA_TURN32_TO_CDEG,  /* r0 = fx_turn32_to_cdeg(a) */
 	FXA_OPS
 };
