@@ -21,6 +21,47 @@ static void put32(uint8_t off, uint32_t v)
 		box[off + i] = (uint8_t)(v >> (8 * i));
 }
 
+/* The primitives whose shift is a constant where they are used: one inlined copy per n. */
+#define N7(f, base)                                                                                \
+	f(base + 1) f(base + 2) f(base + 3) f(base + 4) f(base + 5) f(base + 6) f(base + 7)
+#define N8(f, base) f(base) N7(f, base)
+#define MUL_Q_CASE(k)                                                                              \
+	case k:                                                                                    \
+		return (uint32_t)fx_mul_q((int32_t)a, (int32_t)b, k);
+#define MUL_SHR_CASE(k)                                                                            \
+	case k:                                                                                    \
+		return fx_mul_u32_shr(a, b, k);
+
+static uint32_t mul_q_const(uint32_t a, uint32_t b, uint8_t n)
+{
+	switch (n) {
+		N7(MUL_Q_CASE, 0)
+		N8(MUL_Q_CASE, 8)
+		N8(MUL_Q_CASE, 16)
+		N8(MUL_Q_CASE, 24)
+		N8(MUL_Q_CASE, 32)
+		N8(MUL_Q_CASE, 40)
+	default:
+		return 0;
+	}
+}
+
+static uint32_t mul_shr_const(uint32_t a, uint32_t b, uint8_t n)
+{
+	switch (n) {
+		N7(MUL_SHR_CASE, 0)
+		N8(MUL_SHR_CASE, 8)
+		N8(MUL_SHR_CASE, 16)
+		N8(MUL_SHR_CASE, 24)
+		N8(MUL_SHR_CASE, 32)
+		N8(MUL_SHR_CASE, 40)
+		N8(MUL_SHR_CASE, 48)
+		N8(MUL_SHR_CASE, 56)
+	default:
+		return 0;
+	}
+}
+
 static void run(uint8_t op)
 {
 	uint8_t n = box[FXA_OFF_N];
@@ -30,6 +71,10 @@ static void run(uint8_t op)
 	int16_t h0, h1;
 
 	switch (op) {
+	case FXA_NOP:
+		r0 = a ^ b;
+		r1 = c;
+		break;
 	case FXA_MUL_U16:
 		r0 = fx_mul_u16((uint16_t)a, (uint16_t)b);
 		break;
@@ -65,6 +110,12 @@ static void run(uint8_t op)
 		break;
 	case FXA_MUL_Q30C:
 		r0 = (uint32_t)fx_mul_q((int32_t)a, (int32_t)b, 30);
+		break;
+	case FXA_MUL_QC:
+		r0 = mul_q_const(a, b, n);
+		break;
+	case FXA_MUL_U32_SHRC:
+		r0 = mul_shr_const(a, b, n);
 		break;
 	case FXA_MUL_SHR32:
 		r0 = (uint32_t)fx_mul_shr32((int32_t)a, b);

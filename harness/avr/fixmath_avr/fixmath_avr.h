@@ -24,7 +24,7 @@
 #define FXA_SIZE 22
 
 enum fxa_op {
-	FXA_NOP = 1,       /* nothing: the mailbox's own cycles */
+	FXA_NOP = 1,       /* r0 = a ^ b, r1 = c: the mailbox's own cycles */
 	FXA_MUL_U16,       /* r0 = fx_mul_u16(a, b) */
 	FXA_MUL_S16,       /* r0 = fx_mul_s16(a, b) */
 	FXA_MUL_S16_U16,   /* r0 = fx_mul_s16_u16(a, b) */
@@ -37,6 +37,8 @@ enum fxa_op {
 	FXA_MUL_Q15, /* the same with n a constant: 15, 16, 30 */
 	FXA_MUL_Q16,
 	FXA_MUL_Q30C,
+	FXA_MUL_QC,          /* fx_mul_q(a, b, n) with n a constant, each of 1..47 */
+	FXA_MUL_U32_SHRC,    /* fx_mul_u32_shr(a, b, n) with n a constant, each of 1..63 */
 	FXA_MUL_SHR32,       /* r0 = fx_mul_shr32(a, b) */
 	FXA_MUL_Q30,         /* r0 = fx_mul_q30(a, b) */
 	FXA_UDIV_SMALL,      /* r0 = fx_udiv_small(a, b, n) */
