@@ -243,7 +243,7 @@ static inline void to_quadrant(uint8_t q, int32_t s, int32_t c, int32_t *sin_out
  * avr-gcc kept the three 16 x 16 products in the stack and saved 16 registers, 200 cycles for
  * 60. The additions of 0x2000 and the shift by 14 bits work on the upper three bytes of mid,
  * which needs them in r16..r31 (SUBI, SBCI: the "d" constraint). */
-static uint32_t mul_q31(uint32_t d, uint32_t m)
+FX_INLINE uint32_t mul_q31(uint32_t d, uint32_t m)
 {
 #if FX_AVR_MUL
 	uint32_t r, mid;
@@ -348,8 +348,6 @@ void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30)
 	uint32_t base = (uint32_t)(uint16_t)((uint16_t)i << 7) << 16;
 	uint8_t neg = u < base;
 	uint32_t m = neg ? base - u : u - base; /* |r| <= 2^22 */
-	int32_t sa = sin_table_q30[i];
-	int32_t ca = sin_table_q30[128 - i];
 	/* |cos a d|, |sin a d| [2^-30], below 2^22.7. */
 	uint32_t tc = mul_q31(dsin_table_q29[i], m);
 	uint32_t ts = mul_q31(dsin_table_q29[128 - i], m);
@@ -365,6 +363,8 @@ void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30)
 	uint16_t h23 = fx_hi16(fx_mul_u16(hq, 43691u) + 0x8000u);
 	uint16_t t3c = fx_hi16(fx_mul_u16(t2c, h23) + 0x800000u) >> 8;
 	uint16_t t3s = fx_hi16(fx_mul_u16(t2s, h23) + 0x800000u) >> 8;
+	int32_t sa = sin_table_q30[i];
+	int32_t ca = sin_table_q30[128 - i];
 	int32_t s, c;
 
 	if (neg) {
