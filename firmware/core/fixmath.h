@@ -239,14 +239,22 @@ FX_INLINE uint32_t fx_shl_u32_n(uint32_t x, uint8_t n)
 	       (uint16_t)(lo << n);
 }
 
+/* Constant counts that avr-gcc shifts a uint32_t by in a few instructions (1, 2, 31): the
+ * pieces would only hide that from it (the shift by 1 in fx_mul_u32_shr(..., 31) took 40). */
+#ifdef __GNUC__
+#define FX_PLAIN_SHIFT(n) (__builtin_constant_p(n) && ((n) <= 2 || (n) == 31))
+#else
+#define FX_PLAIN_SHIFT(n) 0
+#endif
+
 FX_INLINE uint32_t fx_shr_u32(uint32_t x, uint8_t n)
 {
-	return FX_NARROW ? fx_shr_u32_n(x, n) : x >> n;
+	return FX_NARROW && !FX_PLAIN_SHIFT(n) ? fx_shr_u32_n(x, n) : x >> n;
 }
 
 FX_INLINE uint32_t fx_shl_u32(uint32_t x, uint8_t n)
 {
-	return FX_NARROW ? fx_shl_u32_n(x, n) : x << n;
+	return FX_NARROW && !FX_PLAIN_SHIFT(n) ? fx_shl_u32_n(x, n) : x << n;
 }
 
 /* a * b as two 32-bit words: returns the upper one, *lo the lower. Four 16 x 16 products. */
