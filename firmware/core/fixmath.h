@@ -62,7 +62,9 @@ static inline int16_t fx_sat16(int32_t v)
  * The primitives below give the same exact results on any machine. Where the words are narrower
  * than 32 bits (FX_NARROW: the AVR) they are built from 16-bit pieces and byte moves, the *_n
  * functions; on a 32- or 64-bit machine from its own 64-bit arithmetic, a few instructions where
- * the pieces would take tens. test_fixmath checks that both agree.
+ * the pieces would take tens. test_fixmath checks that both agree. With GCC on an AVR the hot
+ * ones are in assembly instead (FX_AVR_MUL, FX_AVR_ASM below); test_avr_fixmath runs them in
+ * simavr and checks that they give the host's bits.
  *
  * FX_HIDE is an empty GNU asm statement: it keeps GCC from seeing that a 16-bit operand is the
  * narrowed half of a 32-bit value, which it would otherwise fold into the multiplication and
