@@ -101,7 +101,7 @@ static int32_t feed_forward_c(int32_t k_speed, int32_t k_accel, const struct ord
 	return ff_term_c(sp->vel_um_s, k_speed) + ff_term_c(sp->acc_um_s2, k_accel);
 }
 
-#if defined(__AVR__)
+#if FX_AVR_MUL
 /* One term of feed_forward_avr, round(v k / 2^20) into P2..P5 (r16 is zero): r18..r21 = v (read
  * at Z + VOFF); 0 if v is; else v k in 48 bits (r26, r27, P2..P5) from eight MULs, v taken as
  * unsigned and then corrected by -k 2^32 when negative; + 2^19, less 1 below zero (ties away from
@@ -220,7 +220,7 @@ static FX_NOINLINE int32_t feed_forward_wide(int32_t k_speed, int32_t k_accel,
 FX_INLINE int32_t feed_forward(const struct control *c, const int32_t *k_accel,
 			       const struct orders_axis *sp)
 {
-#if defined(__AVR__)
+#if FX_AVR_MUL
 	if (c->ff_narrow)
 		return feed_forward_avr(fx_lo16((uint32_t)c->k_speed_q20),
 					fx_lo16((uint32_t)*k_accel), sp);

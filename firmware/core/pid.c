@@ -269,7 +269,7 @@ static FX_NOINLINE int16_t update_any(struct pid *c, int32_t err_um)
 	return c->out_q15;
 }
 
-#if defined(__AVR__)
+#if FX_AVR_MUL
 /* update_fast, with its bounds and the previous error's update, in AVR assembly: avr-gcc 5.4
  * keeps few of the C version's 32-bit values in registers and calls a library routine for each
  * 16 x 16 product, 750 cycles a call where this takes 300. The same arithmetic, byte by byte:
@@ -557,15 +557,17 @@ FX_INLINE uint8_t update_fast_avr(struct pid *c, int32_t *err_um, int16_t *out)
 }
 #endif
 
-#if defined(__AVR__)
+#if FX_AVR_MUL
 /* Inlined into the caller (link-time optimisation): the call and its register saves would cost
  * about 40 cycles. */
-__attribute__((always_inline)) inline
+#define PID_UPDATE_INLINE __attribute__((always_inline)) inline
+#else
+#define PID_UPDATE_INLINE
 #endif
-	int16_t
-	pid_update(struct pid *c, int32_t err_um)
+
+PID_UPDATE_INLINE int16_t pid_update(struct pid *c, int32_t err_um)
 {
-#if defined(__AVR__)
+#if FX_AVR_MUL
 	int16_t out;
 
 	if (update_fast_avr(c, &err_um, &out))
