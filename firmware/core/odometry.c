@@ -1,8 +1,10 @@
 /* Odometry from two free encoder wheels (see odometry.h and docs/odometry.md).
  *
- * The tick's arithmetic is 16 x 16-bit products and 32-bit additions (fixmath.h explains why):
- * the heading is a 64-bit sum kept as four 16-bit limbs, the position and distance are whole
- * micrometres and a fraction. */
+ * The tick's arithmetic is products of at most 32 x 32 bits and 32-bit additions (fixmath.h
+ * explains why): the heading is a 64-bit sum kept as two 32-bit words, the position and distance
+ * are whole micrometres and a fraction. On an AVR the products and the heading's sum are inline
+ * assembly (mul_u16, mul_u32_wide, add_q64), each beside the portable C that gives the same bits
+ * elsewhere. */
 #include "odometry.h"
 
 #include <errno.h>
@@ -98,7 +100,8 @@ static FX_NOINLINE int wheel_move_wide(const struct odometry_wheel *w, uint16_t 
 }
 
 /* a * b (fx_mul_u16()), inline on an AVR: libgcc's routine takes its operands and result in
- * fixed registers, which costs moves and spills around each call besides the call itself. */
+ * fixed registers, which costs moves and spills around each call besides the call itself.
+ * Leaves r1 (avr-gcc's zero register) zero, as every use of MUL must. */
 static inline uint32_t mul_u16(uint16_t a, uint16_t b)
 {
 #if defined(__AVR__) && defined(__GNUC__)
@@ -121,9 +124,11 @@ static inline uint32_t mul_u16(uint16_t a, uint16_t b)
 }
 
 /* a * b as two 32-bit words: returns the upper one, *lo the lower (fx_mul_u32_wide()). On an
- * AVR its sixteen 8 x 8-bit products are summed column by column in registers, about 90 cycles:
- * fx_mul_u32_wide() makes four calls of libgcc's 16 x 16-bit routine and adds their halves, about
- * 290 here. */
+ * AVR its sixteen 8 x 8-bit products are summed column by column in registers, about 90 cycles,
+ * where fx_mul_u32_wide() makes four calls of libgcc's 16 x 16-bit routine and adds their halves
+ * (about 200). Column k adds the products a_i b_j, i + j = k, into bytes k and k + 1 of the
+ * result and their carries into byte k + 2, which no product has touched yet: nothing carries
+ * further. */
 static inline uint32_t mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
 {
 #if defined(__AVR__) && defined(__GNUC__)
@@ -136,7 +141,7 @@ static inline uint32_t mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
 		"movw %A[l],r0\n\t"
 		"clr %C[l]\n\t"
 		"clr %D[l]\n\t"
-		/* column 1 */
+		/* column 1 (column 0: a_0 b_0 alone) */
 		"mul %A[a],%B[b]\n\t"
 		"add %B[l],r0\n\tadc %C[l],r1\n\tadc %D[l],%[z]\n\t"
 		"mul %B[a],%A[b]\n\t"
@@ -183,6 +188,52 @@ static inline uint32_t mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
 	return h;
 #else
 	return fx_mul_u32_wide(a, b, lo);
+#endif
+}
+
+/* h += d, or h -= d, modulo 2^64 (two 32-bit words, lower first). On an AVR, eight loads and
+ * additions with carry (loads leave the carry alone); C has no carry, and its compare for it costs
+ * as much again. */
+static inline void add_q64(uint32_t *h0, uint32_t *h1, const uint32_t d[2], uint8_t sub)
+{
+#if defined(__AVR__) && defined(__GNUC__)
+	uint32_t lo = *h0, hi = *h1;
+	const uint32_t *p = d;
+
+	if (!sub)
+		__asm__("ld __tmp_reg__,%a[p]+\n\tadd %A[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %B[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %C[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %D[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %A[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %B[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %C[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %D[hi],__tmp_reg__"
+			: [lo] "+r"(lo), [hi] "+r"(hi), [p] "+e"(p)
+			: "m"(*(const uint32_t(*)[2])d));
+	else
+		__asm__("ld __tmp_reg__,%a[p]+\n\tsub %A[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %B[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %C[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %D[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %A[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %B[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %C[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %D[hi],__tmp_reg__"
+			: [lo] "+r"(lo), [hi] "+r"(hi), [p] "+e"(p)
+			: "m"(*(const uint32_t(*)[2])d));
+	*h0 = lo;
+	*h1 = hi;
+#else
+	uint32_t lo = *h0;
+
+	if (!sub) {
+		*h0 = lo + d[0];
+		*h1 += d[1] + (*h0 < lo);
+	} else {
+		*h0 = lo - d[0];
+		*h1 -= d[1] + (lo < d[0]);
+	}
 #endif
 }
 
@@ -288,12 +339,12 @@ int odometry_set_config(struct odometry *o, const struct odometry_config *cfg)
 int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count)
 {
 	int err = 0;
-	uint32_t before = o->heading_turn32;
 	uint32_t both;
 	uint8_t neg;
 	int32_t dtheta;
 
 	{
+		uint32_t before = o->heading_turn32;
 		/* Counter differences as sign and magnitude (-32768 is 0x8000 either way). */
 		uint16_t ml = (uint16_t)(left_count - o->left_count);
 		uint16_t mr = (uint16_t)(right_count - o->right_count);
@@ -324,23 +375,12 @@ int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_coun
 		/* The heading is a function of the counts alone (a sum modulo 2^64, one turn), so
 		 * coming back to the same counts returns to the same heading bit for bit. The left
 		 * wheel going forward turns the robot clockwise: its change is subtracted. */
-		if (lneg) {
-			h0 += l->turn_q64[0];
-			h1 += l->turn_q64[1] + (h0 < l->turn_q64[0]);
-		} else {
-			h1 -= l->turn_q64[1] + (h0 < l->turn_q64[0]);
-			h0 -= l->turn_q64[0];
-		}
-		if (rneg) {
-			h1 -= r->turn_q64[1] + (h0 < r->turn_q64[0]);
-			h0 -= r->turn_q64[0];
-		} else {
-			h0 += r->turn_q64[0];
-			h1 += r->turn_q64[1] + (h0 < r->turn_q64[0]);
-		}
+		add_q64(&h0, &h1, l->turn_q64, !lneg);
+		add_q64(&h0, &h1, r->turn_q64, rneg);
 		o->heading_q64[0] = h0;
 		o->heading_q64[1] = h1;
 		o->heading_turn32 = h1 + (h0 >> 31);
+		dtheta = fx_angle_diff(o->heading_turn32, before);
 
 		al = l->travel_q16;
 		ar = r->travel_q16;
@@ -358,7 +398,6 @@ int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_coun
 			neg = rneg;
 		}
 	}
-	dtheta = fx_angle_diff(o->heading_turn32, before);
 	o->step.dtheta_turn32 = dtheta;
 	{
 		int32_t ds = (int32_t)(fx_shr_u32(both, 17) + (fx_hi16(both) & 1u));
@@ -372,9 +411,10 @@ int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_coun
 	if (both != 0) {
 		uint32_t t = fx_mag32(dtheta);
 		uint32_t chord = both; /* [um * 2^17] */
-		/* before + dtheta / 2, rounded half away from zero. */
-		uint32_t mid = dtheta >= 0 ? before + ((t + 1u) >> 1) : before - ((t + 1u) >> 1);
-		uint32_t f;
+		/* The heading before the step plus dtheta / 2 rounded half away from zero: the
+		 * heading after it less the rest, |dtheta| / 2 rounded down. */
+		uint32_t mid =
+			dtheta >= 0 ? o->heading_turn32 - (t >> 1) : o->heading_turn32 + (t >> 1);
 
 		if (t >= ((uint32_t)1 << 24))
 			chord -= arc_correction_wide(both, t);
@@ -391,15 +431,28 @@ int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_coun
 			neg != (o->trig_cos_q30 < 0));
 		add_q16(&o->y_um, &o->y_frac, mul_shr31(chord, fx_mag32(o->trig_sin_q30)),
 			neg != (o->trig_sin_q30 < 0));
-		/* The distance: both [um * 2^17] is both / 2^17 whole um and (both << 15) / 2^32.
-		 */
-		f = o->distance_frac;
-		if (!neg) {
-			o->distance_frac = f + fx_shl_u32(both, 15);
-			o->distance_um += fx_shr_u32(both, 17) + (o->distance_frac < f);
-		} else {
-			o->distance_frac = f - fx_shl_u32(both, 15);
-			o->distance_um -= fx_shr_u32(both, 17) + (o->distance_frac > f);
+		/* The distance: both [um * 2^17] into whole um and 17 bits of fraction. */
+		{
+			uint32_t fr = both & 0x1ffffu;
+			uint32_t wh = fx_shr_u32(both, 17);
+
+			if (!neg) {
+				fr += o->distance_frac;
+				if (fr >= 0x20000u) {
+					fr -= 0x20000u;
+					wh++;
+				}
+				o->distance_um += wh;
+			} else {
+				if (fr > o->distance_frac) {
+					fr = o->distance_frac + 0x20000u - fr;
+					wh++;
+				} else {
+					fr = o->distance_frac - fr;
+				}
+				o->distance_um -= wh;
+			}
+			o->distance_frac = fr;
 		}
 	}
 	return err;

@@ -75,8 +75,8 @@ struct odometry {
 	uint32_t y_um;
 	uint16_t x_frac;
 	uint16_t y_frac;
-	/* Signed travel of the midpoint since init [um * 2^32]: whole um (as x_um) and the
-	 * fraction (a multiple of 2^15: the travels are [um * 2^17]). Exact. */
+	/* Signed travel of the midpoint since init [um * 2^17]: whole um (as x_um) and the
+	 * fraction, 0..2^17 - 1. Exact. */
 	uint32_t distance_um;
 	uint32_t distance_frac;
 	struct odometry_step step;
@@ -144,7 +144,7 @@ static inline struct odometry_step odometry_get_step(const struct odometry *o)
  * interrupt-safe: no. */
 static inline int32_t odometry_get_distance_um(const struct odometry *o)
 {
-	return odometry_round_um(o->distance_um, o->distance_frac, 0x80000000u);
+	return odometry_round_um(o->distance_um, o->distance_frac, 0x10000u);
 }
 
 #endif
