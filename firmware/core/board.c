@@ -496,30 +496,39 @@ static void update_status(struct board *b)
 	b->status = s;
 }
 
-/* round(x / d) for the two divisors of the replies, by the reciprocal: q = x m / 2^32 with
- * m = ceil(2^32 / d) is the quotient or one more (for x below 2^25, the excess stays under 1/d),
- * which the remainder settles. */
-static uint16_t div_round_by(uint32_t x, uint16_t d, uint32_t m)
+/* floor(u / 1000) for u < 2^25: q = floor(u 33555 / 2^25) (33555 = ceil(2^25 / 1000)) is the
+ * quotient or one more (the excess u 0.568 / 2^25 stays below 1), which the remainder settles.
+ * Three 16 x 16-bit products: the replies' millimetres cost no division. */
+static uint16_t div1000(uint32_t u)
 {
-	uint32_t lo, q;
+	uint32_t q =
+		(fx_mul_u16(fx_hi16(u), 33555u) + fx_hi16(fx_mul_u16(fx_lo16(u), 33555u))) >> 9;
 
-	x += d / 2u;
-	q = fx_mul_u32_wide(x, m, &lo);
-	if (fx_mul_u16((uint16_t)q, d) > x)
+	if (fx_mul_u16((uint16_t)q, UM_PER_MM) > u)
 		q--;
 	return (uint16_t)q;
 }
 
-/* round(um / 1000) saturated to 16 bits. */
+/* round(um / 1000) saturated to 16 bits (ties away from zero). */
 static int16_t mm_of(int32_t um)
 {
+	uint16_t q;
+
 	if (um >= 32767500)
 		return INT16_MAX;
 	if (um <= -32768500)
 		return INT16_MIN;
-	if (um >= 0)
-		return (int16_t)div_round_by((uint32_t)um, UM_PER_MM, 4294968u);
-	return (int16_t) - (int32_t)div_round_by((uint32_t)-um, UM_PER_MM, 4294968u);
+	q = div1000(fx_mag32(um) + UM_PER_MM / 2u);
+	return um >= 0 ? (int16_t)q : (int16_t) - (int32_t)q;
+}
+
+/* round(cdeg / 200) (ties away from zero) for |cdeg| <= 18000: floor((|cdeg| + 100) 5243 / 2^20)
+ * is exact there (the excess of 5243 over 2^20 / 200 adds under 0.003). */
+static int8_t angle_2deg_of(int32_t cdeg)
+{
+	uint8_t q = (uint8_t)(fx_mul_u16((uint16_t)(fx_mag32(cdeg) + 100u), 5243u) >> 20);
+
+	return cdeg >= 0 ? (int8_t)q : (int8_t) - (int16_t)q;
 }
 
 static void publish(struct board *b, const struct board_inputs *in, const struct orders_measure *m)
@@ -529,10 +538,7 @@ static void publish(struct board *b, const struct board_inputs *in, const struct
 
 	s.x_mm = mm_of(m->pose.x_um);
 	s.y_mm = mm_of(m->pose.y_um);
-	/* -90..90, rounded half away from zero like cdeg. */
-	s.angle_2deg =
-		(int8_t)(cdeg >= 0 ? (int32_t)div_round_by((uint32_t)cdeg, 200, 21474837u)
-				   : -(int32_t)div_round_by((uint32_t)-cdeg, 200, 21474837u));
+	s.angle_2deg = angle_2deg_of(cdeg); /* -90..90 */
 	s.radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
 	s.status = b->status;
 	s.sensors = in->shocks;

@@ -1,7 +1,8 @@
 /* The quadrature decoding of the AVR binary under load: the four encoders turn at the rates of
  * 1 m/s (free wheels 12 732 counts/s, motors 4 760 counts/s), forward then turning on the spot,
  * while the control tick runs (it is preempted by the edges) and a master polls at 100 kHz. At
- * every tick, once no interrupt is pending, the binary's counters equal the edges delivered. */
+ * every tick, once no interrupt is pending, the binary's counters equal the edges delivered (each
+ * counter's low byte overflows into its high byte 4 to 12 times each way). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -40,7 +41,8 @@ static void run_phase(struct avrsim *h, const double rate[4], uint32_t ticks, ui
 		assert_true(avrsim_interrupts_idle(h));
 		for (int e = 0; e < 4; e++) {
 			uint16_t got =
-				u16(h, (uint16_t)((e < 2 ? free_at : motor_at) + 2 * (e & 1)));
+				u16(h, (uint16_t)((e < 2 ? free_at : motor_at) + 2 * (e & 1))) ^
+				AVR_COUNT_BIAS;
 			uint16_t want = (uint16_t)(uint64_t)avrsim_encoder_edges(h, e);
 
 			if (got != want)

@@ -10,6 +10,11 @@
 
 #define AVR_LAYOUT_MAGIC 0xA5E7u
 
+/* The encoder counters are not in struct board: they are the uint16_t arrays avr_free_count[2]
+ * and avr_motor_count[2] (left, right; symbols of the binary), each holding its count ^
+ * AVR_COUNT_BIAS (encoder.c says why). */
+#define AVR_COUNT_BIAS 0x80u
+
 struct avr_layout {
 	uint16_t magic; /* AVR_LAYOUT_MAGIC */
 	uint16_t size;  /* sizeof(struct avr_layout) */

@@ -20,13 +20,6 @@ void avr_sensors_init(void);
 void avr_encoder_init(void);
 void avr_motor_init(void);
 
-/* Starts the period's current-sense conversions (the control timer's interrupt): the left
- * channel, the right one following (motor.c). */
-static inline void avr_current_sample(void)
-{
-	ADCSRA |= _BV(ADSC);
-}
-
 /* Sleeps until the tick timer's next compare match (or returns at once if one is due). Returns
  * the number of periods that elapsed since the last call: more than 1 is an overrun. Main loop
  * only. */

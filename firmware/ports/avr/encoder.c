@@ -1,11 +1,12 @@
 /* Quadrature decoding of the four encoders by pin-change interrupts (encoder_isr.S): the free
  * wheels on PC2..PC5 (PCINT2), the motor shafts on PA2..PA5 (PCINT0). Each interrupt reads its
- * port once and steps both channels on it from the table below. */
+ * port once and steps both channels on it from the tables below. */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/pgmspace.h>
 #include <util/atomic.h>
 
+#include "avr_layout.h"
 #include "avr_port.h"
 #include "hal.h"
 #include "pinmap.h"
@@ -16,25 +17,49 @@
 #define FWD(s) ((s) == 0 ? 1 : (s) == 1 ? 3 : (s) == 3 ? 2 : 0)
 #define STEP(p, n) ((n) == FWD(p) ? 1 : (p) == FWD(n) ? -1 : 0)
 
-/* quad_pair[2 i], quad_pair[2 i + 1]: the left and right steps for i = previous levels << 4 |
- * current levels, the levels being left A, left B, right A, right B in bits 0..3. */
-#define PAIR(i) STEP(3 & ((i) >> 4), 3 & (i)), STEP(3 & ((i) >> 6), 3 & ((i) >> 2))
-#define PAIR4(i) PAIR(i), PAIR((i) + 1), PAIR((i) + 2), PAIR((i) + 3)
-#define PAIR16(i) PAIR4(i), PAIR4((i) + 4), PAIR4((i) + 8), PAIR4((i) + 12)
-#define PAIR64(i) PAIR16(i), PAIR16((i) + 16), PAIR16((i) + 32), PAIR16((i) + 48)
+/* The interrupt's table index i is swap(previous levels) | current levels, the levels being the
+ * port's bits 2..5 (left A, left B, right A, right B): the swap moves the previous left pins to
+ * bits 6, 7 and the previous right pins to bits 0, 1, beside the current ones in bits 2..5.
+ * quad_step[0][i] is the left channel's step, quad_step[1][i] the right one's. Aligned to 256
+ * bytes so that the interrupt puts the index in ZL and a constant in ZH. */
+#define LEFT(i) STEP(3 & ((i) >> 6), 3 & ((i) >> 2))
+#define RIGHT(i) STEP(3 & (i), 3 & ((i) >> 4))
+#define ROW(f, i) f(i), f((i) + 1), f((i) + 2), f((i) + 3)
+#define ROW16(f, i) ROW(f, i), ROW(f, (i) + 4), ROW(f, (i) + 8), ROW(f, (i) + 12)
+#define ROW64(f, i) ROW16(f, i), ROW16(f, (i) + 16), ROW16(f, (i) + 32), ROW16(f, (i) + 48)
+#define TABLE(f)                                                                                   \
+	{                                                                                          \
+		ROW64(f, 0), ROW64(f, 64), ROW64(f, 128), ROW64(f, 192)                            \
+	}
 
-const int8_t quad_pair[512] PROGMEM = {PAIR64(0), PAIR64(64), PAIR64(128), PAIR64(192)};
+const int8_t quad_step[2][256] PROGMEM __attribute__((aligned(256))) = {TABLE(LEFT), TABLE(RIGHT)};
 
-/* Written by encoder_isr.S: counts, and the port's last levels of the four pins, in bits 4..7. */
+/* Written by encoder_isr.S. A counter is kept as count ^ 0x80: its low byte moves by the step
+ * and its high byte by the same step when the low byte overflows as a signed byte (0x7F <-> 0x80,
+ * which is count's 0xFF <-> 0x00), so the interrupt needs no 16-bit addition. The state is the
+ * port's last levels of the four pins, swapped (see quad_step). */
 volatile uint16_t avr_free_count[2];
 volatile uint16_t avr_motor_count[2];
 uint8_t avr_free_state;
 uint8_t avr_motor_state;
 
+#if PIN_FREE_ENC_MASK != 0x3Cu || PIN_MOTOR_ENC_MASK != 0x3Cu
+#error "encoder_isr.S and quad_step expect the encoder pins on bits 2..5 of their ports"
+#endif
+
+static uint8_t swapped_levels(uint8_t pins)
+{
+	uint8_t v = pins & 0x3Cu;
+
+	return (uint8_t)(v << 4 | v >> 4);
+}
+
 void avr_encoder_init(void)
 {
-	avr_free_state = (uint8_t)((PIN_FREE_ENC_PORT & PIN_FREE_ENC_MASK) << 2);
-	avr_motor_state = (uint8_t)((PIN_MOTOR_ENC_PORT & PIN_MOTOR_ENC_MASK) << 2);
+	avr_free_state = swapped_levels(PIN_FREE_ENC_PORT);
+	avr_motor_state = swapped_levels(PIN_MOTOR_ENC_PORT);
+	for (uint8_t s = 0; s < 2; s++)
+		avr_free_count[s] = avr_motor_count[s] = AVR_COUNT_BIAS;
 	PCMSK2 = PIN_FREE_ENC_MASK;
 	PCMSK0 = PIN_MOTOR_ENC_MASK;
 	PCIFR = _BV(PCIF2) | _BV(PCIF0);
@@ -49,7 +74,7 @@ uint16_t hal_encoder_free(enum hal_side side)
 	{
 		c = avr_free_count[side];
 	}
-	return c;
+	return c ^ AVR_COUNT_BIAS;
 }
 
 uint16_t hal_encoder_motor(enum hal_side side)
@@ -60,5 +85,5 @@ uint16_t hal_encoder_motor(enum hal_side side)
 	{
 		c = avr_motor_count[side];
 	}
-	return c;
+	return c ^ AVR_COUNT_BIAS;
 }

