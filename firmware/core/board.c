@@ -135,28 +135,25 @@ void board_default_config(struct board_config *c)
  * measured turn rate. */
 static void angle_axis_step(struct board *b, int32_t dtheta_turn32)
 {
-	uint32_t lo;
-	uint32_t hi =
-		fx_mul_u32_wide(fx_mag32(dtheta_turn32), (uint32_t)b->orders.pi_track_um, &lo);
-	uint32_t alo = b->angle_lo, ahi = b->angle_hi;
-	/* The step's arc rounded half away from zero (below 2^31: pi track < 2^22). */
-	int32_t arc = (int32_t)(hi + (lo >> 31));
+	uint32_t m = dtheta_turn32 >= 0 ? (uint32_t)dtheta_turn32
+					: (uint32_t)0 - (uint32_t)dtheta_turn32;
+	uint32_t lo, hi = fx_mul_u32_wide(m, (uint32_t)b->orders.pi_track_um, &lo);
+	uint32_t old_lo = b->angle_lo;
 	int32_t w;
 
+	/* The step's arc rounded half away from zero. */
+	b->arc_um = (int32_t)(hi + (lo >> 31));
 	if (dtheta_turn32 < 0) {
-		arc = -arc;
-		ahi -= hi + (alo < lo);
-		alo -= lo;
+		b->arc_um = -b->arc_um;
+		b->angle_lo = old_lo - lo;
+		b->angle_hi -= hi + (old_lo < lo);
 	} else {
-		alo += lo;
-		ahi += hi + (alo < lo);
+		b->angle_lo = old_lo + lo;
+		b->angle_hi += hi + (b->angle_lo < old_lo);
 	}
-	b->arc_um = arc;
-	b->angle_lo = alo;
-	b->angle_hi = ahi;
 	/* Rounded half away from zero, like the rest of the core. */
-	w = fx_int32_of(ahi);
-	if (w >= 0 ? alo >= 0x80000000u : alo > 0x80000000u)
+	w = fx_int32_of(b->angle_hi);
+	if (w >= 0 ? b->angle_lo >= 0x80000000u : b->angle_lo > 0x80000000u)
 		w = w == INT32_MAX ? w : w + 1;
 	b->angle_um = w;
 }
