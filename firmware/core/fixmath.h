@@ -62,7 +62,9 @@ static inline int16_t fx_sat16(int32_t v)
  * The primitives below give the same exact results on any machine. Where the words are narrower
  * than 32 bits (FX_NARROW: the AVR) they are built from 16-bit pieces and byte moves, the *_n
  * functions; on a 32- or 64-bit machine from its own 64-bit arithmetic, a few instructions where
- * the pieces would take tens. test_fixmath checks that both agree.
+ * the pieces would take tens. test_fixmath checks that both agree. With GCC on an AVR the hot
+ * ones are in assembly instead (FX_AVR_MUL, FX_AVR_ASM below); test_avr_fixmath runs them in
+ * simavr and checks that they give the host's bits.
  *
  * FX_HIDE is an empty GNU asm statement: it keeps GCC from seeing that a 16-bit operand is the
  * narrowed half of a 32-bit value, which it would otherwise fold into the multiplication and
@@ -96,22 +98,101 @@ static inline int16_t fx_sat16(int32_t v)
 #define FX_NOINLINE
 #endif
 
-static inline uint32_t fx_mul_u16(uint16_t a, uint16_t b)
+/* On an AVR with a hardware multiplier (FX_AVR_MUL) the 16 x 16-bit products are written in
+ * assembly. avr-gcc 5.4 calls a library routine for each (__umulhisi3 and its signed variants):
+ * operands moved into its fixed registers, the call and the return, about 30 cycles, and the
+ * caller keeps fewer values in registers across it. In line, the four MUL (8 x 8 bits into
+ * r1:r0) and their sums take 18 cycles, in whatever registers the operands already are. r1 is
+ * avr-gcc's zero register: it is cleared again before each carry that needs a zero and at the
+ * end. A signed product is the unsigned one of the same bits less 2^16 b for a negative a (and
+ * 2^16 a for a negative b), modulo 2^32: two subtractions, where the MULS/MULSU forms would
+ * tie the operands to r16..r23. Constant operands keep the C, which GCC folds. */
+#if defined(__GNUC__) && defined(__AVR__)
+#define FX_AVR_ASM 1
+#else
+#define FX_AVR_ASM 0
+#endif
+#if FX_AVR_ASM && defined(__AVR_HAVE_MUL__)
+#define FX_AVR_MUL 1
+#else
+#define FX_AVR_MUL 0
+#endif
+
+#if FX_AVR_MUL
+/* p = a b (unsigned), as a 32-bit word of the operand's type; a and b 16-bit registers. */
+#define FX_AVR_MUL_U16(p, a, b)                                                                    \
+	__asm__("mul  %A1, %A2\n\t"                                                                \
+		"movw %A0, r0\n\t"                                                                 \
+		"mul  %B1, %B2\n\t"                                                                \
+		"movw %C0, r0\n\t"                                                                 \
+		"mul  %A1, %B2\n\t"                                                                \
+		"add  %B0, r0\n\t"                                                                 \
+		"adc  %C0, r1\n\t"                                                                 \
+		"clr  __zero_reg__\n\t"                                                            \
+		"adc  %D0, __zero_reg__\n\t"                                                       \
+		"mul  %B1, %A2\n\t"                                                                \
+		"add  %B0, r0\n\t"                                                                 \
+		"adc  %C0, r1\n\t"                                                                 \
+		"clr  __zero_reg__\n\t"                                                            \
+		"adc  %D0, __zero_reg__"                                                           \
+		: "=&r"(p)                                                                         \
+		: "r"(a), "r"(b)                                                                   \
+		: "r0")
+
+/* p -= 2^16 b if a is negative: a and b 16-bit registers. */
+#define FX_AVR_FIX_SIGN(p, a, b)                                                                   \
+	__asm__("sbrs %B1, 7\n\t"                                                                  \
+		"rjmp 1f\n\t"                                                                      \
+		"sub  %C0, %A2\n\t"                                                                \
+		"sbc  %D0, %B2\n"                                                                  \
+		"1:"                                                                               \
+		: "+r"(p)                                                                          \
+		: "r"(a), "r"(b))
+#endif
+
+FX_INLINE uint32_t fx_mul_u16(uint16_t a, uint16_t b)
 {
+#if FX_AVR_MUL
+	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
+		uint32_t p;
+
+		FX_AVR_MUL_U16(p, a, b);
+		return p;
+	}
+#endif
 	FX_HIDE(a);
 	FX_HIDE(b);
 	return (uint32_t)a * b;
 }
 
-static inline int32_t fx_mul_s16(int16_t a, int16_t b)
+FX_INLINE int32_t fx_mul_s16(int16_t a, int16_t b)
 {
+#if FX_AVR_MUL
+	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
+		int32_t p;
+
+		FX_AVR_MUL_U16(p, a, b);
+		FX_AVR_FIX_SIGN(p, a, b);
+		FX_AVR_FIX_SIGN(p, b, a);
+		return p;
+	}
+#endif
 	FX_HIDE(a);
 	FX_HIDE(b);
 	return (int32_t)a * b;
 }
 
-static inline int32_t fx_mul_s16_u16(int16_t a, uint16_t b)
+FX_INLINE int32_t fx_mul_s16_u16(int16_t a, uint16_t b)
 {
+#if FX_AVR_MUL
+	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
+		int32_t p;
+
+		FX_AVR_MUL_U16(p, a, b);
+		FX_AVR_FIX_SIGN(p, a, b);
+		return p;
+	}
+#endif
 	FX_HIDE(a);
 	FX_HIDE(b);
 	return (int32_t)a * (int32_t)b;
@@ -160,14 +241,22 @@ FX_INLINE uint32_t fx_shl_u32_n(uint32_t x, uint8_t n)
 	       (uint16_t)(lo << n);
 }
 
+/* Constant counts that avr-gcc shifts a uint32_t by in a few instructions (1, 2, 31): the
+ * pieces would only hide that from it (the shift by 1 in fx_mul_u32_shr(..., 31) took 40). */
+#ifdef __GNUC__
+#define FX_PLAIN_SHIFT(n) (__builtin_constant_p(n) && ((n) <= 2 || (n) == 31))
+#else
+#define FX_PLAIN_SHIFT(n) 0
+#endif
+
 FX_INLINE uint32_t fx_shr_u32(uint32_t x, uint8_t n)
 {
-	return FX_NARROW ? fx_shr_u32_n(x, n) : x >> n;
+	return FX_NARROW && !FX_PLAIN_SHIFT(n) ? fx_shr_u32_n(x, n) : x >> n;
 }
 
 FX_INLINE uint32_t fx_shl_u32(uint32_t x, uint8_t n)
 {
-	return FX_NARROW ? fx_shl_u32_n(x, n) : x << n;
+	return FX_NARROW && !FX_PLAIN_SHIFT(n) ? fx_shl_u32_n(x, n) : x << n;
 }
 
 /* a * b as two 32-bit words: returns the upper one, *lo the lower. Four 16 x 16 products. */
@@ -182,10 +271,102 @@ static inline uint32_t fx_mul_u32_wide_n(uint32_t a, uint32_t b, uint32_t *lo)
 	return fx_mul_u16(fx_hi16(a), fx_hi16(b)) + (p1 >> 16) + (p2 >> 16) + (t >> 16);
 }
 
-static inline uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
+/* On the AVR, in assembly: the 16 byte products summed column by column (all a_i b_j with
+ * i + j = k into result bytes k and k + 1, the carry into byte k + 2), 83 cycles where the C
+ * above takes over 200 with its spills. The sum of the columns up to k is below
+ * 2^18 256^k, so a carry never goes past byte k + 2, which is still zero (cleared first) when
+ * column k starts. The zero that the carries add comes from byte 7, untouched until the last
+ * two columns: column 6 goes before column 5 (no carry out of byte 7 either way, the product
+ * being below 2^64), and column 5's carries clear r1 (EOR leaves the carry flag alone). */
+FX_INLINE uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
 {
 	uint64_t p;
 
+#if FX_AVR_MUL
+	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
+		uint32_t l, h;
+
+		__asm__("clr  %C0\n\t"
+			"clr  %D0\n\t"
+			"movw %A1, %C0\n\t"
+			"movw %C1, %C0\n\t"
+			/* column 0 */
+			"mul  %A2, %A3\n\t"
+			"movw %A0, r0\n\t"
+			/* column 1 */
+			"mul  %A2, %B3\n\t"
+			"add  %B0, r0\n\t"
+			"adc  %C0, r1\n\t"
+			"adc  %D0, %D1\n\t"
+			"mul  %B2, %A3\n\t"
+			"add  %B0, r0\n\t"
+			"adc  %C0, r1\n\t"
+			"adc  %D0, %D1\n\t"
+			/* column 2 */
+			"mul  %A2, %C3\n\t"
+			"add  %C0, r0\n\t"
+			"adc  %D0, r1\n\t"
+			"adc  %A1, %D1\n\t"
+			"mul  %B2, %B3\n\t"
+			"add  %C0, r0\n\t"
+			"adc  %D0, r1\n\t"
+			"adc  %A1, %D1\n\t"
+			"mul  %C2, %A3\n\t"
+			"add  %C0, r0\n\t"
+			"adc  %D0, r1\n\t"
+			"adc  %A1, %D1\n\t"
+			/* column 3 */
+			"mul  %A2, %D3\n\t"
+			"add  %D0, r0\n\t"
+			"adc  %A1, r1\n\t"
+			"adc  %B1, %D1\n\t"
+			"mul  %B2, %C3\n\t"
+			"add  %D0, r0\n\t"
+			"adc  %A1, r1\n\t"
+			"adc  %B1, %D1\n\t"
+			"mul  %C2, %B3\n\t"
+			"add  %D0, r0\n\t"
+			"adc  %A1, r1\n\t"
+			"adc  %B1, %D1\n\t"
+			"mul  %D2, %A3\n\t"
+			"add  %D0, r0\n\t"
+			"adc  %A1, r1\n\t"
+			"adc  %B1, %D1\n\t"
+			/* column 4 */
+			"mul  %B2, %D3\n\t"
+			"add  %A1, r0\n\t"
+			"adc  %B1, r1\n\t"
+			"adc  %C1, %D1\n\t"
+			"mul  %C2, %C3\n\t"
+			"add  %A1, r0\n\t"
+			"adc  %B1, r1\n\t"
+			"adc  %C1, %D1\n\t"
+			"mul  %D2, %B3\n\t"
+			"add  %A1, r0\n\t"
+			"adc  %B1, r1\n\t"
+			"adc  %C1, %D1\n\t"
+			/* column 6 */
+			"mul  %D2, %D3\n\t"
+			"add  %C1, r0\n\t"
+			"adc  %D1, r1\n\t"
+			/* column 5 */
+			"mul  %C2, %D3\n\t"
+			"add  %B1, r0\n\t"
+			"adc  %C1, r1\n\t"
+			"clr  __zero_reg__\n\t"
+			"adc  %D1, __zero_reg__\n\t"
+			"mul  %D2, %C3\n\t"
+			"add  %B1, r0\n\t"
+			"adc  %C1, r1\n\t"
+			"clr  __zero_reg__\n\t"
+			"adc  %D1, __zero_reg__"
+			: "=&r"(l), "=&r"(h)
+			: "r"(a), "r"(b)
+			: "r0");
+		*lo = l;
+		return h;
+	}
+#endif
 	if (FX_NARROW)
 		return fx_mul_u32_wide_n(a, b, lo);
 	p = (uint64_t)a * b;
@@ -237,11 +418,135 @@ FX_INLINE int32_t fx_mul_q_n(int32_t a, int32_t b, uint8_t n)
 	return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
 }
 
+#if FX_AVR_MUL
+/* round(ua ub / 2^n), halves up, for a constant n in 1..47, the result fitting 32 bits, in AVR
+ * assembly: the 48-bit product column by column (as fx_mul_u32_wide), then, for n <= 16,
+ * shifted left by 16 - n (the result is its upper four bytes) or, for n > 16, its upper four
+ * bytes moved down by whole bytes and shifted right by the rest; the rounding adds the last bit
+ * below the result (bit n - 1 of the product: shifted out to the carry, or by LSL when no bit
+ * is). 60 cycles for n = 15 where the C's shifts of the 48-bit value took 120. n reaches the
+ * assembler as a constant (.if, .rept). */
+FX_INLINE uint32_t fx_avr_mul_u32_u16_round(uint32_t ua, uint16_t ub, uint8_t n)
+{
+	uint32_t r;
+	uint16_t lo;
+
+	__asm__("clr  %A0\n\t"
+		"clr  %B0\n\t"
+		"movw %C0, %A0\n\t"
+		/* column 0 into lo */
+		"mul  %A2, %A3\n\t"
+		"movw %A1, r0\n\t"
+		/* column 1: carry into byte 3, the zero from byte 5 */
+		"mul  %B2, %A3\n\t"
+		"add  %B1, r0\n\t"
+		"adc  %A0, r1\n\t"
+		"adc  %B0, %D0\n\t"
+		"mul  %A2, %B3\n\t"
+		"add  %B1, r0\n\t"
+		"adc  %A0, r1\n\t"
+		"adc  %B0, %D0\n\t"
+		/* column 2 */
+		"mul  %C2, %A3\n\t"
+		"add  %A0, r0\n\t"
+		"adc  %B0, r1\n\t"
+		"adc  %C0, %D0\n\t"
+		"mul  %B2, %B3\n\t"
+		"add  %A0, r0\n\t"
+		"adc  %B0, r1\n\t"
+		"adc  %C0, %D0\n\t"
+		/* column 3: carry into byte 5 itself */
+		"mul  %D2, %A3\n\t"
+		"add  %B0, r0\n\t"
+		"adc  %C0, r1\n\t"
+		"clr  __zero_reg__\n\t"
+		"adc  %D0, __zero_reg__\n\t"
+		"mul  %C2, %B3\n\t"
+		"add  %B0, r0\n\t"
+		"adc  %C0, r1\n\t"
+		"clr  __zero_reg__\n\t"
+		"adc  %D0, __zero_reg__\n\t"
+		/* column 4 */
+		"mul  %D2, %B3\n\t"
+		"add  %C0, r0\n\t"
+		"adc  %D0, r1\n\t"
+		"clr  __zero_reg__\n\t"
+		".if %4 <= 16\n\t"
+		".rept 16 - %4\n\t"
+		"lsl  %A1\n\t"
+		"rol  %B1\n\t"
+		"rol  %A0\n\t"
+		"rol  %B0\n\t"
+		"rol  %C0\n\t"
+		"rol  %D0\n\t"
+		".endr\n\t"
+		"lsl  %B1\n\t"
+		".elseif %4 < 24\n\t"
+		".rept %4 - 16\n\t"
+		"lsr  %D0\n\t"
+		"ror  %C0\n\t"
+		"ror  %B0\n\t"
+		"ror  %A0\n\t"
+		".endr\n\t"
+		".elseif %4 < 32\n\t"
+		".if %4 == 24\n\t"
+		"lsl  %A0\n\t"
+		".endif\n\t"
+		"mov  %A0, %B0\n\t"
+		"mov  %B0, %C0\n\t"
+		"mov  %C0, %D0\n\t"
+		"clr  %D0\n\t"
+		".rept %4 - 24\n\t"
+		"lsr  %C0\n\t"
+		"ror  %B0\n\t"
+		"ror  %A0\n\t"
+		".endr\n\t"
+		".elseif %4 < 40\n\t"
+		".if %4 == 32\n\t"
+		"lsl  %B0\n\t"
+		".endif\n\t"
+		"movw %A0, %C0\n\t"
+		"clr  %C0\n\t"
+		"clr  %D0\n\t"
+		".rept %4 - 32\n\t"
+		"lsr  %B0\n\t"
+		"ror  %A0\n\t"
+		".endr\n\t"
+		".else\n\t"
+		".if %4 == 40\n\t"
+		"lsl  %C0\n\t"
+		".endif\n\t"
+		"mov  %A0, %D0\n\t"
+		"clr  %B0\n\t"
+		"clr  %C0\n\t"
+		"clr  %D0\n\t"
+		".rept %4 - 40\n\t"
+		"lsr  %A0\n\t"
+		".endr\n\t"
+		".endif\n\t"
+		"adc  %A0, __zero_reg__\n\t"
+		"adc  %B0, __zero_reg__\n\t"
+		"adc  %C0, __zero_reg__\n\t"
+		"adc  %D0, __zero_reg__"
+		: "=&r"(r), "=&r"(lo)
+		: "r"(ua), "r"(ub), "n"(n));
+	return r;
+}
+#endif
+
 FX_INLINE int32_t fx_mul_q(int32_t a, int32_t b, uint8_t n)
 {
 	uint64_t m;
 	uint32_t r;
 
+#if FX_AVR_MUL
+	if (__builtin_constant_p(n) && n >= 1 && n <= 47 &&
+	    !(__builtin_constant_p(a) && __builtin_constant_p(b))) {
+		r = fx_avr_mul_u32_u16_round(a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a,
+					     (uint16_t)(b >= 0 ? b : -b), n);
+		return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
+	}
+#endif
 	if (FX_NARROW)
 		return fx_mul_q_n(a, b, n);
 	m = (uint64_t)(a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a) *
@@ -271,8 +576,85 @@ static inline uint32_t fx_udiv_small_n(uint32_t num, uint32_t den, uint8_t qbits
 	return q;
 }
 
+#if FX_AVR_ASM
+/* The steps of that division in AVR assembly, 17 to 20 cycles each where avr-gcc's loop takes
+ * 40: the remainder (rem, from 0) first takes the upper shift bits of num (whole bytes, then
+ * bits), then each of the steps moves num's top bit into the remainder, compares, subtracts,
+ * and puts the quotient bit in num's lowest bit, freed by the shift. After shift + steps = 32
+ * (or with num's upper 32 - steps bits zero) num is the quotient: every bit of the dividend has
+ * gone to the remainder, and the quotient bits, no more than the steps, never reach bit 31 before
+ * the last step. The remainder's top bit is shifted out as the C's does (it is lost only outside
+ * the domain, den > 2^31). steps >= 1; *rem is the remainder in, and out. */
+FX_INLINE uint32_t fx_avr_div_steps(uint32_t *rem, uint32_t num, uint32_t den, uint8_t shift,
+				    uint8_t steps)
+{
+	uint32_t r = *rem;
+
+	__asm__("rjmp 2f\n"
+		"1:\n\t"
+		"mov  %D0, %C0\n\t"
+		"mov  %C0, %B0\n\t"
+		"mov  %B0, %A0\n\t"
+		"mov  %A0, %D1\n\t"
+		"mov  %D1, %C1\n\t"
+		"mov  %C1, %B1\n\t"
+		"mov  %B1, %A1\n\t"
+		"clr  %A1\n\t"
+		"subi %2, 8\n"
+		"2:\n\t"
+		"cpi  %2, 8\n\t"
+		"brsh 1b\n\t"
+		"tst  %2\n\t"
+		"breq 4f\n"
+		"3:\n\t"
+		"lsl  %A1\n\t"
+		"rol  %B1\n\t"
+		"rol  %C1\n\t"
+		"rol  %D1\n\t"
+		"rol  %A0\n\t"
+		"rol  %B0\n\t"
+		"rol  %C0\n\t"
+		"rol  %D0\n\t"
+		"dec  %2\n\t"
+		"brne 3b\n"
+		"4:\n\t"
+		"lsl  %A1\n\t"
+		"rol  %B1\n\t"
+		"rol  %C1\n\t"
+		"rol  %D1\n\t"
+		"rol  %A0\n\t"
+		"rol  %B0\n\t"
+		"rol  %C0\n\t"
+		"rol  %D0\n\t"
+		"cp   %A0, %A4\n\t"
+		"cpc  %B0, %B4\n\t"
+		"cpc  %C0, %C4\n\t"
+		"cpc  %D0, %D4\n\t"
+		"brcs 5f\n\t"
+		"sub  %A0, %A4\n\t"
+		"sbc  %B0, %B4\n\t"
+		"sbc  %C0, %C4\n\t"
+		"sbc  %D0, %D4\n\t"
+		"inc  %A1\n"
+		"5:\n\t"
+		"dec  %3\n\t"
+		"brne 4b"
+		: "+r"(r), "+r"(num), "+d"(shift), "+r"(steps)
+		: "r"(den));
+	*rem = r;
+	return num;
+}
+#endif
+
 static inline uint32_t fx_udiv_small(uint32_t num, uint32_t den, uint8_t qbits)
 {
+#if FX_AVR_ASM
+	if ((uint8_t)(qbits - 1u) < 32u) {
+		uint32_t rem = 0;
+
+		return fx_avr_div_steps(&rem, num, den, (uint8_t)(32u - qbits), qbits);
+	}
+#endif
 	return FX_NARROW ? fx_udiv_small_n(num, den, qbits) : num / den;
 }
 
@@ -449,8 +831,9 @@ static inline int32_t fx_div_round(int32_t num, int32_t den)
 /* num / den rounded to nearest (ties away from zero), 64-bit; den != 0. */
 int64_t fx_div_round64(int64_t num, int64_t den);
 
-/* floor(sqrt(v)). */
+/* floor(sqrt(v)), of a 64-bit and of a 32-bit value. */
 uint32_t fx_isqrt64(uint64_t v);
+uint32_t fx_isqrt32(uint32_t v);
 
 /* sin and cos of a heading, [2^-30], absolute error at most 4 units (about 4e-9). */
 void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30);

@@ -122,24 +122,12 @@ static uint32_t mag48(const struct uncertainty_sum48 *w)
 	return (uint32_t)w->hi + (w->lo != 0);
 }
 
-/* ceil(sqrt(v)). Digit by digit, shifts and adds only (no multiply, slow on an AVR). */
+/* ceil(sqrt(v)): the floor of fx_isqrt32 (assembly on the AVR), one more unless v is a square. */
 static uint32_t isqrt_up(uint32_t v)
 {
-	uint32_t res = 0, rem = v;
-	uint32_t bit = (uint32_t)1 << 30;
+	uint32_t r = fx_isqrt32(v); /* below 2^16 */
 
-	while (bit > rem)
-		bit >>= 2;
-	while (bit != 0) {
-		if (rem >= res + bit) {
-			rem -= res + bit;
-			res = (res >> 1) + bit;
-		} else {
-			res >>= 1;
-		}
-		bit >>= 2;
-	}
-	return rem != 0 ? res + 1 : res;
+	return fx_mul_u16((uint16_t)r, (uint16_t)r) != v ? r + 1u : r;
 }
 
 /* An upper bound of |(x, y)| for magnitudes x, y: both halved (rounded up) until their squares

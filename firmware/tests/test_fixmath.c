@@ -264,6 +264,14 @@ static void test_isqrt_edges(void **state)
 	}
 	for (int i = 0; i < 100000; i++)
 		check_isqrt(rng_next() >> (rng_next() & 63));
+	/* The 32-bit root on its own (the AVR's is in assembly: test_avr_fixmath). */
+	assert_int_equal(fx_isqrt32(0), 0);
+	assert_int_equal(fx_isqrt32(0xffffffffu), 0xffffu);
+	for (uint32_t k = 1; k < 0x10000u; k++) {
+		assert_true(fx_isqrt32(k * k) == k);
+		assert_true(fx_isqrt32(k * k - 1) == k - 1);
+		assert_true(fx_isqrt32(k * k + 2 * k) == k);
+	}
 }
 
 static int64_t sincos_max_error;
