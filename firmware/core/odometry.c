@@ -2,9 +2,8 @@
  *
  * The tick's arithmetic is products of at most 32 x 32 bits and 32-bit additions (fixmath.h
  * explains why): the heading is a 64-bit sum kept as two 32-bit words, the position and distance
- * are whole micrometres and a fraction. On an AVR the products and the heading's sum are inline
- * assembly (mul_u16, mul_u32_wide, add_q64), each beside the portable C that gives the same bits
- * elsewhere. */
+ * are whole micrometres and a fraction. On an AVR the heading's sum is inline assembly
+ * (add_q64), beside the portable C that gives the same bits elsewhere. */
 #include "odometry.h"
 
 #include <errno.h>
@@ -99,104 +98,12 @@ static FX_NOINLINE int wheel_move_wide(const struct odometry_wheel *w, uint16_t 
 	return 0;
 }
 
-/* a * b (fx_mul_u16()), inline on an AVR: libgcc's routine takes its operands and result in
- * fixed registers, which costs moves and spills around each call besides the call itself.
- * Leaves r1 (avr-gcc's zero register) zero, as every use of MUL must. */
-static inline uint32_t mul_u16(uint16_t a, uint16_t b)
-{
-#if defined(__AVR__) && defined(__GNUC__)
-	uint32_t p;
-
-	__asm__("mul %A[a],%A[b]\n\t"
-		"movw %A[p],r0\n\t"
-		"mul %B[a],%B[b]\n\t"
-		"movw %C[p],r0\n\t"
-		"mul %A[a],%B[b]\n\t"
-		"add %B[p],r0\n\tadc %C[p],r1\n\tclr r1\n\tadc %D[p],r1\n\t"
-		"mul %B[a],%A[b]\n\t"
-		"add %B[p],r0\n\tadc %C[p],r1\n\tclr r1\n\tadc %D[p],r1"
-		: [p] "=&r"(p)
-		: [a] "r"(a), [b] "r"(b));
-	return p;
-#else
-	return fx_mul_u16(a, b);
-#endif
-}
-
-/* a * b as two 32-bit words: returns the upper one, *lo the lower (fx_mul_u32_wide()). On an
- * AVR its sixteen 8 x 8-bit products are summed column by column in registers, about 90 cycles,
- * where fx_mul_u32_wide() makes four calls of libgcc's 16 x 16-bit routine and adds their halves
- * (about 200). Column k adds the products a_i b_j, i + j = k, into bytes k and k + 1 of the
- * result and their carries into byte k + 2, which no product has touched yet: nothing carries
- * further. */
-static inline uint32_t mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
-{
-#if defined(__AVR__) && defined(__GNUC__)
-
-	uint32_t l, h;
-	uint8_t z;
-
-	__asm__("clr %[z]\n\t"
-		"mul %A[a],%A[b]\n\t"
-		"movw %A[l],r0\n\t"
-		"clr %C[l]\n\t"
-		"clr %D[l]\n\t"
-		/* column 1 (column 0: a_0 b_0 alone) */
-		"mul %A[a],%B[b]\n\t"
-		"add %B[l],r0\n\tadc %C[l],r1\n\tadc %D[l],%[z]\n\t"
-		"mul %B[a],%A[b]\n\t"
-		"add %B[l],r0\n\tadc %C[l],r1\n\tadc %D[l],%[z]\n\t"
-		/* column 2 */
-		"clr %A[h]\n\t"
-		"mul %A[a],%C[b]\n\t"
-		"add %C[l],r0\n\tadc %D[l],r1\n\tadc %A[h],%[z]\n\t"
-		"mul %B[a],%B[b]\n\t"
-		"add %C[l],r0\n\tadc %D[l],r1\n\tadc %A[h],%[z]\n\t"
-		"mul %C[a],%A[b]\n\t"
-		"add %C[l],r0\n\tadc %D[l],r1\n\tadc %A[h],%[z]\n\t"
-		/* column 3 */
-		"clr %B[h]\n\t"
-		"mul %A[a],%D[b]\n\t"
-		"add %D[l],r0\n\tadc %A[h],r1\n\tadc %B[h],%[z]\n\t"
-		"mul %B[a],%C[b]\n\t"
-		"add %D[l],r0\n\tadc %A[h],r1\n\tadc %B[h],%[z]\n\t"
-		"mul %C[a],%B[b]\n\t"
-		"add %D[l],r0\n\tadc %A[h],r1\n\tadc %B[h],%[z]\n\t"
-		"mul %D[a],%A[b]\n\t"
-		"add %D[l],r0\n\tadc %A[h],r1\n\tadc %B[h],%[z]\n\t"
-		/* column 4 */
-		"clr %C[h]\n\t"
-		"mul %B[a],%D[b]\n\t"
-		"add %A[h],r0\n\tadc %B[h],r1\n\tadc %C[h],%[z]\n\t"
-		"mul %C[a],%C[b]\n\t"
-		"add %A[h],r0\n\tadc %B[h],r1\n\tadc %C[h],%[z]\n\t"
-		"mul %D[a],%B[b]\n\t"
-		"add %A[h],r0\n\tadc %B[h],r1\n\tadc %C[h],%[z]\n\t"
-		/* column 5 */
-		"clr %D[h]\n\t"
-		"mul %C[a],%D[b]\n\t"
-		"add %B[h],r0\n\tadc %C[h],r1\n\tadc %D[h],%[z]\n\t"
-		"mul %D[a],%C[b]\n\t"
-		"add %B[h],r0\n\tadc %C[h],r1\n\tadc %D[h],%[z]\n\t"
-		/* column 6 */
-		"mul %D[a],%D[b]\n\t"
-		"add %C[h],r0\n\tadc %D[h],r1\n\t"
-		"clr r1"
-		: [l] "=&r"(l), [h] "=&r"(h), [z] "=&r"(z)
-		: [a] "r"(a), [b] "r"(b));
-	*lo = l;
-	return h;
-#else
-	return fx_mul_u32_wide(a, b, lo);
-#endif
-}
-
 /* h += d, or h -= d, modulo 2^64 (two 32-bit words, lower first). On an AVR, eight loads and
- * additions with carry (loads leave the carry alone); C has no carry, and its compare for it costs
- * as much again. */
+ * additions with carry (loads leave the carry alone): C has no carry, and avr-gcc's compare for
+ * it costs as much again. */
 static inline void add_q64(uint32_t *h0, uint32_t *h1, const uint32_t d[2], uint8_t sub)
 {
-#if defined(__AVR__) && defined(__GNUC__)
+#if FX_AVR_ASM
 	uint32_t lo = *h0, hi = *h1;
 	const uint32_t *p = d;
 
@@ -237,11 +144,12 @@ static inline void add_q64(uint32_t *h0, uint32_t *h1, const uint32_t d[2], uint
 #endif
 }
 
-/* round(a b / 2^31), halves up (fx_mul_u32_shr(a, b, 31)), for a product below 2^62: twice the
- * upper word, plus 0, 1, 1 or 2 for the two upper bits of the lower one. */
+/* round(a b / 2^31), halves up, as fx_mul_u32_shr(a, b, 31), for a product below 2^62: twice the
+ * upper word, plus 0, 1, 1 or 2 for the two upper bits of the lower one (no carry to propagate:
+ * about 30 cycles less on the AVR). */
 static inline uint32_t mul_shr31(uint32_t a, uint32_t b)
 {
-	uint32_t lo, hi = mul_u32_wide(a, b, &lo);
+	uint32_t lo, hi = fx_mul_u32_wide(a, b, &lo);
 
 	return (hi << 1) + (((uint8_t)(lo >> 24) >> 6) + 1u) / 2u;
 }
@@ -255,17 +163,17 @@ static uint32_t arc_correction(uint32_t both, uint32_t t)
 	uint16_t th = fx_hi16(t), tl = fx_lo16(t);
 	/* q = floor(t^2 / 2^16), below 2^32 for t < 2^24 (th < 2^8). */
 	uint32_t q = ((uint32_t)(uint16_t)((uint16_t)(uint8_t)th * (uint8_t)th) << 16) +
-		     (mul_u16(th, tl) << 1) + fx_hi16(mul_u16(tl, tl));
+		     (fx_mul_u16(th, tl) << 1) + fx_hi16(fx_mul_u16(tl, tl));
 	/* f = q pi^2/6 / 2^16 = q / 2^16 + q 42265.2 / 2^32. */
-	uint32_t f = fx_hi16(q) + fx_hi16(mul_u16(fx_hi16(q), 42265u) +
-					  fx_hi16(mul_u16(fx_lo16(q), 42265u)) + 0x8000u);
+	uint32_t f = fx_hi16(q) + fx_hi16(fx_mul_u16(fx_hi16(q), 42265u) +
+					  fx_hi16(fx_mul_u16(fx_lo16(q), 42265u)) + 0x8000u);
 	uint16_t bh = fx_hi16(both), fl = fx_lo16(f);
 	uint32_t c;
 
 	if (f == 0)
 		return 0;
 	/* both f / 2^32 with f = fh 2^16 + fl, fh 0 or 1. */
-	c = fx_hi16(mul_u16(bh, fl) + fx_hi16(mul_u16(fx_lo16(both), fl)) + 0x8000u);
+	c = fx_hi16(fx_mul_u16(bh, fl) + fx_hi16(fx_mul_u16(fx_lo16(both), fl)) + 0x8000u);
 	return fx_hi16(f) ? c + bh : c;
 }
 
