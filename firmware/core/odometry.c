@@ -157,8 +157,10 @@ static inline uint32_t mul_shr31(uint32_t a, uint32_t b)
 /* round(|both| (1 - sin(x)/x)) [um * 2^17], x = dtheta/2, for t = |dtheta| < 2^24 [turn * 2^32]
  * (0.0245 rad per tick): 1 - sin(x)/x = x^2/6 - x^4/120..., x = t pi / 2^32, and
  * f = 2^32 x^2/6 = t^2 pi^2 / (6 2^32) is below 1.1e5, where x^4/120 is below 0.82 unit of f
- * (left out: at most 0.82 unit of the result). Below t = 2^15, f is below 0.41: no correction. */
-static uint32_t arc_correction(uint32_t both, uint32_t t)
+ * (left out: at most 0.82 unit of the result). Below t = 2^15, f is below 0.41: no correction.
+ * Out of line: only the ticks that turn come here, and in line its registers cost the others
+ * more than the call. */
+static FX_NOINLINE uint32_t arc_correction(uint32_t both, uint32_t t)
 {
 	uint16_t th = fx_hi16(t), tl = fx_lo16(t);
 	/* q = floor(t^2 / 2^16), below 2^32 for t < 2^24 (th < 2^8). */
