@@ -32,6 +32,7 @@ struct control {
 	int32_t k_speed_q20; /* [duty_q15 per um/s * 2^20] */
 	int32_t k_accel_q20; /* [duty_q15 per um/s^2 * 2^20] */
 	int32_t k_angle_accel_q20;
+	uint8_t ff_narrow; /* all three below 2^16 */
 	struct pid dist;
 	struct pid angle;
 	struct control_gains gains; /* in effect */

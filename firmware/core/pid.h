@@ -30,22 +30,27 @@ struct pid_config {
 };
 
 /* Gains converted once: P and D to [2^-12 duty_q15] per um and per um/tick, I to [2^-24 duty_q15]
- * per um*tick (docs/control.md "PID"). */
+ * per um*tick (docs/control.md "PID"), and the bounds of pid_update's fast path. */
 struct pid {
 	struct pid_config cfg;
 	int32_t kp_q12;
 	int32_t kd_q12;
-	uint64_t ki_q24;
-	uint32_t ki_small_q24; /* ki_q24 when it fits 32 bits (ki_wide 0) */
-	uint8_t ki_wide;
+	uint32_t ki_q24; /* below 2^27: i 65535 at 100 Hz is 87 958 863 */
 	/* P and D are each clipped to 8 times the full duty (2^30 [2^-12 duty_q15]): beyond these
 	 * errors. */
 	int32_t p_err_max_um;
 	int32_t d_err_max_um;
+	/* The fast path: errors and differences up to these (at most 32767, and P and D below
+	 * 2^29, so nothing is clipped and their sum fits). */
+	int16_t p_err_fast_um;
+	int16_t d_err_fast_um;
+	int32_t i_max_q8;      /* out_limit_q15 << 8: the integral's bound, as its upper part */
 	struct fx48 i_acc_q24; /* [2^-24 duty_q15] integral contribution, |.| <= out_limit * 2^24 */
 	int32_t prev_err_um;
-	uint8_t has_prev; /* 0 after a reset: the first derivative is 0 */
-	int16_t out_q15;  /* last output */
+	/* 0 after a reset (the first derivative is 0), 2 when prev_err_um fits 16 bits (for
+	 * pid_update's fast path), else 1. */
+	uint8_t has_prev;
+	int16_t out_q15; /* last output */
 };
 
 /* Set the gains, limit and tick rate, and reset. Returns 0, or -1 if cfg is out of range.
@@ -64,8 +69,8 @@ void pid_reset(struct pid *c);
 /* One tick with the following error err_um [um] (any int32; clipped to +/-PID_ERR_MAX_UM).
  * Returns the duty [2^-15 full duty], within +/-out_limit_q15. Anti-windup: the integral's
  * contribution is clipped to the output limit, and the integral does not grow while the output
- * is saturated in the direction of the error. No division; 16 x 16-bit products while the error
- * is below 65 mm. Interrupt-safe: yes. */
+ * is saturated in the direction of the error. No division; 16-bit products while the error and
+ * its difference are below 32 mm. Interrupt-safe: yes. */
 int16_t pid_update(struct pid *c, int32_t err_um);
 
 #endif
