@@ -1,8 +1,9 @@
 /* Odometry from two free encoder wheels (see odometry.h and docs/odometry.md).
  *
- * The tick's arithmetic is 16 x 16-bit products and 32-bit additions (fixmath.h explains why):
- * the heading is a 64-bit sum kept as four 16-bit limbs, the position and distance are whole
- * micrometres and a fraction. */
+ * The tick's arithmetic is products of at most 32 x 32 bits and 32-bit additions (fixmath.h
+ * explains why): the heading is a 64-bit sum kept as two 32-bit words, the position and distance
+ * are whole micrometres and a fraction. On an AVR the heading's sum is inline assembly
+ * (add_q64), beside the portable C that gives the same bits elsewhere. */
 #include "odometry.h"
 
 #include <errno.h>
@@ -51,129 +52,137 @@ static uint64_t turn_per_count(uint32_t k_q16, uint32_t track_um)
 	return q;
 }
 
-static void derive_wheel(struct odometry_wheel *w, uint32_t k_q16, uint32_t track_um, int8_t sign)
+static void derive_wheel(struct odometry_wheel *w, uint32_t k_q16, uint32_t track_um)
 {
 	uint64_t u = turn_per_count(k_q16, track_um);
 
 	w->k[0] = fx_lo16(k_q16);
 	w->k[1] = fx_hi16(k_q16);
-	w->turn_sign = sign;
 	for (uint8_t n = 0; n < ODOMETRY_TABLE_COUNTS; n++) {
 		uint64_t t = u * n;
 
-		w->travel_q16[n] = (int32_t)(k_q16 * n); /* below 2^29 */
-		w->turn_q64[n][0] = (uint32_t)t;
-		w->turn_q64[n][1] = (uint32_t)(t >> 32);
+		w->move[n].travel_q16 = k_q16 * n; /* below 2^29 */
+		w->move[n].turn_q64[0] = (uint32_t)t;
+		w->move[n].turn_q64[1] = (uint32_t)(t >> 32);
 	}
 }
 
-/* The right wheel forward turns the robot counter-clockwise (positive), the left one clockwise. */
 static void derive(struct odometry *o)
 {
-	derive_wheel(&o->left, o->cfg.left_um_per_count_q16, o->cfg.track_um, -1);
-	derive_wheel(&o->right, o->cfg.right_um_per_count_q16, o->cfg.track_um, 1);
+	derive_wheel(&o->left, o->cfg.left_um_per_count_q16, o->cfg.track_um);
+	derive_wheel(&o->right, o->cfg.right_um_per_count_q16, o->cfg.track_um);
 }
 
-/* h += d, or h -= d, modulo 2^64 (two 32-bit words, lower first). */
-static inline void add_q64(uint32_t h[2], const uint32_t d[2], uint8_t sub)
-{
-	uint32_t lo = h[0];
-
-	if (!sub) {
-		h[0] = lo + d[0];
-		h[1] += d[1] + (h[0] < lo);
-	} else {
-		h[0] = lo - d[0];
-		h[1] -= d[1] + (lo < d[0]);
-	}
-}
-
-static uint32_t heading_round(const uint32_t h[2])
-{
-	return h[1] + (h[0] >> 31);
-}
-
-/* Counter difference of a free-running uint16 counter, -32768..32767, without converting an
- * out-of-range unsigned value to a signed type. */
-static int32_t count_delta(uint16_t now, uint16_t before)
-{
-	uint16_t d = (uint16_t)(now - before);
-
-	return d < 32768u ? (int32_t)d : (int32_t)d - 65536;
-}
-
-static uint16_t magnitude16(int32_t counts)
-{
-	return (uint16_t)(counts >= 0 ? counts : -counts);
-}
-
-/* The travel and heading change of m counts beyond the tables: two 16 x 16 products for the
- * travel (clamped to ODOMETRY_STEP_Q16_MAX, *err set, beyond it), four for m u modulo 2^64. */
-static int32_t wheel_step_wide(const struct odometry_wheel *w, uint16_t m, uint32_t d[2], int *err)
+/* m counts beyond the tables: two 16 x 16 products for the travel (clamped to
+ * ODOMETRY_STEP_Q16_MAX beyond it, and -ERANGE returned), four for m u modulo 2^64. Out of line:
+ * only a wheel faster than the tables (2.5 m/s at 1 kHz for the reference robot) comes here. */
+static FX_NOINLINE int wheel_move_wide(const struct odometry_wheel *w, uint16_t m,
+				       struct odometry_move *mv)
 {
 	uint32_t lo = fx_mul_u16(m, w->k[0]);
 	uint32_t hi = fx_mul_u16(m, w->k[1]) + fx_hi16(lo);
-	const uint32_t *u = w->turn_q64[1];
+	const uint32_t *u = w->move[1].turn_q64;
 	uint32_t p0 = fx_mul_u16(m, fx_lo16(u[0]));
 	uint32_t p1 = fx_mul_u16(m, fx_hi16(u[0]));
 	uint32_t p2 = fx_mul_u16(m, fx_lo16(u[1]));
 	uint32_t t = fx_hi16(p0) + (uint32_t)fx_lo16(p1);
 
-	d[0] = fx_lo16(p0) | (t << 16);
-	d[1] = p2 + fx_hi16(p1) + fx_hi16(t) +
-	       ((uint32_t)(uint16_t)((uint32_t)m * fx_hi16(u[1])) << 16);
+	mv->turn_q64[0] = fx_lo16(p0) | (t << 16);
+	mv->turn_q64[1] = p2 + fx_hi16(p1) + fx_hi16(t) +
+			  ((uint32_t)(uint16_t)((uint32_t)m * fx_hi16(u[1])) << 16);
 	if (hi >= 0x8000u) {
-		*err = -ERANGE;
-		return ODOMETRY_STEP_Q16_MAX;
+		mv->travel_q16 = ODOMETRY_STEP_Q16_MAX;
+		return -ERANGE;
 	}
-	return (int32_t)((hi << 16) | fx_lo16(lo));
+	mv->travel_q16 = (hi << 16) | fx_lo16(lo);
+	return 0;
 }
 
-/* One wheel's counts of this tick: returns its travel [um * 2^16], exact, and adds its heading
- * change to h. Small counts are looked up. */
-static inline int32_t wheel_step(const struct odometry_wheel *w, int32_t counts, uint32_t h[2],
-				 int *err)
+/* h += d, or h -= d, modulo 2^64 (two 32-bit words, lower first). On an AVR, eight loads and
+ * additions with carry (loads leave the carry alone): C has no carry, and avr-gcc's compare for
+ * it costs as much again. */
+static inline void add_q64(uint32_t *h0, uint32_t *h1, const uint32_t d[2], uint8_t sub)
 {
-	uint16_t m = magnitude16(counts);
-	uint8_t sub = (counts < 0) != (w->turn_sign < 0);
-	int32_t t;
+#if FX_AVR_ASM
+	uint32_t lo = *h0, hi = *h1;
+	const uint32_t *p = d;
 
-	if (m < ODOMETRY_TABLE_COUNTS) {
-		t = w->travel_q16[m];
-		add_q64(h, w->turn_q64[m], sub);
+	if (!sub)
+		__asm__("ld __tmp_reg__,%a[p]+\n\tadd %A[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %B[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %C[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %D[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %A[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %B[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %C[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tadc %D[hi],__tmp_reg__"
+			: [lo] "+r"(lo), [hi] "+r"(hi), [p] "+e"(p)
+			: "m"(*(const uint32_t(*)[2])d));
+	else
+		__asm__("ld __tmp_reg__,%a[p]+\n\tsub %A[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %B[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %C[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %D[lo],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %A[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %B[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %C[hi],__tmp_reg__\n\t"
+			"ld __tmp_reg__,%a[p]+\n\tsbc %D[hi],__tmp_reg__"
+			: [lo] "+r"(lo), [hi] "+r"(hi), [p] "+e"(p)
+			: "m"(*(const uint32_t(*)[2])d));
+	*h0 = lo;
+	*h1 = hi;
+#else
+	uint32_t lo = *h0;
+
+	if (!sub) {
+		*h0 = lo + d[0];
+		*h1 += d[1] + (*h0 < lo);
 	} else {
-		uint32_t d[2];
-
-		t = wheel_step_wide(w, m, d, err);
-		add_q64(h, d, sub);
+		*h0 = lo - d[0];
+		*h1 -= d[1] + (lo < d[0]);
 	}
-	return counts >= 0 ? t : -t;
+#endif
+}
+
+/* round(a b / 2^31), halves up, as fx_mul_u32_shr(a, b, 31), for a product below 2^62: twice the
+ * upper word, plus 0, 1, 1 or 2 for the two upper bits of the lower one (no carry to propagate:
+ * about 30 cycles less on the AVR). */
+static inline uint32_t mul_shr31(uint32_t a, uint32_t b)
+{
+	uint32_t lo, hi = fx_mul_u32_wide(a, b, &lo);
+
+	return (hi << 1) + (((uint8_t)(lo >> 24) >> 6) + 1u) / 2u;
 }
 
 /* round(|both| (1 - sin(x)/x)) [um * 2^17], x = dtheta/2, for t = |dtheta| < 2^24 [turn * 2^32]
  * (0.0245 rad per tick): 1 - sin(x)/x = x^2/6 - x^4/120..., x = t pi / 2^32, and
  * f = 2^32 x^2/6 = t^2 pi^2 / (6 2^32) is below 1.1e5, where x^4/120 is below 0.82 unit of f
- * (left out: at most 0.82 unit of the result). Below t = 2^15, f is below 0.41: no correction. */
-static uint32_t arc_correction(uint32_t both, uint32_t t)
+ * (left out: at most 0.82 unit of the result). Below t = 2^15, f is below 0.41: no correction.
+ * Out of line: only the ticks that turn come here, and in line its registers cost the others
+ * more than the call. */
+static FX_NOINLINE uint32_t arc_correction(uint32_t both, uint32_t t)
 {
 	uint16_t th = fx_hi16(t), tl = fx_lo16(t);
-	/* q = t^2 / 2^16 (below 2^32 for t < 2^24), the last bits of tl^2 dropped. */
+	/* q = floor(t^2 / 2^16), below 2^32 for t < 2^24 (th < 2^8). */
 	uint32_t q = ((uint32_t)(uint16_t)((uint16_t)(uint8_t)th * (uint8_t)th) << 16) +
 		     (fx_mul_u16(th, tl) << 1) + fx_hi16(fx_mul_u16(tl, tl));
 	/* f = q pi^2/6 / 2^16 = q / 2^16 + q 42265.2 / 2^32. */
 	uint32_t f = fx_hi16(q) + fx_hi16(fx_mul_u16(fx_hi16(q), 42265u) +
 					  fx_hi16(fx_mul_u16(fx_lo16(q), 42265u)) + 0x8000u);
 	uint16_t bh = fx_hi16(both), fl = fx_lo16(f);
-	/* both f / 2^32 with f = fh 2^16 + fl, fh 0 or 1. */
-	uint32_t c = fx_hi16(fx_mul_u16(bh, fl) + fx_hi16(fx_mul_u16(fx_lo16(both), fl)) + 0x8000u);
+	uint32_t c;
 
+	if (f == 0)
+		return 0;
+	/* both f / 2^32 with f = fh 2^16 + fl, fh 0 or 1. */
+	c = fx_hi16(fx_mul_u16(bh, fl) + fx_hi16(fx_mul_u16(fx_lo16(both), fl)) + 0x8000u);
 	return fx_hi16(f) ? c + bh : c;
 }
 
 /* The same for any t, in 64 bits (sin(x)/x to the x^4 term: its error stays below 2e-10 while
  * |dtheta| <= 0.2 rad per tick). Runs only above 0.0245 rad per tick, which a robot turns at
  * 1 kHz only above 24 rad/s. */
-static uint32_t arc_correction_wide(uint32_t both, uint32_t t)
+static FX_NOINLINE uint32_t arc_correction_wide(uint32_t both, uint32_t t)
 {
 	int64_t x = fx_shr_round64((int64_t)t * QUARTER_PI_Q32, 32);
 	int64_t x2 = fx_shr_round64(x * x, 30);
@@ -185,7 +194,7 @@ static uint32_t arc_correction_wide(uint32_t both, uint32_t t)
 
 /* (*whole, *frac) += d / 2^16, on a value kept as whole units (modulo 2^32) and a 16-bit
  * fraction. */
-static void add_q16(uint32_t *whole, uint16_t *frac, uint32_t mag, uint8_t neg)
+static inline void add_q16(uint32_t *whole, uint16_t *frac, uint32_t mag, uint8_t neg)
 {
 	uint32_t t;
 
@@ -197,16 +206,6 @@ static void add_q16(uint32_t *whole, uint16_t *frac, uint32_t mag, uint8_t neg)
 		*whole -= fx_hi16(mag) + 1u - fx_hi16(t);
 	}
 	*frac = fx_lo16(t);
-}
-
-/* Whole units and a fraction of 2^bits, rounded to nearest with ties away from zero. */
-static int32_t round_whole(uint32_t whole, uint32_t frac, uint32_t half)
-{
-	int32_t w = fx_int32_of(whole);
-
-	if (w >= 0 ? frac >= half : frac > half)
-		return w == INT32_MAX ? w : w + 1;
-	return w;
 }
 
 int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_t left_count,
@@ -231,7 +230,9 @@ int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_
 	o->step.right_q16 = 0;
 	o->step.ds_um = 0;
 	o->step.dtheta_turn32 = 0;
-	o->trig_valid = 0;
+	/* The sine and cosine kept are those of heading 0. */
+	o->trig_turn32 = 0;
+	fx_sincos(0, &o->trig_sin_q30, &o->trig_cos_q30);
 	return 0;
 }
 
@@ -248,35 +249,82 @@ int odometry_set_config(struct odometry *o, const struct odometry_config *cfg)
 int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count)
 {
 	int err = 0;
-	uint32_t before = o->heading_turn32;
-	/* The heading is a function of the counts alone (a sum modulo 2^64, one turn), so coming
-	 * back to the same counts returns to the same heading bit for bit. */
-	int32_t left =
-		wheel_step(&o->left, count_delta(left_count, o->left_count), o->heading_q64, &err);
-	int32_t right = wheel_step(&o->right, count_delta(right_count, o->right_count),
-				   o->heading_q64, &err);
-	uint32_t al = (uint32_t)(left >= 0 ? left : -left);
-	uint32_t ar = (uint32_t)(right >= 0 ? right : -right);
-	/* Twice the midpoint travel [um * 2^16], as sign and magnitude (below 2^32). */
-	uint8_t same = (left < 0) == (right < 0);
-	uint32_t both = same ? al + ar : (al > ar ? al - ar : ar - al);
-	uint8_t neg = same ? left < 0 : (left < 0 ? al > ar : ar > al);
+	uint32_t both;
+	uint8_t neg;
 	int32_t dtheta;
 
-	o->left_count = left_count;
-	o->right_count = right_count;
+	{
+		uint32_t before = o->heading_turn32;
+		/* Counter differences as sign and magnitude (-32768 is 0x8000 either way). */
+		uint16_t ml = (uint16_t)(left_count - o->left_count);
+		uint16_t mr = (uint16_t)(right_count - o->right_count);
+		uint8_t lneg = ml >= 0x8000u, rneg = mr >= 0x8000u;
+		uint32_t h0 = o->heading_q64[0], h1 = o->heading_q64[1];
+		const struct odometry_move *l, *r;
+		struct odometry_move wide[2];
+		uint32_t al, ar;
 
-	o->heading_turn32 = heading_round(o->heading_q64);
-	dtheta = fx_angle_diff(o->heading_turn32, before);
+		o->left_count = left_count;
+		o->right_count = right_count;
+		if (lneg)
+			ml = (uint16_t)(0u - ml);
+		if (rneg)
+			mr = (uint16_t)(0u - mr);
+		if (ml < ODOMETRY_TABLE_COUNTS) {
+			l = &o->left.move[ml];
+		} else {
+			err |= wheel_move_wide(&o->left, ml, &wide[0]);
+			l = &wide[0];
+		}
+		if (mr < ODOMETRY_TABLE_COUNTS) {
+			r = &o->right.move[mr];
+		} else {
+			err |= wheel_move_wide(&o->right, mr, &wide[1]);
+			r = &wide[1];
+		}
+		/* The heading is a function of the counts alone (a sum modulo 2^64, one turn), so
+		 * coming back to the same counts returns to the same heading bit for bit. The left
+		 * wheel going forward turns the robot clockwise: its change is subtracted. */
+		add_q64(&h0, &h1, l->turn_q64, !lneg);
+		add_q64(&h0, &h1, r->turn_q64, rneg);
+		o->heading_q64[0] = h0;
+		o->heading_q64[1] = h1;
+		o->heading_turn32 = h1 + (h0 >> 31);
+		dtheta = fx_angle_diff(o->heading_turn32, before);
+
+		al = l->travel_q16;
+		ar = r->travel_q16;
+		o->step.left_q16 = lneg ? -(int32_t)al : (int32_t)al;
+		o->step.right_q16 = rneg ? -(int32_t)ar : (int32_t)ar;
+		/* Twice the midpoint travel [um * 2^16], as sign and magnitude (below 2^32). */
+		if (lneg == rneg) {
+			both = al + ar;
+			neg = lneg;
+		} else if (al >= ar) {
+			both = al - ar;
+			neg = lneg;
+		} else {
+			both = ar - al;
+			neg = rneg;
+		}
+	}
+	o->step.dtheta_turn32 = dtheta;
+	{
+		int32_t ds = (int32_t)(fx_shr_u32(both, 17) + (fx_hi16(both) & 1u));
+
+		o->step.ds_um = neg ? -ds : ds;
+	}
 
 	/* Exact arc: the chord, ds * sin(dtheta/2) / (dtheta/2), along the mean heading. With no
 	 * travel of the midpoint (standing still, or turning on the spot) the position does not
 	 * move: the sine and cosine are skipped. */
 	if (both != 0) {
-		uint32_t t = (uint32_t)(dtheta >= 0 ? dtheta : -(int64_t)dtheta);
+		uint32_t t = fx_mag32(dtheta);
 		uint32_t chord = both; /* [um * 2^17] */
-		uint32_t mid = before + (uint32_t)fx_shr_round(dtheta, 1);
-		int32_t s, c;
+		/* The heading before the step plus dtheta / 2 rounded half away from zero: the
+		 * heading after it less the rest, |dtheta| / 2 rounded down. */
+		uint32_t mid =
+			dtheta >= 0 ? o->heading_turn32 - (t >> 1) : o->heading_turn32 + (t >> 1);
 
 		if (t >= ((uint32_t)1 << 24))
 			chord -= arc_correction_wide(both, t);
@@ -284,18 +332,15 @@ int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_coun
 			chord -= arc_correction(both, t);
 		/* While the robot goes straight the mean heading repeats from tick to tick: the
 		 * last sine and cosine are kept with their angle (same input, same output). */
-		if (mid != o->trig_turn32 || !o->trig_valid) {
+		if (mid != o->trig_turn32) {
 			fx_sincos(mid, &o->trig_sin_q30, &o->trig_cos_q30);
 			o->trig_turn32 = mid;
-			o->trig_valid = 1;
 		}
-		s = o->trig_sin_q30;
-		c = o->trig_cos_q30;
 		/* chord [um * 2^17] * cos [2^-30] / 2^31 = [um * 2^16], below 2^31. */
-		add_q16(&o->x_um, &o->x_frac,
-			fx_mul_u32_shr(chord, (uint32_t)(c >= 0 ? c : -c), 31), neg != (c < 0));
-		add_q16(&o->y_um, &o->y_frac,
-			fx_mul_u32_shr(chord, (uint32_t)(s >= 0 ? s : -s), 31), neg != (s < 0));
+		add_q16(&o->x_um, &o->x_frac, mul_shr31(chord, fx_mag32(o->trig_cos_q30)),
+			neg != (o->trig_cos_q30 < 0));
+		add_q16(&o->y_um, &o->y_frac, mul_shr31(chord, fx_mag32(o->trig_sin_q30)),
+			neg != (o->trig_sin_q30 < 0));
 		/* The distance: both [um * 2^17] into whole um and 17 bits of fraction. */
 		{
 			uint32_t fr = both & 0x1ffffu;
@@ -320,26 +365,7 @@ int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_coun
 			o->distance_frac = fr;
 		}
 	}
-
-	o->step.left_q16 = left;
-	o->step.right_q16 = right;
-	{
-		int32_t ds = (int32_t)(fx_shr_u32(both, 17) + (fx_hi16(both) & 1u));
-
-		o->step.ds_um = neg ? -ds : ds;
-	}
-	o->step.dtheta_turn32 = dtheta;
 	return err;
-}
-
-struct odometry_pose odometry_get_pose(const struct odometry *o)
-{
-	struct odometry_pose p;
-
-	p.x_um = round_whole(o->x_um, o->x_frac, 0x8000u);
-	p.y_um = round_whole(o->y_um, o->y_frac, 0x8000u);
-	p.heading_turn32 = o->heading_turn32;
-	return p;
 }
 
 void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose)
@@ -351,14 +377,4 @@ void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose)
 	o->heading_q64[0] = 0;
 	o->heading_q64[1] = pose->heading_turn32;
 	o->heading_turn32 = pose->heading_turn32;
-}
-
-struct odometry_step odometry_get_step(const struct odometry *o)
-{
-	return o->step;
-}
-
-int32_t odometry_get_distance_um(const struct odometry *o)
-{
-	return round_whole(o->distance_um, o->distance_frac, 0x10000u);
 }

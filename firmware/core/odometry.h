@@ -10,6 +10,8 @@
 
 #include <stdint.h>
 
+#include "fixmath.h"
+
 /* Ranges accepted by odometry_init and odometry_set_config. */
 #define ODOMETRY_UM_PER_COUNT_Q16_MAX ((uint32_t)1 << 24) /* 256 um per count */
 #define ODOMETRY_TRACK_UM_MIN ((uint32_t)1 << 14)         /* 16.4 mm */
@@ -41,14 +43,19 @@ struct odometry_step {
  * 2.5 mm per tick with the reference robot's 78.5 um per count (2.5 m/s at 1 kHz). */
 #define ODOMETRY_TABLE_COUNTS 32
 
-/* Per wheel, derived from its factor and the track: the travel [um * 2^16] and the heading change
- * [turn * 2^64] of n counts, n = 0..ODOMETRY_TABLE_COUNTS-1 (exact products), and the factor and
- * the change of one count in 16-bit halves for the larger counts. 392 bytes. */
+/* What n counts of one wheel give: its travel [um * 2^16] and the heading change [turn * 2^64],
+ * lower and upper 32 bits; exact products, as magnitudes. */
+struct odometry_move {
+	uint32_t travel_q16;
+	uint32_t turn_q64[2];
+};
+
+/* Per wheel, derived from its factor and the track: the moves of n counts, n = 0..
+ * ODOMETRY_TABLE_COUNTS-1, and the factor in 16-bit halves for the larger counts (their change
+ * per count is move[1].turn_q64). 388 bytes. */
 struct odometry_wheel {
-	int32_t travel_q16[ODOMETRY_TABLE_COUNTS];
-	uint32_t turn_q64[ODOMETRY_TABLE_COUNTS][2]; /* lower and upper 32 bits */
-	uint16_t k[2];                               /* factor: low and high 16 bits */
-	int8_t turn_sign; /* +1: a count forward turns the robot counter-clockwise (right) */
+	struct odometry_move move[ODOMETRY_TABLE_COUNTS];
+	uint16_t k[2]; /* factor: low and high 16 bits */
 };
 
 struct odometry {
@@ -74,7 +81,6 @@ struct odometry {
 	uint32_t distance_frac;
 	struct odometry_step step;
 	/* The last mean heading the pose was advanced along, and its sine and cosine [2^-30]. */
-	uint8_t trig_valid;
 	uint32_t trig_turn32;
 	int32_t trig_sin_q30;
 	int32_t trig_cos_q30;
@@ -98,21 +104,47 @@ int odometry_set_config(struct odometry *o, const struct odometry_config *cfg);
  * interrupt-safe: no (call from the tick only). */
 int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count);
 
-/* The pose, rounded to the micrometre (saturated to int32).
- * interrupt-safe: no (read in the tick context, or with the tick masked). */
-struct odometry_pose odometry_get_pose(const struct odometry *o);
-
 /* Replace the pose (start position, recalibration, SET_NEW_POS); the counters are untouched.
  * interrupt-safe: no (call between two ticks). */
 void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose);
 
+/* A length kept as whole um (an int32_t in a uint32_t) and a fraction, half = half a um in the
+ * fraction's unit, rounded to nearest with ties away from zero (saturated). For the accessors
+ * below, which are inline: the tick reads them every period. */
+static inline int32_t odometry_round_um(uint32_t whole_um, uint32_t frac, uint32_t half)
+{
+	int32_t w = fx_int32_of(whole_um);
+
+	if (w >= 0 ? frac >= half : frac > half)
+		return w == INT32_MAX ? w : w + 1;
+	return w;
+}
+
+/* The pose, rounded to the micrometre (saturated to int32).
+ * interrupt-safe: no (read in the tick context, or with the tick masked). */
+static inline struct odometry_pose odometry_get_pose(const struct odometry *o)
+{
+	struct odometry_pose p;
+
+	p.x_um = odometry_round_um(o->x_um, o->x_frac, 0x8000u);
+	p.y_um = odometry_round_um(o->y_um, o->y_frac, 0x8000u);
+	p.heading_turn32 = o->heading_turn32;
+	return p;
+}
+
 /* The last tick's wheel travels, midpoint travel and heading change (all zero after init).
  * interrupt-safe: no. */
-struct odometry_step odometry_get_step(const struct odometry *o);
+static inline struct odometry_step odometry_get_step(const struct odometry *o)
+{
+	return o->step;
+}
 
 /* Signed travel of the midpoint since init [um], rounded from an exact sum, saturated to int32
  * (2147 m), for a distance loop. Not changed by set_pose.
  * interrupt-safe: no. */
-int32_t odometry_get_distance_um(const struct odometry *o);
+static inline int32_t odometry_get_distance_um(const struct odometry *o)
+{
+	return odometry_round_um(o->distance_um, o->distance_frac, 0x10000u);
+}
 
 #endif
