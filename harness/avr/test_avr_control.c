@@ -16,11 +16,10 @@
 #include <string.h>
 
 #include <cmocka.h>
-#include <simavr/sim_avr.h>
-#include <simavr/sim_elf.h>
 
 #include "control_avr/control_avr.h"
 #include "fixmath_avr/fixmath_avr.h"
+#include "mailbox.h"
 
 #define RANDOM_ROUNDS 600u
 #define STEPS_PER_ROUND 60
@@ -43,9 +42,7 @@ static const char *const op_name[CTA_OPS] = {
 };
 
 struct target {
-	elf_firmware_t fw;
-	avr_t *avr;
-	uint16_t box;
+	struct mailbox mb;
 	struct cta_state host; /* the host's pid and control, in step with the AVR's */
 	uint64_t n[CTA_OPS], cycles[CTA_OPS], max[CTA_OPS];
 	/* pid_update calls that the fast path takes, and the others; control_update calls with
@@ -53,64 +50,29 @@ struct target {
 	uint64_t pid_fast, pid_general, ff_narrow, ff_wide;
 };
 
-static void no_sleep(struct avr_t *avr, avr_cycle_count_t howlong)
-{
-	(void)avr;
-	(void)howlong;
-}
-
-/* Runs the AVR until the byte at addr equals want. Returns 0, or -1 (crash or too long). */
-static int run_until(struct target *t, uint16_t addr, uint8_t want)
-{
-	uint64_t start = t->avr->cycle;
-
-	while (t->avr->data[addr] != want) {
-		int st = avr_run(t->avr);
-
-		if (st == cpu_Done || st == cpu_Crashed ||
-		    t->avr->cycle - start > MAX_CYCLES_PER_OP)
-			return -1;
-	}
-	return 0;
-}
-
 static int target_open(struct target *t)
 {
 	memset(t, 0, sizeof(*t));
-	if (elf_read_firmware(elf_path, &t->fw))
-		return -1;
-	snprintf(t->fw.mmcu, sizeof(t->fw.mmcu), "atmega1284p");
-	t->fw.frequency = 16000000u;
-	t->avr = avr_make_mcu_by_name(t->fw.mmcu);
-	if (!t->avr)
-		return -1;
-	avr_init(t->avr);
-	t->avr->log = LOG_ERROR;
-	t->avr->sleep = no_sleep;
-	avr_load_firmware(t->avr, &t->fw);
-	if (run_until(t, FXA_GPIOR0, FXA_READY))
-		return -1;
-	t->box = (uint16_t)(t->avr->data[FXA_GPIOR1] | t->avr->data[FXA_GPIOR2] << 8);
-	return 0;
+	return mailbox_open(&t->mb, elf_path);
 }
 
 static void on_avr(struct target *t, uint8_t op, const int32_t *arg, int32_t *res)
 {
-	uint8_t *box = t->avr->data + t->box;
+	uint8_t *box = t->mb.avr->data + t->mb.box;
 	uint64_t start;
 
 	for (int i = 0; i < CTA_N_ARGS; i++)
 		for (int b = 0; b < 4; b++)
 			box[CTA_OFF_ARGS + 4 * i + b] = (uint8_t)((uint32_t)arg[i] >> (8 * b));
 	memset(box + CTA_OFF_RES, 0xa5, 4 * CTA_N_RES);
-	start = t->avr->cycle;
+	start = t->mb.avr->cycle;
 	box[CTA_OFF_OP] = op;
-	if (run_until(t, (uint16_t)(t->box + CTA_OFF_OP), 0))
+	if (mailbox_run_until(&t->mb, (uint16_t)(t->mb.box + CTA_OFF_OP), 0, MAX_CYCLES_PER_OP))
 		fail_msg("%s: the AVR did not finish", op_name[op]);
 	t->n[op]++;
-	t->cycles[op] += t->avr->cycle - start;
-	if (t->avr->cycle - start > t->max[op])
-		t->max[op] = t->avr->cycle - start;
+	t->cycles[op] += t->mb.avr->cycle - start;
+	if (t->mb.avr->cycle - start > t->max[op])
+		t->max[op] = t->mb.avr->cycle - start;
 	for (int i = 0; i < CTA_N_RES; i++) {
 		const uint8_t *p = box + CTA_OFF_RES + 4 * i;
 

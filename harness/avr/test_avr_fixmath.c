@@ -12,10 +12,9 @@
 #include <string.h>
 
 #include <cmocka.h>
-#include <simavr/sim_avr.h>
-#include <simavr/sim_elf.h>
 
 #include "fixmath.h"
+#include "mailbox.h"
 #include "fixmath_avr/fixmath_avr.h"
 
 #define RANDOM_PER_OP 10000u
@@ -52,64 +51,27 @@ static const char *const op_name[FXA_OPS] = {
 };
 
 struct target {
-	elf_firmware_t fw;
-	avr_t *avr;
-	uint16_t box;
+	struct mailbox mb;
 	uint64_t n[FXA_OPS], cycles[FXA_OPS], max[FXA_OPS];
 };
-
-static void no_sleep(struct avr_t *avr, avr_cycle_count_t howlong)
-{
-	(void)avr;
-	(void)howlong;
-}
 
 static void poke32(struct target *t, uint8_t off, uint32_t v)
 {
 	for (int i = 0; i < 4; i++)
-		t->avr->data[t->box + off + i] = (uint8_t)(v >> (8 * i));
+		t->mb.avr->data[t->mb.box + off + i] = (uint8_t)(v >> (8 * i));
 }
 
 static uint32_t peek32(const struct target *t, uint8_t off)
 {
-	const uint8_t *p = t->avr->data + t->box + off;
+	const uint8_t *p = t->mb.avr->data + t->mb.box + off;
 
 	return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
-}
-
-/* Runs the AVR until the byte at addr equals want. Returns 0, or -1 (crash or too long). */
-static int run_until(struct target *t, uint16_t addr, uint8_t want)
-{
-	uint64_t start = t->avr->cycle;
-
-	while (t->avr->data[addr] != want) {
-		int st = avr_run(t->avr);
-
-		if (st == cpu_Done || st == cpu_Crashed ||
-		    t->avr->cycle - start > MAX_CYCLES_PER_OP)
-			return -1;
-	}
-	return 0;
 }
 
 static int target_open(struct target *t)
 {
 	memset(t, 0, sizeof(*t));
-	if (elf_read_firmware(elf_path, &t->fw))
-		return -1;
-	snprintf(t->fw.mmcu, sizeof(t->fw.mmcu), "atmega1284p");
-	t->fw.frequency = 16000000u;
-	t->avr = avr_make_mcu_by_name(t->fw.mmcu);
-	if (!t->avr)
-		return -1;
-	avr_init(t->avr);
-	t->avr->log = LOG_ERROR;
-	t->avr->sleep = no_sleep;
-	avr_load_firmware(t->avr, &t->fw);
-	if (run_until(t, FXA_GPIOR0, FXA_READY))
-		return -1;
-	t->box = (uint16_t)(t->avr->data[FXA_GPIOR1] | t->avr->data[FXA_GPIOR2] << 8);
-	return 0;
+	return mailbox_open(&t->mb, elf_path);
 }
 
 /* The operation on the AVR: results in r[0], r[1]. */
@@ -117,20 +79,20 @@ static void on_avr(struct target *t, uint8_t op, uint8_t n, const uint32_t in[3]
 {
 	uint64_t start;
 
-	t->avr->data[t->box + FXA_OFF_N] = n;
+	t->mb.avr->data[t->mb.box + FXA_OFF_N] = n;
 	poke32(t, FXA_OFF_A, in[0]);
 	poke32(t, FXA_OFF_B, in[1]);
 	poke32(t, FXA_OFF_C, in[2]);
 	poke32(t, FXA_OFF_R0, 0xdeadbeefu);
 	poke32(t, FXA_OFF_R1, 0xdeadbeefu);
-	start = t->avr->cycle;
-	t->avr->data[t->box + FXA_OFF_OP] = op;
-	if (run_until(t, (uint16_t)(t->box + FXA_OFF_OP), 0))
+	start = t->mb.avr->cycle;
+	t->mb.avr->data[t->mb.box + FXA_OFF_OP] = op;
+	if (mailbox_run_until(&t->mb, (uint16_t)(t->mb.box + FXA_OFF_OP), 0, MAX_CYCLES_PER_OP))
 		fail_msg("%s: the AVR did not finish", op_name[op]);
 	t->n[op]++;
-	t->cycles[op] += t->avr->cycle - start;
-	if (t->avr->cycle - start > t->max[op])
-		t->max[op] = t->avr->cycle - start;
+	t->cycles[op] += t->mb.avr->cycle - start;
+	if (t->mb.avr->cycle - start > t->max[op])
+		t->max[op] = t->mb.avr->cycle - start;
 	r[0] = peek32(t, FXA_OFF_R0);
 	r[1] = peek32(t, FXA_OFF_R1);
 }
