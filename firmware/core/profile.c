@@ -119,57 +119,6 @@ static uint32_t div64_small(uint32_t nh, uint32_t nl, uint32_t den, uint8_t qbit
 	return q;
 }
 
-/* floor(num / den) for den <= 0xffff and a quotient known to be below 2^qbits (1..32), as
- * fx_udiv_small(); max_velocity() runs up to three on each moving axis each tick. On the AVR a
- * restoring division over the quotient's bits, the remainder (below den) in 16 bits with its
- * 17th bit in the carry, and the quotient's bits shifted into the dividend's freed low bits: 14
- * cycles a bit in assembly, where avr-gcc's loop takes 30. */
-static uint32_t udiv_small16(uint32_t num, uint16_t den, uint8_t qbits)
-{
-	uint16_t rem;
-
-	if (!FX_NARROW)
-		return num / den;
-	if (qbits == 0)
-		return 0;
-	rem = qbits >= 32 ? 0 : (uint16_t)fx_shr_u32(num, qbits);
-	num = qbits >= 32 ? num : fx_shl_u32(num, (uint8_t)(32 - qbits));
-#if defined(__AVR__)
-	__asm__("1:\n\t"
-		"lsl %A0\n\trol %B0\n\trol %C0\n\trol %D0\n\t"
-		"rol %A1\n\trol %B1\n\t"
-		"brcs 2f\n\t"
-		"cp %A1, %A3\n\tcpc %B1, %B3\n\t"
-		"brcs 3f\n"
-		"2:\n\t"
-		"sub %A1, %A3\n\tsbc %B1, %B3\n\t"
-		"ori %A0, 1\n"
-		"3:\n\t"
-		"dec %2\n\t"
-		"brne 1b"
-		: "+d"(num), "+r"(rem), "+r"(qbits)
-		: "r"(den));
-	return num;
-#else
-	{
-		uint32_t q = 0;
-
-		while (qbits-- != 0) {
-			uint8_t carry = (uint8_t)(rem >> 15);
-
-			rem = (uint16_t)((uint16_t)(rem << 1) | (uint16_t)(num >> 31));
-			num <<= 1;
-			q <<= 1;
-			if (carry || rem >= den) {
-				rem = (uint16_t)(rem - den);
-				q |= 1u;
-			}
-		}
-		return q;
-	}
-#endif
-}
-
 /* Distance covered from velocity n*a (included) with h ticks of cruise, then braking by a per
  * tick: g_h(n a) = a n (n + 2h + 1) / 2, exact (n (n + 2h + 1) is always even); saturated to
  * "far". While n (n + 2h + 1) fits 32 bits (n below 2^15, as for any limits in use), 32-bit
@@ -288,9 +237,8 @@ static int32_t max_velocity(struct profile *p, struct fx48 r, uint16_t h)
 	rem48 = fx48_sub(r, hint->g_q16);
 	den = n + h + 1;
 	if (den <= 0xffffu && rem48.hi >= 0 && rem48.hi <= 0x7fff)
-		return hint->an_q16 + (int32_t)udiv_small16((uint32_t)fx48_to32(rem48),
-							    (uint16_t)den,
-							    bit_length((uint32_t)prm->a_q16));
+		return hint->an_q16 + (int32_t)fx_udiv_small((uint32_t)fx48_to32(rem48), den,
+							     bit_length((uint32_t)prm->a_q16));
 	return (int32_t)min64((int64_t)hint->an_q16 + int64_of_fx48(rem48) / den, INT32_MAX);
 }
 
