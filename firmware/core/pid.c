@@ -168,24 +168,17 @@ FX_INLINE int16_t duty_of(const struct pid *c, int32_t uh, uint16_t ul)
 	return (int16_t)(0 - (int32_t)((m + 128) >> 8));
 }
 
-/* The common case: |e| <= p_err_fast_um, |de| <= d_err_fast_um. */
-static int16_t update_fast(struct pid *c, int16_t e, int16_t de)
+/* The duty from P + D (pd [2^-12 duty_q15]) and the integral i moved by this tick's error e
+ * (the stored one when e is 0): i is clipped and kept unless it winds up, in which case the
+ * stored integral gives the duty. */
+FX_INLINE int16_t duty_with(struct pid *c, int32_t e, int32_t pd, struct fx48 i)
 {
-	int32_t pd = mul_fast(c->kp_q12, e) + mul_fast(c->kd_q12, de);
 	int32_t pdh = floor_div16(pd); /* pd [2^-12] in [2^-24] as pdh 2^16 + pdl */
 	uint16_t pdl = (uint16_t)((uint16_t)fx_lo16((uint32_t)pd) << 12);
 	int32_t uh;
 	uint16_t ul;
 
-	/* The integral is kept as its contribution to the output, so that it can be clipped to
-	 * the limit directly and stays bumpless when the i gain changes. Integer products: exact,
-	 * no rounding to accumulate. ki e < 2^42. */
 	if (e != 0) {
-		unsigned kh = fx_hi16(c->ki_q24);
-		struct fx48 i = fx48_add32(c->i_acc_q24, fx_mul_s16_u16(e, fx_lo16(c->ki_q24)));
-
-		if (kh != 0)
-			i.hi += fx_mul_s16_u16(e, (uint16_t)kh);
 		i = clip_i8(i, c->i_max_q8);
 		uh = sum_hi(pdh, pdl, i, &ul);
 		if (!winds_up(e, uh, ul, c->i_max_q8)) {
@@ -195,6 +188,25 @@ static int16_t update_fast(struct pid *c, int16_t e, int16_t de)
 	}
 	uh = sum_hi(pdh, pdl, c->i_acc_q24, &ul);
 	return duty_of(c, uh, ul);
+}
+
+/* The common case: |e| <= p_err_fast_um, |de| <= d_err_fast_um. */
+static int16_t update_fast(struct pid *c, int16_t e, int16_t de)
+{
+	int32_t pd = mul_fast(c->kp_q12, e) + mul_fast(c->kd_q12, de);
+	struct fx48 i = c->i_acc_q24;
+
+	/* The integral is kept as its contribution to the output, so that it can be clipped to
+	 * the limit directly and stays bumpless when the i gain changes. Integer products: exact,
+	 * no rounding to accumulate. ki e < 2^42. */
+	if (e != 0) {
+		unsigned kh = fx_hi16(c->ki_q24);
+
+		i = fx48_add32(i, fx_mul_s16_u16(e, fx_lo16(c->ki_q24)));
+		if (kh != 0)
+			i.hi += fx_mul_s16_u16(e, (uint16_t)kh);
+	}
+	return duty_with(c, e, pd, i);
 }
 
 /* k e [2^-12 duty_q15], clipped to +-TERM_MAX (|e| <= e_max keeps the product below it). */
@@ -218,14 +230,10 @@ static int32_t term(int32_t k, int32_t e, int32_t e_max)
 static FX_NOINLINE int16_t update_general(struct pid *c, int32_t e, int32_t de)
 {
 	int32_t pd = term(c->kp_q12, e, c->p_err_max_um) + term(c->kd_q12, de, c->d_err_max_um);
-	int32_t pdh = floor_div16(pd);
-	uint16_t pdl = (uint16_t)((uint16_t)fx_lo16((uint32_t)pd) << 12);
-	int32_t uh;
-	uint16_t ul;
+	struct fx48 i = c->i_acc_q24;
 
 	if (e != 0) {
 		uint32_t lo, hi = fx_mul_u32_wide(c->ki_q24, fx_mag32(e), &lo);
-		struct fx48 i = c->i_acc_q24;
 		uint32_t t;
 
 		if (hi >= (uint32_t)1 << 14) {
@@ -242,15 +250,8 @@ static FX_NOINLINE int16_t update_general(struct pid *c, int32_t e, int32_t de)
 			i.hi -= (int32_t)hi + 1 - (int32_t)fx_hi16(t);
 		}
 		i.lo = fx_lo16(t);
-		i = clip_i8(i, c->i_max_q8);
-		uh = sum_hi(pdh, pdl, i, &ul);
-		if (!winds_up(e, uh, ul, c->i_max_q8)) {
-			c->i_acc_q24 = i;
-			return duty_of(c, uh, ul);
-		}
 	}
-	uh = sum_hi(pdh, pdl, c->i_acc_q24, &ul);
-	return duty_of(c, uh, ul);
+	return duty_with(c, e, pd, i);
 }
 
 /* pid_update on any error, in portable C. */
