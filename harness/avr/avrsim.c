@@ -64,12 +64,13 @@ struct op {
 	uint8_t byte; /* OP_ADDR, OP_TX: sent; OP_RX: 1 = ACK, 0 = NACK */
 };
 
+/* Per part (enum avrsim_part). */
 struct func {
 	uint32_t addr, size; /* bytes in flash */
 	char *name;
-	uint64_t self, incl;             /* since avrsim_profile() */
-	uint64_t self_now, incl_now;     /* in the tick running */
-	uint64_t self_worst, incl_worst; /* in the longest tick */
+	uint64_t self[2], incl[2];             /* since avrsim_profile() */
+	uint64_t self_now[2], incl_now[2];     /* in the run in progress */
+	uint64_t self_worst[2], incl_worst[2]; /* in the longest run */
 	uint32_t stamp;   /* the instruction that last counted it inclusive (recursion) */
 	uint8_t no_frame; /* a jump table dispatcher: it jumps on, it never returns */
 };
@@ -103,10 +104,18 @@ struct avrsim {
 
 	/* control period */
 	uint8_t tick_pin;
+	uint8_t tick_depth; /* interrupts running when TICK rose: 0 (one rate) or 1 (two) */
 	uint64_t tick_rise;
 	uint64_t ticks;
+	uint64_t servo_now; /* the tick's cycles so far, the interrupts in it excluded */
 	uint64_t last_compare, compares, period_cycles;
-	uint64_t period_idle;
+	uint64_t period_idle, period_resp, period_isr, period_servo;
+	uint64_t awake[8]; /* the last control periods' cycles awake, by compares % 8 */
+	/* the slow steps (two rates) */
+	uint8_t slow_pin;
+	uint8_t slow_shift;
+	uint64_t slow_now;      /* this run's cycles so far, preemptions excluded */
+	uint64_t slows;         /* runs ended */
 	uint64_t next_compare;  /* exact mode: predicted when the timer restarts */
 	uint8_t freeze_pending; /* exact mode: stop the control timer once this instruction is done
 				 */
@@ -144,7 +153,8 @@ struct avrsim {
 	uint8_t rx_n;
 	uint64_t bus_free_at;
 	uint8_t twi_status_in_isr; /* status when the running TWI interrupt started */
-	uint64_t isr_start[64];
+	uint64_t isr_own[64];      /* per nesting level: the cycles of the interrupt running there,
+				    * without those nested in it */
 
 	/* profile */
 	int profiling, profile_tick_only;
@@ -156,7 +166,7 @@ struct avrsim {
 	} * objs; /* RAM objects */
 	uint32_t nobjs;
 	uint16_t *func_of_word; /* flash word -> function index + 1, 0 = none */
-	uint64_t worst_tick;    /* the longest tick profiled */
+	uint64_t worst_len[2];  /* the longest run profiled, per part */
 	struct frame frames[MAX_FRAMES];
 	uint32_t nframes;
 	uint32_t stamp;
@@ -300,6 +310,11 @@ static void read_duties(const struct avrsim *h, int16_t *left, int16_t *right)
 
 	*left = avrsim_duty_q15(a, (d >> PIN_DIR_LEFT_BIT) & 1u);
 	*right = avrsim_duty_q15(b, (d >> PIN_DIR_RIGHT_BIT) & 1u);
+}
+
+static uint16_t flash_u16(const struct avrsim *h, uint32_t addr)
+{
+	return (uint16_t)(h->avr->flash[addr] | h->avr->flash[addr + 1] << 8);
 }
 
 /* A register write as the firmware's would be: through simavr's handler for it, if any. */
@@ -488,6 +503,14 @@ static void fail(struct avrsim *h, const char *msg)
 			 (unsigned long long)h->avr->cycle);
 }
 
+static void add_count(struct avrsim_count *c, uint64_t cycles)
+{
+	c->n++;
+	c->cycles += cycles;
+	if (cycles > c->max)
+		c->max = cycles;
+}
+
 /* The control timer's compare match. */
 static void on_compare(struct avr_irq_t *irq, uint32_t value, void *param)
 {
@@ -498,14 +521,22 @@ static void on_compare(struct avr_irq_t *irq, uint32_t value, void *param)
 	if (!value)
 		return;
 	if (h->compares) {
-		uint64_t len = now - h->last_compare;
+		uint64_t awake = now - h->last_compare - h->period_idle + h->period_resp;
+		uint32_t w = 1u << h->slow_shift;
 
-		h->st.period.n++;
-		h->st.period.cycles += len - h->period_idle;
-		if (len - h->period_idle > h->st.period.max)
-			h->st.period.max = len - h->period_idle;
+		add_count(&h->st.period, awake);
+		add_count(&h->st.isr_sum, h->period_isr);
+		add_count(&h->st.fast, h->period_servo + h->period_isr);
+		h->awake[h->compares % 8u] = awake;
+		if (h->compares >= w) {
+			uint64_t sum = 0;
+
+			for (uint32_t i = 0; i < w; i++)
+				sum += h->awake[(h->compares - i) % 8u];
+			add_count(&h->st.window, sum);
+		}
 	}
-	h->period_idle = 0;
+	h->period_idle = h->period_resp = h->period_isr = h->period_servo = 0;
 	h->last_compare = now;
 	h->compares++;
 	if (h->mode == AVRSIM_REALTIME && h->phys_next == UINT64_MAX)
@@ -524,6 +555,7 @@ static void on_tick_end(struct avrsim *h)
 
 	if (!h->tick_hz) {
 		avrsim_peek(h, (uint16_t)(h->board_addr + h->layout.tick_hz), &h->tick_hz, 2);
+		avrsim_peek(h, (uint16_t)(h->board_addr + h->layout.slow_shift), &h->slow_shift, 1);
 		h->period_cycles = AVRSIM_F_CPU / h->tick_hz;
 		if (h->sim) {
 			uint64_t ns = 1000000000u / h->tick_hz;
@@ -744,23 +776,29 @@ static void arm_wake(struct avrsim *h)
 	avr_cycle_timer_register(h->avr, h->wake_armed - h->avr->cycle, wake, h);
 }
 
-static void profile_step(struct avrsim *h, uint32_t pc0, uint64_t d, int isr_entry)
+/* The instruction that ran from pc0 for d cycles, in the part that was running (the pins'
+ * levels before it: the tick's rising edge is not the tick's, its falling edge is). */
+static void profile_step(struct avrsim *h, uint32_t pc0, uint64_t d, int isr_entry, int isr_return)
 {
 	avr_t *avr = h->avr;
 	uint16_t sp = _avr_sp_get(avr);
 	uint32_t f0 = h->func_of_word[(pc0 >> 1) & 0xFFFFu];
 	uint32_t f1 = h->func_of_word[(avr->pc >> 1) & 0xFFFFu];
+	int part = h->tick_pin            ? AVRSIM_PART_TICK
+		   : h->slow_pin          ? AVRSIM_PART_SLOW
+		   : h->profile_tick_only ? -1
+					  : AVRSIM_PART_TICK;
 
-	if (!h->profile_tick_only || h->tick_pin) {
+	if (part >= 0) {
 		if (f0)
-			h->funcs[f0 - 1].self_now += d;
+			h->funcs[f0 - 1].self_now[part] += d;
 		h->stamp++;
 		for (uint32_t i = h->nframes; i-- > 0;) {
 			struct func *f = &h->funcs[h->frames[i].func];
 
 			if (f->stamp != h->stamp) {
 				f->stamp = h->stamp;
-				f->incl_now += d;
+				f->incl_now[part] += d;
 			}
 			if (h->frames[i].isr_base)
 				break;
@@ -770,6 +808,9 @@ static void profile_step(struct avrsim *h, uint32_t pc0, uint64_t d, int isr_ent
 		h->nframes--;
 	if (isr_entry)
 		h->isr_entered = 1;
+	if (isr_return)
+		h->isr_entered = 0; /* an interrupt with no function symbol: the next function
+				     * entered is not an interrupt's */
 	/* Entered by a call, a jump or an interrupt; not by falling through from the code before
 	 * (the start-up code runs into main that way). */
 	if (f1 && f1 != f0 && avr->pc == h->funcs[f1 - 1].addr && avr->pc != pc0 + 2u &&
@@ -779,23 +820,24 @@ static void profile_step(struct avrsim *h, uint32_t pc0, uint64_t d, int isr_ent
 	}
 }
 
-/* The tick's counts into the totals, and into the worst tick's if it is the longest. */
-static void profile_tick_end(struct avrsim *h, uint64_t len)
+/* A run's counts (a tick, or a run of the slow steps) into its part's totals, and into the
+ * part's worst if it is the longest. */
+static void profile_run_end(struct avrsim *h, enum avrsim_part part, uint64_t len)
 {
-	int worst = len > h->worst_tick;
+	int worst = len > h->worst_len[part];
 
 	if (worst)
-		h->worst_tick = len;
+		h->worst_len[part] = len;
 	for (uint32_t i = 0; i < h->nfuncs; i++) {
 		struct func *f = &h->funcs[i];
 
-		f->self += f->self_now;
-		f->incl += f->incl_now;
+		f->self[part] += f->self_now[part];
+		f->incl[part] += f->incl_now[part];
 		if (worst) {
-			f->self_worst = f->self_now;
-			f->incl_worst = f->incl_now;
+			f->self_worst[part] = f->self_now[part];
+			f->incl_worst[part] = f->incl_now[part];
 		}
-		f->self_now = f->incl_now = 0;
+		f->self_now[part] = f->incl_now[part] = 0;
 	}
 }
 
@@ -806,7 +848,7 @@ static void step(struct avrsim *h)
 	uint32_t pc0;
 	uint16_t sp;
 	int sleeping, depth0, depth;
-	uint8_t pin;
+	uint8_t pin, portd;
 
 	for (;;) {
 		uint64_t c = avr->cycle;
@@ -831,58 +873,88 @@ static void step(struct avrsim *h)
 	avr_run(avr);
 	d = avr->cycle - c0;
 	h->st.cycles += d;
-	if (sleeping) {
-		h->st.idle += d;
-		h->period_idle += d;
+	/* Asleep: the whole step if the core was, and all but the instruction's cycle if it
+	 * executed SLEEP (simavr sleeps in that same step, often until the interrupt that wakes
+	 * it). */
+	if (sleeping || (flash_u16(h, pc0) == 0x9588u && d > 1u)) {
+		uint64_t idle = sleeping ? d : d - 1u;
+
+		h->st.idle += idle;
+		h->period_idle += idle;
+		d -= idle; /* what follows counts the cycles awake */
 	}
 	depth = avr->interrupts.running_ptr;
-	if (depth > depth0) { /* an interrupt was taken */
-		uint8_t v = avr->interrupts.running[depth - 1]->vector;
-
-		h->isr_start[v] = avr->cycle;
-		h->st.isr[v].n++;
-		h->st.isr[v].cycles += ISR_RESPONSE;
-		if (v == m1284p.vec_twi)
-			h->twi_status_in_isr = reg(h, m1284p.twsr) & 0xF8u;
+	/* The instruction ran where depth0 says: in the tick (TICK high, at the depth where it
+	 * rose: the main loop with one rate, the timer's interrupt with two), in an interrupt, or
+	 * in the main loop (the slow steps while SLOW is high). An interrupt taken after it is
+	 * charged its response. */
+	if (h->tick_pin && depth0 == h->tick_depth) {
+		h->servo_now += d;
+		h->period_servo += d;
 	} else if (depth0 > 0) {
 		uint8_t v = avr->interrupts.running[depth0 - 1]->vector;
 
 		h->st.isr[v].cycles += d;
-		if (depth < depth0) { /* returned */
-			uint64_t len = avr->cycle - h->isr_start[v] + ISR_RESPONSE;
-			struct avrsim_count *t = &h->st.twi[h->twi_status_in_isr >> 3];
+		h->isr_own[depth0 - 1] += d;
+		h->period_isr += d;
+	} else if (h->slow_pin) {
+		h->slow_now += d;
+	}
+	if (depth > depth0) { /* an interrupt was taken */
+		uint8_t v = avr->interrupts.running[depth - 1]->vector;
 
-			if (len > h->st.isr[v].max)
-				h->st.isr[v].max = len;
-			if (v == m1284p.vec_twi) {
-				t->n++;
-				t->cycles += len;
-				if (len > t->max)
-					t->max = len;
-			}
-		}
+		h->isr_own[depth - 1] = ISR_RESPONSE;
+		h->st.isr[v].n++;
+		h->st.isr[v].cycles += ISR_RESPONSE;
+		h->period_isr += ISR_RESPONSE;
+		h->period_resp += ISR_RESPONSE;
+		if (v == m1284p.vec_twi)
+			h->twi_status_in_isr = reg(h, m1284p.twsr) & 0xF8u;
+	} else if (depth < depth0) { /* returned */
+		uint8_t v = avr->interrupts.running[depth0 - 1]->vector;
+		uint64_t len = h->isr_own[depth0 - 1];
+
+		if (len > h->st.isr[v].max)
+			h->st.isr[v].max = len;
+		if (v == m1284p.vec_twi)
+			add_count(&h->st.twi[h->twi_status_in_isr >> 3], len);
 	}
 	sp = _avr_sp_get(avr);
 	if (sp < h->st.sp_min)
 		h->st.sp_min = sp;
 	if (h->profiling)
-		profile_step(h, pc0, d, depth > depth0);
-	pin = (reg(h, m1284p.portd) >> PIN_TICK_BIT) & 1u;
+		profile_step(h, pc0, d, depth > depth0, depth < depth0);
+	portd = reg(h, m1284p.portd);
+	pin = (portd >> PIN_TICK_BIT) & 1u;
 	if (pin != h->tick_pin) {
 		h->tick_pin = pin;
 		if (pin) {
 			h->tick_rise = avr->cycle;
+			h->tick_depth =
+				(uint8_t)depth0; /* where the instruction that raised it ran */
+			h->servo_now = 0;
 		} else {
 			uint64_t len = avr->cycle - h->tick_rise;
 
 			h->ticks++;
 			if (h->profiling)
-				profile_tick_end(h, len);
-			h->st.tick.n++;
-			h->st.tick.cycles += len;
-			if (len > h->st.tick.max)
-				h->st.tick.max = len;
+				profile_run_end(h, AVRSIM_PART_TICK, len);
+			add_count(&h->st.tick, len);
+			add_count(&h->st.servo, h->servo_now);
 			on_tick_end(h);
+		}
+	}
+	/* SLOW is PD1 when it is an output (two rates); with one rate PD1 is an input, pulled up */
+	pin = (portd & reg(h, m1284p.ddrd)) >> PIN_SLOW_BIT & 1u;
+	if (pin != h->slow_pin) {
+		h->slow_pin = pin;
+		if (pin) {
+			h->slow_now = 0;
+		} else {
+			h->slows++;
+			if (h->profiling)
+				profile_run_end(h, AVRSIM_PART_SLOW, h->slow_now);
+			add_count(&h->st.slow, h->slow_now);
 		}
 	}
 	if (h->freeze_pending) {
@@ -902,6 +974,48 @@ int avrsim_run_to_tick_end(struct avrsim *h)
 		if (h->avr->cycle > limit)
 			fail(h, "no control tick for 100 ms");
 	}
+	if (h->error[0]) {
+		fprintf(stderr, "avrsim: %s\n", h->error);
+		return -1;
+	}
+	return 0;
+}
+
+int avrsim_run_to_slow_done(struct avrsim *h)
+{
+	uint64_t n = h->ticks, limit = h->avr->cycle + 100u * AVRSIM_F_CPU / 1000u;
+
+	while (avrsim_slow_pending(h) && h->ticks == n && !h->error[0]) {
+		step(h);
+		if (h->avr->cycle > limit)
+			fail(h, "the slow steps did not finish in 100 ms");
+	}
+	if (h->error[0]) {
+		fprintf(stderr, "avrsim: %s\n", h->error);
+		return -1;
+	}
+	return h->ticks != n;
+}
+
+int avrsim_run_slow_steps(struct avrsim *h)
+{
+	uint64_t n = h->slows, limit = h->avr->cycle + 100u * AVRSIM_F_CPU / 1000u;
+
+	/* The rates are known from the first tick on. */
+	if (!h->tick_hz || !h->slow_shift) {
+		if (avrsim_run_to_tick_end(h))
+			return -1;
+		if (!h->slow_shift)
+			return 0;
+	}
+	while (h->slows == n && !h->error[0]) {
+		step(h);
+		if (h->avr->cycle > limit)
+			fail(h, "no slow steps for 100 ms");
+	}
+	while (!avrsim_slow_pending(h) && !h->error[0])
+		if (avrsim_run_to_tick_end(h))
+			return -1;
 	if (h->error[0]) {
 		fprintf(stderr, "avrsim: %s\n", h->error);
 		return -1;
@@ -1125,11 +1239,6 @@ static int read_elf(struct avrsim *h, const char *path, uint32_t *layout_addr)
 	return 0;
 }
 
-static uint16_t flash_u16(const struct avrsim *h, uint32_t addr)
-{
-	return (uint16_t)(h->avr->flash[addr] | h->avr->flash[addr + 1] << 8);
-}
-
 struct avrsim *avrsim_open(const char *elf_path, uint32_t i2c_hz)
 {
 	struct avrsim *h = calloc(1, sizeof(*h));
@@ -1339,6 +1448,17 @@ uint64_t avrsim_ticks(const struct avrsim *h)
 	return h->ticks;
 }
 
+uint8_t avrsim_slow_shift(const struct avrsim *h)
+{
+	return h->slow_shift;
+}
+
+int avrsim_slow_pending(const struct avrsim *h)
+{
+	return h->slow_shift &&
+	       (h->slow_pin || reg(h, (uint16_t)(h->board_addr + h->layout.slow_due)) != 0);
+}
+
 const struct avrsim_stats *avrsim_stats(const struct avrsim *h)
 {
 	return &h->st;
@@ -1353,46 +1473,50 @@ void avrsim_stats_reset(struct avrsim *h)
 void avrsim_profile(struct avrsim *h, int on, int tick_only)
 {
 	for (uint32_t i = 0; i < h->nfuncs; i++)
-		h->funcs[i].self = h->funcs[i].incl = h->funcs[i].self_now = h->funcs[i].incl_now =
-			0;
-	h->worst_tick = 0;
+		for (int p = 0; p < 2; p++)
+			h->funcs[i].self[p] = h->funcs[i].incl[p] = h->funcs[i].self_now[p] =
+				h->funcs[i].incl_now[p] = 0;
+	h->worst_len[0] = h->worst_len[1] = 0;
 	h->profiling = on;
 	h->profile_tick_only = tick_only;
 	h->nframes = 0;
 }
 
-static int cmp_incl(const void *a, const void *b)
+struct ranked {
+	const struct func *f;
+	uint64_t incl, self;
+};
+
+static int cmp_ranked(const void *a, const void *b)
 {
-	const struct func *x = *(const struct func *const *)a, *y = *(const struct func *const *)b;
+	const struct ranked *x = a, *y = b;
 
 	return x->incl < y->incl ? 1 : x->incl > y->incl ? -1 : 0;
 }
 
-static int cmp_incl_worst(const void *a, const void *b)
+void avrsim_profile_report(const struct avrsim *h, FILE *out, enum avrsim_part part, int top,
+			   uint64_t per, int worst)
 {
-	const struct func *x = *(const struct func *const *)a, *y = *(const struct func *const *)b;
-
-	return x->incl_worst < y->incl_worst ? 1 : x->incl_worst > y->incl_worst ? -1 : 0;
-}
-
-void avrsim_profile_report(const struct avrsim *h, FILE *out, int top, uint64_t per, int worst)
-{
-	const struct func **v = malloc(h->nfuncs * sizeof(*v));
+	struct ranked *v = malloc(h->nfuncs * sizeof(*v));
 	int n = 0;
 
 	if (!v || per == 0) {
 		free(v);
 		return;
 	}
-	for (uint32_t i = 0; i < h->nfuncs; i++)
-		if (worst ? h->funcs[i].incl_worst : h->funcs[i].incl)
-			v[n++] = &h->funcs[i];
-	qsort(v, (size_t)n, sizeof(*v), worst ? cmp_incl_worst : cmp_incl);
+	for (uint32_t i = 0; i < h->nfuncs; i++) {
+		const struct func *f = &h->funcs[i];
+		uint64_t incl = worst ? f->incl_worst[part] : f->incl[part];
+
+		if (incl)
+			v[n++] = (struct ranked){f, incl,
+						 worst ? f->self_worst[part] : f->self[part]};
+	}
+	qsort(v, (size_t)n, sizeof(*v), cmp_ranked);
 	fprintf(out, "  %-28s %12s %12s\n", "function", "inclusive", "self");
 	for (int i = 0; i < n && i < top; i++)
-		fprintf(out, "  %-28s %12.0f %12.0f\n", v[i]->name,
-			(double)(worst ? v[i]->incl_worst : v[i]->incl) / (double)per,
-			(double)(worst ? v[i]->self_worst : v[i]->self) / (double)per);
+		fprintf(out, "  %-28s %12.0f %12.0f\n", v[i].f->name,
+			(double)v[i].incl / (double)per, (double)v[i].self / (double)per);
 	free(v);
 }
 

@@ -27,7 +27,10 @@ enum avrsim_lockstep {
 	 * that duty, in the cycles left before the next compare match (less a guard). The tick
 	 * therefore samples the sensors of the instant of its compare match and its duty acts
 	 * from that instant: the timing of the native host port, so that both runs can be
-	 * compared bit for bit. */
+	 * compared bit for bit. With two rates only the servo stands still: the slow steps
+	 * run in real cycles, in the window, and the servo preempts them if they run past the
+	 * next compare match (avrsim_run_to_slow_done() lets a master wait for them, as the
+	 * native run's master finds them done). */
 	AVRSIM_EXACT,
 };
 
@@ -38,12 +41,23 @@ struct avrsim_count {
 };
 
 struct avrsim_stats {
-	uint64_t cycles;                 /* simulated since the last reset of the stats */
-	uint64_t idle;                   /* of which asleep */
-	struct avrsim_count tick;        /* TICK pin high, rise to fall (interrupts included) */
-	struct avrsim_count period;      /* cycles awake per control period (compare to compare) */
-	struct avrsim_count isr[64];     /* per vector, each with its 4-cycle response */
-	struct avrsim_count twi[32];     /* the TWI interrupt per status (index status >> 3) */
+	uint64_t cycles;             /* simulated since the last reset of the stats */
+	uint64_t idle;               /* of which asleep */
+	struct avrsim_count tick;    /* TICK pin high, rise to fall (interrupts included) */
+	struct avrsim_count servo;   /* the same without the interrupts that ran inside it */
+	struct avrsim_count slow;    /* two rates: each run of the slow steps (SLOW pin high),
+				      * without the servo and the interrupts that preempted it */
+	struct avrsim_count period;  /* cycles awake per control period (compare to compare),
+				      * with the interrupts' 4-cycle responses */
+	struct avrsim_count isr_sum; /* cycles of interrupts (the servo's own excluded) per control
+				      * period, responses included */
+	struct avrsim_count fast;    /* the servo's and the interrupts' cycles per control period */
+	struct avrsim_count window;  /* cycles awake in 2^slow_shift consecutive control periods
+				      * (a slow period, at any phase; one period with one rate) */
+	struct avrsim_count isr[64]; /* per vector, each with its 4-cycle response; max: the
+				      * longest, without what nested in it. The servo is not its
+				      * vector's (it is servo above) */
+	struct avrsim_count twi[32]; /* the TWI interrupt per status (index status >> 3) */
 	struct avrsim_count stretch[32]; /* SCL held low past the master's low half-period,
 					  * per status that held it [cycles] */
 	uint64_t twi_bytes;              /* address and data bytes on the bus */
@@ -67,6 +81,15 @@ int avrsim_physics(struct avrsim *h, const struct sim_config *sc, const struct s
 
 /* Runs until the TICK pin falls (a control period's work is done; its duties are set). */
 int avrsim_run_to_tick_end(struct avrsim *h);
+/* Two rates: runs until the slow steps the servo handed over are done (the board's slow_due
+ * back to 0 and the SLOW pin low), or until the next tick ends if that comes first. Returns 0
+ * (done; at once with one rate or nothing due), 1 (a tick ended first: deal with it, call
+ * again), -1 on error. */
+int avrsim_run_to_slow_done(struct avrsim *h);
+/* Runs until the slow steps have run once (the SLOW pin falls) and the servo has taken their
+ * results, at the next hand-over (the tick that makes them due again): the queue is taken and
+ * the replies published then. With one rate, one tick (it runs them). */
+int avrsim_run_slow_steps(struct avrsim *h);
 /* Runs until the firmware sleeps between two ticks (TICK pin low). */
 int avrsim_run_until_idle(struct avrsim *h);
 /* Runs n cycles (at least). */
@@ -113,17 +136,26 @@ uint64_t avrsim_cycle(const struct avrsim *h);
 uint64_t avrsim_next_compare(const struct avrsim *h);
 uint64_t avrsim_ticks(const struct avrsim *h);
 
+/* The binary's cfg.slow_shift (the slow steps every 2^n ticks; 0: one rate), read at its first
+ * tick (0 before). 1 while the slow steps are due or running (always 0 with one rate). */
+uint8_t avrsim_slow_shift(const struct avrsim *h);
+int avrsim_slow_pending(const struct avrsim *h);
+
 /* Statistics since the last avrsim_stats_reset(). */
 const struct avrsim_stats *avrsim_stats(const struct avrsim *h);
 void avrsim_stats_reset(struct avrsim *h);
 
 /* Per-function profile (slower): cycles attributed to the function whose code runs (self) and
  * to every function on the call stack (inclusive), interrupts apart from what they preempt.
- * Only while the TICK pin is high when tick_only. Starts from zero. The report lists the top
- * functions by inclusive cycles, divided by per: over every tick profiled, or (worst) in the
- * longest tick alone. */
+ * Two parts: the tick (TICK pin high; with two rates the servo) and the slow steps (SLOW pin
+ * high, the servo that preempts them excluded). With tick_only, nothing else; otherwise the
+ * rest goes with the tick. Starts from zero. The report lists a part's top functions by
+ * inclusive cycles, divided by per: over every run profiled, or (worst) in the longest run
+ * alone. */
+enum avrsim_part { AVRSIM_PART_TICK, AVRSIM_PART_SLOW };
 void avrsim_profile(struct avrsim *h, int on, int tick_only);
-void avrsim_profile_report(const struct avrsim *h, FILE *out, int top, uint64_t per, int worst);
+void avrsim_profile_report(const struct avrsim *h, FILE *out, enum avrsim_part part, int top,
+			   uint64_t per, int worst);
 
 /* Flash and RAM of the binary (bytes): .text + .data, .data + .bss. */
 void avrsim_sizes(const struct avrsim *h, uint32_t *flash, uint32_t *ram);

@@ -7,10 +7,17 @@
  * binary could not keep up in real time. Interrupts do not preempt the tick there; each is
  * measured on its own, and the load of a control period in real time is their sum:
  *     tick + (edges per period x encoder interrupt) + ADC (2) + timer (1) + TWI per period.
+ * With two rates (the binary's cfg.slow_shift > 0) the tick is the servo, and the slow steps
+ * that run once every 2^slow_shift periods add their share:
+ *     (servo + interrupts per period) / period + slow steps / slow period,
+ * the mean from the means and the worst from the worst servo, the worst interrupt load and the
+ * longest run of the slow steps. The busiest period (cycles awake between two compare matches)
+ * is printed as well.
  * Printed: the tick's cycles (mean, worst; over the move and at 1 m/s, i.e. while the true
  * speed is at least 0.95 m/s), that load in % of the period at the binary's rate, each
  * interrupt's cycles, the TWI's cycles per bus event and the clock it holds, flash, RAM and
- * stack, and the functions the tick spends its cycles in (mean, and in the worst tick).
+ * stack, the functions the tick (and the slow steps) spend their cycles in (mean, and in the
+ * longest run), and the overruns the binary counted.
  *   bench_avr asserv_avr.elf [--no-profile] */
 #include <stdio.h>
 #include <string.h>
@@ -42,7 +49,12 @@ static void merge(struct phase *all, const struct avrsim_stats *s, uint64_t tick
 	a->cycles += s->cycles;
 	a->idle += s->idle;
 	add(&a->tick, &s->tick);
+	add(&a->servo, &s->servo);
+	add(&a->slow, &s->slow);
 	add(&a->period, &s->period);
+	add(&a->isr_sum, &s->isr_sum);
+	add(&a->fast, &s->fast);
+	add(&a->window, &s->window);
 	for (int i = 0; i < 64; i++)
 		add(&a->isr[i], &s->isr[i]);
 	for (int i = 0; i < 32; i++) {
@@ -78,22 +90,12 @@ static void isr_load(const struct phase *p, double *m, double *w)
 	}
 }
 
-static void print_phase(const char *title, const struct phase *p, uint32_t tick_hz)
+/* One rate: the tick, the interrupts, and the load of a period. */
+static void print_one_rate(const struct phase *p, uint32_t tick_hz, double im, double iw)
 {
 	const struct avrsim_stats *s = &p->st;
 	uint32_t period = AVRSIM_F_CPU / tick_hz;
-	double seconds = (double)p->ticks / tick_hz, im, iw;
-	const struct {
-		const char *name;
-		uint8_t vec;
-	} isr[] = {{"encoders, free wheels (PCINT2)", m1284p.vec_pcint2},
-		   {"encoders, motors (PCINT0)", m1284p.vec_pcint0},
-		   {"current-sense ADC", m1284p.vec_adc},
-		   {"TWI", m1284p.vec_twi},
-		   {"control timer", m1284p.vec_timer3_compa}};
 
-	isr_load(p, &im, &iw);
-	printf("\n%s: %llu ticks (%.2f s)\n", title, (unsigned long long)p->ticks, seconds);
 	printf("  control tick, computing          %8.0f cycles mean %8llu worst\n", mean(&s->tick),
 	       (unsigned long long)s->tick.max);
 	printf("  interrupts per period            %8.0f cycles mean %8.0f worst\n", im, iw);
@@ -105,6 +107,71 @@ static void print_phase(const char *title, const struct phase *p, uint32_t tick_
 		printf("  the same at 1 kHz                %7.1f %% mean    %7.1f %% worst\n",
 		       100.0 * (mean(&s->tick) + im * 1000.0 / tick_hz) / 16000.0,
 		       100.0 * ((double)s->tick.max + iw * 1000.0 / tick_hz) / 16000.0);
+}
+
+/* Two rates: the servo, the slow steps, the interrupts, and the load they make together (the
+ * worst from the worst of each, with the interrupts' worst estimated as in one rate and as the
+ * busiest period had them), then the same loads as measured over one period and one slow
+ * period (cycles awake; the busiest of each). */
+static void print_two_rates(const struct phase *p, uint32_t tick_hz, uint8_t slow_shift, double im,
+			    double iw)
+{
+	const struct avrsim_stats *s = &p->st;
+	uint32_t period = AVRSIM_F_CPU / tick_hz, n = 1u << slow_shift, slow_period = period * n;
+	double servo_slow_mean = mean(&s->servo) / period + mean(&s->slow) / slow_period;
+	double servo_slow_worst = (double)s->servo.max / period + (double)s->slow.max / slow_period;
+
+	printf("  servo tick (TICK high, without the interrupts nested in it)\n"
+	       "                                   %8.0f cycles mean %8llu worst\n",
+	       mean(&s->servo), (unsigned long long)s->servo.max);
+	printf("  slow steps, a run every %u ticks (SLOW high, without what preempted them)\n"
+	       "                                   %8.0f cycles mean %8llu worst  (%llu runs)\n",
+	       n, mean(&s->slow), (unsigned long long)s->slow.max, (unsigned long long)s->slow.n);
+	printf("  interrupts per period            %8.0f cycles mean %8.0f worst  (each at its\n"
+	       "                                   rate, its longest)\n",
+	       im, iw);
+	printf("    as measured in one period      %8.0f cycles mean %8llu in the busiest\n",
+	       mean(&s->isr_sum), (unsigned long long)s->isr_sum.max);
+	printf("  CPU load at %u Hz, (servo + interrupts) / period + slow steps / %u periods\n"
+	       "  (goal: 40 %% worst)\n"
+	       "                                   %7.1f %% mean    %7.1f %% worst\n",
+	       tick_hz, n, 100.0 * (servo_slow_mean + im / period),
+	       100.0 * (servo_slow_worst + iw / period));
+	printf("    worst with the busiest period's interrupts     %7.1f %%\n",
+	       100.0 * (servo_slow_worst + (double)s->isr_sum.max / period));
+	printf("  measured, servo + interrupts in one period\n"
+	       "                                   %7.1f %% mean    %7.1f %% in the busiest (of %u "
+	       "cycles)\n",
+	       100.0 * mean(&s->fast) / period, 100.0 * (double)s->fast.max / period, period);
+	printf("  measured, cycles awake in %u periods (all the work, the main loop's wake-ups "
+	       "included)\n"
+	       "                                   %7.1f %% mean    %7.1f %% in the busiest (of %u "
+	       "cycles)\n",
+	       n, 100.0 * mean(&s->window) / slow_period,
+	       100.0 * (double)s->window.max / slow_period, slow_period);
+}
+
+static void print_phase(const char *title, const struct phase *p, uint32_t tick_hz,
+			uint8_t slow_shift)
+{
+	const struct avrsim_stats *s = &p->st;
+	double seconds = (double)p->ticks / tick_hz, im, iw;
+	const struct {
+		const char *name;
+		uint8_t vec;
+	} isr[] = {{"encoders, free wheels (PCINT2)", m1284p.vec_pcint2},
+		   {"encoders, motors (PCINT0)", m1284p.vec_pcint0},
+		   {"current-sense ADC", m1284p.vec_adc},
+		   {"TWI", m1284p.vec_twi},
+		   {slow_shift ? "control timer, around the servo" : "control timer",
+		    m1284p.vec_timer3_compa}};
+
+	isr_load(p, &im, &iw);
+	printf("\n%s: %llu ticks (%.2f s)\n", title, (unsigned long long)p->ticks, seconds);
+	if (slow_shift)
+		print_two_rates(p, tick_hz, slow_shift, im, iw);
+	else
+		print_one_rate(p, tick_hz, im, iw);
 	for (size_t i = 0; i < sizeof(isr) / sizeof(isr[0]); i++) {
 		const struct avrsim_count *c = &s->isr[isr[i].vec];
 
@@ -151,14 +218,17 @@ int main(int argc, char **argv)
 	struct sim_truth t;
 	int profile = !(argc > 2 && !strcmp(argv[2], "--no-profile"));
 	int in_cruise = 0, cruised = 0;
-	uint32_t flash, ram, tick = 0, mark = 0, poll = 0;
-	uint8_t rep[7] = {0};
+	uint32_t flash, ram, tick = 0, mark = 0, poll = 0, next_poll;
+	uint64_t ticks0;
+	uint8_t rep[7] = {0}, ov[4] = {0}, slow_shift;
+	uint16_t at;
 
 	if (argc < 2) {
 		fprintf(stderr, "usage: %s asserv_avr.elf [--no-profile]\n", argv[0]);
 		return 2;
 	}
 	avr_robot_config(&bc);
+	next_poll = bc.tick_hz / 100u;
 	sim_config_defaults(&sc);
 	sc.motor.encoder_cpr = 48; /* robot.c */
 	sim_field_defaults(&f);
@@ -174,10 +244,13 @@ int main(int argc, char **argv)
 	all.st.sp_min = 0xFFFF;
 	avrsim_stats_reset(h);
 	avrsim_profile(h, profile, 1);
+	ticks0 = avrsim_ticks(h);
 	for (;;) {
 		if (avrsim_run_to_tick_end(h))
 			return 1;
-		tick++;
+		/* The ticks the binary ran: with two rates a transaction can span a compare match.
+		 */
+		tick = (uint32_t)(avrsim_ticks(h) - ticks0);
 		sim_get_truth(avrsim_sim(h), &t);
 		if (!in_cruise && !cruised && t.v_mm_s >= CRUISE_MM_S) {
 			in_cruise = 1;
@@ -192,7 +265,8 @@ int main(int argc, char **argv)
 			mark = tick;
 			avrsim_stats_reset(h);
 		}
-		if (tick * 100u % bc.tick_hz == 0) { /* the master, every 10 ms */
+		if (tick >= next_poll) { /* the master, every 10 ms */
+			next_poll += bc.tick_hz / 100u;
 			poll++;
 			if (avrsim_i2c_read(h, rep, 1))
 				return 1;
@@ -208,28 +282,48 @@ int main(int argc, char **argv)
 	}
 	merge(&all, avrsim_stats(h), tick - mark);
 	avrsim_sizes(h, &flash, &ram);
+	slow_shift = avrsim_slow_shift(h);
 
 	printf("asserv_avr.elf on an ATmega1284P at 16 MHz: control at %u Hz, free wheels %u "
 	       "counts/turn, motor encoders %u counts/motor turn\n",
 	       bc.tick_hz, (unsigned)sc.enc_cpr, (unsigned)sc.motor.encoder_cpr);
+	if (slow_shift)
+		printf("two rates: the servo at %u Hz in the control timer's interrupt, the slow "
+		       "steps at %u Hz in the main loop (slow_shift %u)\n",
+		       bc.tick_hz, bc.tick_hz >> slow_shift, slow_shift);
 	printf("flash %u bytes (.text + .data); RAM %u bytes static (.data + .bss) + %u bytes of "
 	       "stack at most = %u of 16384\n",
 	       flash, ram, (unsigned)(m1284p.ramend - all.st.sp_min),
 	       (unsigned)(ram + m1284p.ramend - all.st.sp_min));
-	print_phase("the whole move", &all, bc.tick_hz);
+	print_phase("the whole move", &all, bc.tick_hz, slow_shift);
 	if (cruised)
-		print_phase("at 1 m/s (true speed >= 0.95 m/s)", &cruise, bc.tick_hz);
+		print_phase("at 1 m/s (true speed >= 0.95 m/s)", &cruise, bc.tick_hz, slow_shift);
 	else
 		printf("\nthe robot never reached 0.95 m/s\n");
 	print_twi(&all.st);
 	if (profile) {
-		printf("\nThe tick's cycles by function, mean per tick over the move (inclusive: "
-		       "with what it calls):\n");
-		avrsim_profile_report(h, stdout, 20, all.st.tick.n, 0);
+		printf("\nThe %s's cycles by function, mean per tick over the move (inclusive: "
+		       "with what it calls):\n",
+		       slow_shift ? "servo tick" : "tick");
+		avrsim_profile_report(h, stdout, AVRSIM_PART_TICK, 20, all.st.tick.n, 0);
 		printf("\nThe same in the longest tick (%llu cycles):\n",
 		       (unsigned long long)all.st.tick.max);
-		avrsim_profile_report(h, stdout, 16, 1, 1);
+		avrsim_profile_report(h, stdout, AVRSIM_PART_TICK, 16, 1, 1);
 	}
+	if (profile && slow_shift) {
+		printf("\nThe slow steps' cycles by function, mean per run over the move "
+		       "(inclusive):\n");
+		avrsim_profile_report(h, stdout, AVRSIM_PART_SLOW, 20, all.st.slow.n, 0);
+		printf("\nThe same in the longest run (%llu cycles):\n",
+		       (unsigned long long)all.st.slow.max);
+		avrsim_profile_report(h, stdout, AVRSIM_PART_SLOW, 16, 1, 1);
+	}
+	avrsim_peek(h, (uint16_t)(avrsim_board(h) + avrsim_layout(h)->slow_overruns), ov, 2);
+	if (avrsim_symbol(h, "avr_tick_overruns", &at) == 0)
+		avrsim_peek(h, at, ov + 2, 2);
+	printf("\noverruns: slow steps not done by their hand-over (slow_overruns) %u, control "
+	       "periods lost (avr_tick_overruns) %u\n",
+	       ov[0] | ov[1] << 8, ov[2] | ov[3] << 8);
 	sim_get_truth(avrsim_sim(h), &t);
 	printf("\nend after %u ticks: status 0x%02x, last POSITION (%d, %d) mm, truth (%.1f, "
 	       "%.1f) mm\n",

@@ -20,6 +20,7 @@ const struct m1284p_regs m1284p = {
 	.portb = PORTB,
 	.portc = PORTC,
 	.portd = PORTD,
+	.ddrd = DDRD,
 	.ocr1a = OCR1AL,
 	.ocr1b = OCR1BL,
 	.timsk3 = TIMSK3,

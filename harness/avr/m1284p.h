@@ -6,7 +6,7 @@
 #include <stdint.h>
 
 struct m1284p_regs {
-	uint16_t pina, pinb, pinc, pind, porta, portb, portc, portd;
+	uint16_t pina, pinb, pinc, pind, porta, portb, portc, portd, ddrd;
 	uint16_t ocr1a, ocr1b;                 /* low bytes; the high byte follows */
 	uint16_t timsk3, tccr3b, tcnt3, ocr3a; /* tcnt3, ocr3a: low bytes */
 	uint8_t ocie3a;

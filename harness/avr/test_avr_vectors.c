@@ -3,7 +3,8 @@
  * makes on the protocol layer, with the queue, the selection and the snapshot read from (or, for
  * the snapshot a sequence assumes, written into) the AVR's RAM. Each vector starts from a fresh
  * reset, after the first control tick, with the control timer's interrupt masked so that no tick
- * takes the queue; a vector's "tick" unmasks it until a tick has run. */
+ * takes the queue; a vector's "tick" unmasks it until the queue has been taken and the replies
+ * published (a tick; with two rates, a run of the slow steps and the next hand-over). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -139,7 +140,7 @@ static void test_sequence_vectors(void **state)
 
 			if (st->op == 't') {
 				avrsim_tick_enable(h, 1);
-				assert_int_equal(avrsim_run_to_tick_end(h), 0);
+				assert_int_equal(avrsim_run_slow_steps(h), 0);
 				avrsim_tick_enable(h, 0);
 				assert_int_equal(avrsim_run_until_idle(h), 0);
 				poke_snapshot(h, &sq->snapshot);

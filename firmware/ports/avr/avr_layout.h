@@ -2,7 +2,7 @@
  * the port stores one struct avr_layout in flash under the symbol avr_layout, so that the simavr
  * harness (harness/avr) reads the board's estimate and protocol state from the running binary's
  * RAM without assuming the AVR's struct layout. Every member is a uint16_t, so the host reads the
- * record with the same declaration (little-endian on both). Costs 56 bytes of flash. */
+ * record with the same declaration (little-endian on both). Costs 66 bytes of flash. */
 #ifndef ASSERV_AVR_LAYOUT_H
 #define ASSERV_AVR_LAYOUT_H
 
@@ -20,8 +20,11 @@ struct avr_layout {
 	uint16_t size;  /* sizeof(struct avr_layout) */
 	uint16_t board_size;
 	/* Offsets from the start of struct board [bytes]. */
-	uint16_t tick_hz; /* uint16, cfg.tick_hz */
+	uint16_t tick_hz;    /* uint16, cfg.tick_hz */
+	uint16_t slow_shift; /* uint8, cfg.slow_shift */
 	uint16_t tick;
+	uint16_t slow_due;        /* uint8: the slow steps have a snapshot to work on */
+	uint16_t slow_overruns;   /* uint16 */
 	uint16_t odo_x_um;        /* uint32, whole um of the estimate */
 	uint16_t odo_y_um;        /* uint32 */
 	uint16_t odo_x_frac;      /* uint16, [2^-16 um] */

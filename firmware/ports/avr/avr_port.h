@@ -1,5 +1,6 @@
 /* What the files of the ATmega1284P port share: the board instance, the set-up of each
- * peripheral, and the control period's flag. The HAL itself is firmware/hal/. */
+ * peripheral, and the control period's execution model (tick.c). The HAL itself is
+ * firmware/hal/. */
 #ifndef ASSERV_AVR_PORT_H
 #define ASSERV_AVR_PORT_H
 
@@ -10,7 +11,8 @@
 #include "board.h"
 #include "robot.h"
 
-/* The one board, shared by the control tick (main loop) and the TWI interrupt (its proto). The
+/* The one board, shared by the control tick (main loop, or the timer's interrupt for the servo
+ * and the main loop for the slow steps with two rates) and the TWI interrupt (its proto). The
  * simavr harness finds it by this symbol name. */
 extern struct board asserv_board;
 
@@ -20,9 +22,20 @@ void avr_sensors_init(void);
 void avr_encoder_init(void);
 void avr_motor_init(void);
 
-/* Sleeps until the tick timer's next compare match (or returns at once if one is due). Returns
- * the number of periods that elapsed since the last call: more than 1 is an overrun. Main loop
- * only. */
+#if CONFIG_AVR_SLOW_SHIFT == 0
+/* One rate. Sleeps until the tick timer's next compare match (or returns at once if one is
+ * due). Returns the number of periods that elapsed since the last call: more than 1 is an
+ * overrun. Main loop only. */
 uint8_t avr_tick_wait(void);
+#else
+/* Two rates. The servo: TICK high, port_control_tick(), TICK low, avr_servo_alive set. Called
+ * by the timer's interrupt (tick_isr.S) with interrupts enabled, never re-entered. */
+void avr_servo_tick(void);
+/* Set by each servo tick, cleared by the main loop when it feeds the watchdog. */
+extern volatile uint8_t avr_servo_alive;
+/* Sleeps until the servo has handed the slow steps a snapshot (returns at once if it has).
+ * Main loop only. */
+void avr_slow_wait(void);
+#endif
 
 #endif

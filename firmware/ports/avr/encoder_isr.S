@@ -37,6 +37,7 @@
 .macro quad_isr vector, pins, state, counts
 	.section .text.\vector, "ax", @progbits
 	.global	\vector
+	.type	\vector, @function
 \vector:
 	isr_save_r24_sreg
 	out	_SFR_IO_ADDR(GPIOR2), r30
@@ -55,6 +56,7 @@
 	reti
 2:	carry	\counts, 1b
 4:	carry	\counts + 2, 3b
+	isr_end	\vector
 .endm
 
 	quad_isr PCINT2_vect, PINC, avr_free_state, avr_free_count

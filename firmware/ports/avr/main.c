@@ -1,4 +1,5 @@
-/* The asserv board on an ATmega1284P at 16 MHz: start-up, then the control loop. Pin map:
+/* The asserv board on an ATmega1284P at 16 MHz: start-up, then the main loop, which runs the
+ * whole control tick (one rate) or the slow steps (two rates; tick.c explains both). Pin map:
  * pinmap.h; build, fuses and flashing: docs/avr.md. */
 #include <avr/interrupt.h>
 #include <avr/io.h>
@@ -11,7 +12,8 @@
 
 struct board asserv_board;
 
-/* Periods the tick missed because the previous one ran over (a debugger reads it). */
+/* Periods the tick missed because the previous one ran over (a debugger reads it): counted by
+ * the main loop (one rate) or by the timer's interrupt (two rates, tick_isr.S). */
 volatile uint16_t avr_tick_overruns;
 
 /* After a watchdog reset the watchdog stays on: turn it off before anything else. */
@@ -35,8 +37,9 @@ int main(void)
 	avr_encoder_init();
 	avr_robot_config(&cfg);
 	port_sample(&in);
-	if (board_init(&asserv_board, &cfg, &in) != 0) {
-		/* A configuration the core refuses: motors off, no bus, wait for a new binary. */
+	if (cfg.slow_shift != CONFIG_AVR_SLOW_SHIFT || board_init(&asserv_board, &cfg, &in) != 0) {
+		/* A configuration the core refuses, or rates the execution model built in does not
+		 * run (tick.c): motors off, no bus, wait for a new binary. */
 		for (;;)
 			;
 	}
@@ -44,6 +47,7 @@ int main(void)
 	hal_tick_start(cfg.tick_hz);
 	wdt_enable(WDTO_60MS);
 	sei();
+#if CONFIG_AVR_SLOW_SHIFT == 0
 	for (;;) {
 		uint8_t n = avr_tick_wait();
 
@@ -54,4 +58,19 @@ int main(void)
 		PORTD &= (uint8_t)~_BV(PIN_TICK_BIT);
 		wdt_reset();
 	}
+#else
+	for (;;) {
+		avr_slow_wait();
+		PORTD |= _BV(PIN_SLOW_BIT);
+		port_slow(&asserv_board);
+		PORTD &= (uint8_t)~_BV(PIN_SLOW_BIT);
+		/* Fed only here, and only if the servo has run since: a main loop stuck in the slow
+		 * steps, and a servo that stopped (the slow steps then never fall due), both let
+		 * the watchdog stop the motors. */
+		if (avr_servo_alive) {
+			avr_servo_alive = 0;
+			wdt_reset();
+		}
+	}
+#endif
 }

@@ -28,6 +28,7 @@
 
 	.section .text.ADC_vect, "ax", @progbits
 	.global	ADC_vect
+	.type	ADC_vect, @function
 ADC_vect:
 	isr_save_r24_sreg
 	out	_SFR_IO_ADDR(GPIOR2), r25
@@ -55,3 +56,4 @@ ADC_vect:
 	in	r25, _SFR_IO_ADDR(GPIOR2)
 	isr_restore_r24_sreg
 	reti
+	isr_end	ADC_vect

@@ -9,7 +9,7 @@
  *          PC2 free encoder left A          PC3 free encoder left B       (PCINT18/19)
  *          PC4 free encoder right A         PC5 free encoder right B      (PCINT20/21, JTAG off)
  *          PC6 line sensor 2                PC7 line sensor 3
- *   PORTD  PD0 RXD0, PD1 TXD0 (free: a serial console or bootloader)
+ *   PORTD  PD0 RXD0 (free: a bootloader)    PD1 TXD0, or SLOW with two rates (below)
  *          PD2 basket contact               PD3 TICK: high while the control tick runs
  *          PD4 OC1B PWM right               PD5 OC1A PWM left             (Timer1, 20 kHz)
  *          PD6 direction left               PD7 direction right           (high = backward)
@@ -17,6 +17,11 @@
  * Switches and line sensors are active low with the internal pull-ups: an unplugged sensor reads
  * "not pressed", "no line". Encoders: channel A on the lower pin, B on the upper one, A leading
  * B when the wheel rolls forward (x4 decoding, one count per edge).
+ *
+ * TICK and SLOW are for a scope (and the simavr harness, which follows them): TICK is high while
+ * the control tick runs (with two rates, the servo: tick.c), SLOW while the slow steps run
+ * (two-rate builds only, CONFIG_AVR_SLOW_SHIFT > 0; with one rate PD1 stays a free input). A
+ * serial console would take PD1 back: SLOW is only a measurement.
  */
 #ifndef ASSERV_AVR_PINMAP_H
 #define ASSERV_AVR_PINMAP_H
@@ -35,6 +40,7 @@
 
 #define PIN_SHOCK_PORT PINB /* PB0..PB7: CAPTEUR_0..CAPTEUR_7 */
 
+#define PIN_SLOW_BIT 1      /* PD1, two rates */
 #define PIN_BASKET_BIT 2    /* PD2 */
 #define PIN_TICK_BIT 3      /* PD3 */
 #define PIN_PWM_RIGHT_BIT 4 /* PD4, OC1B */

@@ -1,12 +1,13 @@
 /* The robot this binary drives: the reference robot of board_default_config() with the motor
  * encoders an interrupt-decoding 8-bit board can follow, at the control rate CONFIG_AVR_TICK_HZ
- * (a build option, docs/avr.md). A team edits this file for its robot. Plain C (no register
- * access): the simavr harness compiles it too, so that its native reference run has the very
- * same configuration. */
+ * with the slow steps every 2^CONFIG_AVR_SLOW_SHIFT ticks (build options, docs/avr.md). A team
+ * edits this file for its robot. Plain C (no register access): the simavr harness compiles it
+ * too, so that its native reference run has the very same configuration. */
 #include "robot.h"
 
-#ifndef CONFIG_AVR_TICK_HZ
-#define CONFIG_AVR_TICK_HZ 1000
+#if CONFIG_AVR_SLOW_SHIFT < 0 || CONFIG_AVR_SLOW_SHIFT > 3 ||                                      \
+	(CONFIG_AVR_TICK_HZ >> CONFIG_AVR_SLOW_SHIFT) < 100
+#error "CONFIG_AVR_SLOW_SHIFT: 0..3, and the slow steps at 100 Hz at least (board.h)"
 #endif
 
 /* A duration given in ticks at 1 kHz, in ticks at the build's rate (at least 1). */
@@ -28,6 +29,9 @@ void avr_robot_config(struct board_config *cfg)
 
 	/* The control rate, and the durations the defaults give in ticks at 1 kHz kept in time. */
 	cfg->tick_hz = CONFIG_AVR_TICK_HZ;
+	/* The slow steps every 2^n ticks: the port's execution model follows it (tick.c), so keep
+	 * the build option. */
+	cfg->slow_shift = CONFIG_AVR_SLOW_SHIFT;
 	cfg->control.tick_hz = CONFIG_AVR_TICK_HZ;
 	cfg->orders.tick_hz = CONFIG_AVR_TICK_HZ;
 	cfg->faults.following_ticks = ticks_of(cfg->faults.following_ticks);
