@@ -131,7 +131,9 @@ struct avrsim {
 	uint16_t tick_hz;            /* the board's, read at its first tick */
 	int64_t enc_count[4];        /* free left, free right, motor left, motor right: scheduled */
 	int64_t enc_delivered[4];    /* the same, delivered to the pins */
-	double synth_rate[4];        /* synthetic edges without physics [counts/s] */
+	uint64_t
+		edge_at[2]; /* the first edge not yet taken by its interrupt: motors, free wheels */
+	double synth_rate[4]; /* synthetic edges without physics [counts/s] */
 	double synth_pos[4];
 	char error[160];
 
@@ -269,8 +271,11 @@ static void deliver(struct avrsim *h, const struct event *e)
 		p->external.pull_value = (uint8_t)(e->value ? p->external.pull_value | m
 							    : p->external.pull_value & ~m);
 	}
-	if (e->enc >= 0)
+	if (e->enc >= 0) {
 		h->enc_delivered[e->enc] = e->count;
+		if (!h->edge_at[e->enc < 2])
+			h->edge_at[e->enc < 2] = h->avr->cycle;
+	}
 	avr_raise_irq(e->irq, e->value);
 }
 
@@ -910,6 +915,13 @@ static void step(struct avrsim *h)
 		h->period_resp += ISR_RESPONSE;
 		if (v == m1284p.vec_twi)
 			h->twi_status_in_isr = reg(h, m1284p.twsr) & 0xF8u;
+		if (v == m1284p.vec_pcint0 || v == m1284p.vec_pcint2) {
+			uint64_t *at = &h->edge_at[v == m1284p.vec_pcint2];
+
+			if (*at)
+				add_count(&h->st.edge_wait, avr->cycle - *at + ISR_RESPONSE);
+			*at = 0;
+		}
 	} else if (depth < depth0) { /* returned */
 		uint8_t v = avr->interrupts.running[depth0 - 1]->vector;
 		uint64_t len = h->isr_own[depth0 - 1];

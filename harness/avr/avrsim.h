@@ -62,6 +62,8 @@ struct avrsim_stats {
 					  * per status that held it [cycles] */
 	uint64_t twi_bytes;              /* address and data bytes on the bus */
 	uint64_t edges;                  /* encoder edges delivered */
+	struct avrsim_count edge_wait;   /* from an encoder edge to the first instruction of the
+					  * interrupt that reads it [cycles] */
 	uint64_t stop_pending_at_start;  /* a START waited for the last STOP's interrupt */
 	uint16_t sp_min;                 /* lowest stack pointer seen */
 };

@@ -11,14 +11,17 @@
  * that run once every 2^slow_shift periods add their share:
  *     (servo + interrupts per period) / period + slow steps / slow period,
  * the mean from the means and the worst from the worst servo, the worst interrupt load and the
- * longest run of the slow steps. The busiest period (cycles awake between two compare matches)
- * is printed as well.
+ * longest run of the slow steps. The same loads as measured are printed too: the servo and the
+ * interrupts in one period (compare match to compare match), and every cycle awake in
+ * 2^slow_shift consecutive periods, with the busiest of each.
  * Printed: the tick's cycles (mean, worst; over the move and at 1 m/s, i.e. while the true
  * speed is at least 0.95 m/s), that load in % of the period at the binary's rate, each
  * interrupt's cycles, the TWI's cycles per bus event and the clock it holds, flash, RAM and
  * stack, the functions the tick (and the slow steps) spend their cycles in (mean, and in the
  * longest run), and the overruns the binary counted.
- *   bench_avr asserv_avr.elf [--no-profile] */
+ * --realtime runs the same move in the real-time lockstep instead (avrsim.h): the binary must
+ * then keep up, and the overruns at the end say whether it did.
+ *   bench_avr asserv_avr.elf [--no-profile] [--realtime] */
 #include <stdio.h>
 #include <string.h>
 
@@ -63,6 +66,7 @@ static void merge(struct phase *all, const struct avrsim_stats *s, uint64_t tick
 	}
 	a->twi_bytes += s->twi_bytes;
 	a->edges += s->edges;
+	add(&a->edge_wait, &s->edge_wait);
 	if (s->sp_min < a->sp_min)
 		a->sp_min = s->sp_min;
 	all->ticks += ticks;
@@ -178,6 +182,8 @@ static void print_phase(const char *title, const struct phase *p, uint32_t tick_
 		printf("  %-32s %8.0f /s  %4.0f cycles mean %4llu max\n", isr[i].name,
 		       (double)c->n / seconds, mean(c), (unsigned long long)c->max);
 	}
+	printf("  an encoder edge waited for its interrupt %.0f cycles mean, %llu at most\n",
+	       mean(&s->edge_wait), (unsigned long long)s->edge_wait.max);
 }
 
 static void print_twi(const struct avrsim_stats *s)
@@ -216,15 +222,23 @@ int main(int argc, char **argv)
 	struct avrsim *h;
 	struct phase all, cruise;
 	struct sim_truth t;
-	int profile = !(argc > 2 && !strcmp(argv[2], "--no-profile"));
+	int profile = 1, realtime = 0;
 	int in_cruise = 0, cruised = 0;
 	uint32_t flash, ram, tick = 0, mark = 0, poll = 0, next_poll;
 	uint64_t ticks0;
 	uint8_t rep[7] = {0}, ov[4] = {0}, slow_shift;
 	uint16_t at;
 
+	for (int i = 2; i < argc; i++) {
+		if (!strcmp(argv[i], "--no-profile"))
+			profile = 0;
+		else if (!strcmp(argv[i], "--realtime"))
+			realtime = 1;
+		else
+			argc = 0;
+	}
 	if (argc < 2) {
-		fprintf(stderr, "usage: %s asserv_avr.elf [--no-profile]\n", argv[0]);
+		fprintf(stderr, "usage: %s asserv_avr.elf [--no-profile] [--realtime]\n", argv[0]);
 		return 2;
 	}
 	avr_robot_config(&bc);
@@ -233,7 +247,7 @@ int main(int argc, char **argv)
 	sc.motor.encoder_cpr = 48; /* robot.c */
 	sim_field_defaults(&f);
 	h = avrsim_open(argv[1], 100000);
-	if (!h || avrsim_physics(h, &sc, &f, AVRSIM_EXACT))
+	if (!h || avrsim_physics(h, &sc, &f, realtime ? AVRSIM_REALTIME : AVRSIM_EXACT))
 		return 1;
 	if (avrsim_run_to_tick_end(h) || avrsim_i2c_write(h, new_pos, 7, 1) ||
 	    avrsim_run_to_tick_end(h) || avrsim_i2c_write(h, set_speed, 3, 1) ||
@@ -287,6 +301,8 @@ int main(int argc, char **argv)
 	printf("asserv_avr.elf on an ATmega1284P at 16 MHz: control at %u Hz, free wheels %u "
 	       "counts/turn, motor encoders %u counts/motor turn\n",
 	       bc.tick_hz, (unsigned)sc.enc_cpr, (unsigned)sc.motor.encoder_cpr);
+	if (realtime)
+		printf("real-time lockstep: the physics follows the cycles, the tick's included\n");
 	if (slow_shift)
 		printf("two rates: the servo at %u Hz in the control timer's interrupt, the slow "
 		       "steps at %u Hz in the main loop (slow_shift %u)\n",
