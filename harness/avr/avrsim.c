@@ -131,10 +131,11 @@ struct avrsim {
 	uint16_t tick_hz;            /* the board's, read at its first tick */
 	int64_t enc_count[4];        /* free left, free right, motor left, motor right: scheduled */
 	int64_t enc_delivered[4];    /* the same, delivered to the pins */
-	uint64_t
-		edge_at[2]; /* the first edge not yet taken by its interrupt: motors, free wheels */
-	double synth_rate[4]; /* synthetic edges without physics [counts/s] */
+	double synth_rate[4];        /* synthetic edges without physics [counts/s] */
 	double synth_pos[4];
+	/* The first edge its interrupt has not yet taken, motors [0] and free wheels [1] (0:
+	 * none) [cycle]. */
+	uint64_t edge_at[2];
 	char error[160];
 
 	/* I2C master */
