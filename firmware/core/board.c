@@ -1,4 +1,4 @@
-/* The board: one tick function that runs the control period's steps in order (see board.h). */
+/* The board: the servo's tick and the slow steps, each running its steps in order (board.h). */
 #include "board.h"
 
 #include <errno.h>
@@ -22,6 +22,7 @@ void board_default_config(struct board_config *c)
 	const uint32_t um_per_count_q16 = 5147185; /* 2 pi 25 mm / 2000 = 78.540 um, * 2^16 */
 
 	c->tick_hz = 1000;
+	c->slow_shift = 0; /* ports whose CPU is short run the slow steps at 125 Hz (3) */
 	c->odometry.left_um_per_count_q16 = um_per_count_q16;
 	c->odometry.right_um_per_count_q16 = um_per_count_q16;
 	c->odometry.track_um = 280000;
@@ -175,38 +176,76 @@ static int32_t sub_sat(int32_t a, int32_t b)
 }
 
 static void update_status(struct board *b);
-static void publish(struct board *b, const struct board_inputs *in, const struct orders_measure *m);
+static void publish(struct board *b);
 
-static void measure(const struct board *b, const struct board_inputs *in, struct orders_measure *m)
+/* The measure at the end of period p, whose sums and switches are in p. */
+static void measure(const struct board *b, const struct board_snapshot *p, struct orders_measure *m)
 {
-	const struct odometry_step *st = &b->odometry.step;
-
 	m->pose = odometry_get_pose(&b->odometry);
 	m->dist_um = odometry_get_distance_um(&b->odometry);
 	m->angle_um = b->angle_um;
-	/* Steps of a tick are below 32.8 mm: 16 x 16-bit products. */
-	m->dist_speed_um_s = fx_mul_s16(fx_sat16(st->ds_um), (int16_t)b->cfg.tick_hz);
-	m->angle_speed_um_s = fx_mul_s16(fx_sat16(b->arc_um), (int16_t)b->cfg.tick_hz);
-	m->basket_contact = in->basket;
-	m->basket_shock = (in->shocks & b->cfg.faults.shock_basket_mask) != 0;
-	m->shocks = in->shocks;
+	/* A period's steps are below 32.8 mm up to 3 m/s: 16 x 16-bit products. */
+	m->dist_speed_um_s = fx_mul_s16(fx_sat16(p->ds_um), (int16_t)b->slow_hz);
+	m->angle_speed_um_s = fx_mul_s16(fx_sat16(p->arc_um), (int16_t)b->slow_hz);
+	m->basket_contact = p->in.basket;
+	m->basket_shock = (p->in.shocks & b->cfg.faults.shock_basket_mask) != 0;
+	m->shocks = p->in.shocks;
+}
+
+/* A new period: its sums and switches from zero. */
+static void period_clear(struct board_snapshot *p)
+{
+	p->left_q16 = 0;
+	p->right_q16 = 0;
+	p->ds_um = 0;
+	p->arc_um = 0;
+	p->dtheta_turn32 = 0;
+	p->in.shocks = 0;
+	p->in.basket = 0;
+	p->encoder_fault = 0;
+	p->edges.rose = 0;
+	p->edges.fell = 0;
+}
+
+/* The slow modules count their durations in slow ticks: a duration of n ticks is
+ * ceil(n / 2^shift) of them. */
+static uint16_t slow_ticks(uint16_t n, uint8_t shift)
+{
+	return (uint16_t)(((uint32_t)n + (1u << shift) - 1u) >> shift);
 }
 
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in)
 {
-	struct orders_measure m;
+	uint8_t shift = cfg->slow_shift;
+	struct uncertainty_config uc = cfg->uncertainty;
+	struct faults_config fc = cfg->faults;
+	struct orders_config oc = cfg->orders;
+	struct board_snapshot *p;
 
 	if (cfg->tick_hz < 100 || cfg->tick_hz > 2000 || cfg->control.tick_hz != cfg->tick_hz ||
-	    cfg->orders.tick_hz != cfg->tick_hz)
+	    cfg->orders.tick_hz != cfg->tick_hz || shift > 3 || (cfg->tick_hz >> shift) < 100 ||
+	    ((cfg->tick_hz >> shift) << shift) != cfg->tick_hz)
 		return -1;
 	b->cfg = *cfg;
+	b->slow_hz = (uint16_t)(cfg->tick_hz >> shift);
+	b->slow_mask = (uint8_t)((1u << shift) - 1u);
+	/* The slow modules' durations in their own ticks; the slip window the same length. */
+	uc.batch_ticks = (uint8_t)slow_ticks(uc.batch_ticks, shift);
+	fc.following_ticks = slow_ticks(fc.following_ticks, shift);
+	fc.current_ticks = slow_ticks(fc.current_ticks, shift);
+	fc.repeat_window_ticks = slow_ticks(fc.repeat_window_ticks, shift);
+	fc.slip_shift = (uint8_t)(fc.slip_shift > shift ? fc.slip_shift - shift : 0);
+	oc.tick_hz = b->slow_hz;
+	oc.settle_ticks = slow_ticks(oc.settle_ticks, shift);
+	oc.settle_timeout_ticks = slow_ticks(oc.settle_timeout_ticks, shift);
+	oc.square_ticks = slow_ticks(oc.square_ticks, shift);
 	proto_init(&b->proto);
 	if (odometry_init(&b->odometry, &cfg->odometry, in->free_count[0], in->free_count[1]) ||
-	    uncertainty_init(&b->uncertainty, &cfg->uncertainty) ||
-	    control_init(&b->control, &cfg->control) ||
-	    faults_init(&b->faults, &cfg->faults, in->motor_count))
+	    uncertainty_init(&b->uncertainty, &uc) || control_init(&b->control, &cfg->control) ||
+	    faults_init(&b->faults, &fc, in->motor_count))
 		return -1;
 	b->soft = 0;
+	b->gains = b->control.gains;
 	odometry_set_pose(&b->odometry, &cfg->start);
 	uncertainty_reset(&b->uncertainty, cfg->start_radius_um, cfg->start_heading_bound_turn32);
 	b->angle_hi = 0;
@@ -214,9 +253,10 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->angle_um = 0;
 	b->arc_um = 0;
 	b->free_ratio_q16 = free_ratio_q16(cfg, cfg->odometry.track_um);
-	if (orders_init(&b->orders, &cfg->orders, odometry_get_distance_um(&b->odometry), 0) ||
+	if (orders_init(&b->orders, &oc, odometry_get_distance_um(&b->odometry), 0) ||
 	    recal_init(&b->recal, &cfg->recal, odometry_get_distance_um(&b->odometry)))
 		return -1;
+	b->line_mask = (uint8_t)((1u << cfg->recal.n_sensors) - 1u);
 	b->tick = 0;
 	b->status = 0;
 	b->timeout_ticks = 0;
@@ -225,9 +265,37 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->timed_out = 0;
 	b->last_out.duty_q15[0] = 0;
 	b->last_out.duty_q15[1] = 0;
-	measure(b, in, &m);
+	/* The servo: holding where the orders start, nothing handed over, no period begun. */
+	b->motors_off = 0;
+	b->phase = 1;
+	b->slow_overruns = 0;
+	b->sp_dist = b->orders.sp_dist;
+	b->sp_angle = b->orders.sp_angle;
+	b->sp_dist_end = b->sp_dist;
+	b->sp_angle_end = b->sp_angle;
+	b->handover = (struct board_handover){0};
+	b->handover.sp_dist = b->sp_dist;
+	b->handover.sp_angle = b->sp_angle;
+	b->slow_due = 0;
+	b->period_index = 0;
+	period_clear(&b->period[0]);
+	recal_sense_init(&b->lines, &b->period[0].edges, odometry_get_distance_um(&b->odometry));
+	/* The reply snapshot of power-on, from a period of no time at all. */
+	p = &b->period[1];
+	p->in = *in;
+	period_clear(p);
+	p->in.shocks = in->shocks;
+	p->in.basket = in->basket;
+	measure(b, p, &b->m);
+	p->tick = 0;
+	p->dist_err_um = 0;
+	p->angle_err_um = 0;
+	p->duty_q15[0] = 0;
+	p->duty_q15[1] = 0;
 	update_status(b);
-	publish(b, in, &m);
+	publish(b);
+	proto_flip(&b->proto);
+	b->handover.publish = 0;
 	return 0;
 }
 
@@ -249,9 +317,11 @@ static int32_t corrected_um(int32_t estimate_um, int32_t err_mm)
 	return (int32_t)(v > max_um ? max_um : v < -max_um ? -max_um : v);
 }
 
-static void set_new_pos(struct board *b, const struct proto_msg *msg)
+static void set_pose(struct board *b, const struct odometry_pose *p, struct orders_measure *m);
+
+static void set_new_pos(struct board *b, const struct proto_msg *msg, struct orders_measure *m)
 {
-	struct odometry_pose p = odometry_get_pose(&b->odometry);
+	struct odometry_pose p = m->pose;
 
 	/* The master sends the estimate's error (estimate - truth): subtract it. */
 	p.x_um = corrected_um(p.x_um, msg->arg[ARG_SET_NEW_POS_ERR_X_MM]);
@@ -259,7 +329,7 @@ static void set_new_pos(struct board *b, const struct proto_msg *msg)
 	p.heading_turn32 -= fx_deg_to_turn32(msg->arg[ARG_SET_NEW_POS_ERR_ANGLE_DEG]);
 	/* Only the estimate moves, not the axes: the robot stays put, and a running GOTO re-aims
 	 * from the corrected estimate at its next update (a frozen one keeps its targets). */
-	odometry_set_pose(&b->odometry, &p);
+	set_pose(b, &p, m);
 }
 
 /* A nominal wheel factor times (1 + a / den) [um/count * 2^16], rounded. */
@@ -294,16 +364,23 @@ static int set_odometrie(struct board *b, const struct proto_msg *msg)
 	oc.right_um_per_count_q16 = (uint32_t)right;
 	oc.track_um = (uint32_t)msg->arg[ARG_SET_ODOMETRIE_TRACK_10UM] * 10u;
 	uc.track_um = oc.track_um;
+	err = odometry_check_config(&oc);
+	if (err)
+		return err;
 	if (uncertainty_set_config(&b->uncertainty, &uc))
 		return -EDOM;
-	err = odometry_set_config(&b->odometry, &oc);
-	if (err) {
-		uc.track_um = b->odometry.cfg.track_um; /* as it was */
-		(void)uncertainty_set_config(&b->uncertainty, &uc);
-		return err;
-	}
+	b->handover.odometry_cfg = oc; /* the odometry is the servo's */
+	b->handover.set_odometry = 1;
 	b->free_ratio_q16 = free_ratio_q16(&b->cfg, oc.track_um);
 	return 0;
+}
+
+/* New gains for the servo's PIDs (their integrals kept). */
+static void set_gains(struct board *b, const struct control_gains *g)
+{
+	b->gains = *g;
+	b->handover.gains = *g;
+	b->handover.set_gains = 1;
 }
 
 static void apply(struct board *b, const struct proto_msg *msg, struct orders_measure *m)
@@ -344,22 +421,22 @@ static void apply(struct board *b, const struct proto_msg *msg, struct orders_me
 						      : 0);
 		break;
 	case PROTO_SET_FILTRE:
-		control_set_preset(&b->control, (uint8_t)a[ARG_SET_FILTRE_PRESET]);
+		if ((uint8_t)a[ARG_SET_FILTRE_PRESET] < CONTROL_N_PRESETS) /* by the table */
+			set_gains(b, &b->cfg.control.presets[(uint8_t)a[ARG_SET_FILTRE_PRESET]]);
 		break;
 	case PROTO_SET_FILTRE_RAW:
 		g.p = (uint16_t)a[ARG_SET_FILTRE_RAW_P];
 		g.i = (uint16_t)a[ARG_SET_FILTRE_RAW_I];
 		g.d = (uint16_t)a[ARG_SET_FILTRE_RAW_D];
-		control_set_gains(&b->control, &g);
+		set_gains(b, &g);
 		break;
 	case PROTO_SET_NEW_POS:
-		set_new_pos(b, msg);
-		m->pose = odometry_get_pose(&b->odometry);
+		set_new_pos(b, msg, m);
 		break;
 	case PROTO_SET_TIMEOUT:
 		/* Rounded up: the robot never stops before the time the master gave. */
 		b->timeout_ticks =
-			((uint32_t)a[ARG_SET_TIMEOUT_TIMEOUT_MS] * b->cfg.tick_hz + 999u) / 1000u;
+			((uint32_t)a[ARG_SET_TIMEOUT_TIMEOUT_MS] * b->slow_hz + 999u) / 1000u;
 		break;
 	case PROTO_SET_ODOMETRIE:
 		(void)set_odometrie(b, msg); /* in range by the message table; see set_odometrie */
@@ -390,31 +467,38 @@ static void react(struct board *b, uint8_t event, const struct orders_measure *m
 	if (event == FAULTS_YIELD) {
 		/* Idle and overloaded: hold where the robot now is, keeping the last end. */
 		orders_abort(&b->orders, m, b->orders.end_reason);
-		control_reset(&b->control);
+		b->handover.reset = 1;
+		b->handover.jump = 1;
 		return;
 	}
 	orders_abort(&b->orders, m, reasons[event]);
-	control_reset(&b->control);
+	b->handover.reset = 1;
+	b->handover.jump = 1;
 	b->status |= bits[event];
 	b->timed_out = 0; /* a stop for the timeout ends on the fault instead */
 }
 
-/* A new estimate from the field itself. */
+/* A new estimate, for the servo to take from where the snapshot was: the estimate moves by
+ * p - (the snapshot's pose). */
 static void set_pose(struct board *b, const struct odometry_pose *p, struct orders_measure *m)
 {
-	odometry_set_pose(&b->odometry, p);
+	struct board_handover *h = &b->handover;
+
+	h->pose_from = b->period[b->period_index ^ 1u].m.pose;
+	h->pose_to = *p;
+	h->set_pose = 1;
 	m->pose = *p;
 }
 
 /* Line recalibration, while a GOTO with option bit 0 drives straight (recal.h). */
-static void recal_lines(struct board *b, const struct board_inputs *in, struct orders_measure *m)
+static void recal_lines(struct board *b, struct recal_edges *e, struct orders_measure *m)
 {
 	const struct orders *o = &b->orders;
 	int enabled = o->designation == PROTO_GOTO && (o->options & ORDERS_OPT_LINE) &&
 		      !o->border && o->state == ORDER_STATE_TRANSLATE;
 	struct recal_fix fix;
 
-	recal_update(&b->recal, in->lines, enabled, &m->pose, m->dist_um, &b->uncertainty, &fix);
+	recal_take(&b->recal, e, enabled, &m->pose, m->dist_um, &b->uncertainty, &fix);
 	if (!fix.what)
 		return;
 	set_pose(b, &fix.pose, m);
@@ -460,12 +544,12 @@ static void select_gains(struct board *b)
 	if (soft == b->soft)
 		return;
 	if (soft) {
-		b->saved_gains = b->control.gains;
-		control_set_preset(&b->control, FILTRE_SOUPLE);
+		b->saved_gains = b->gains;
+		set_gains(b, &b->cfg.control.presets[FILTRE_SOUPLE]);
 	} else {
-		control_set_gains(&b->control, &b->saved_gains);
+		set_gains(b, &b->saved_gains);
 	}
-	control_reset(&b->control);
+	b->handover.reset = 1;
 	b->soft = soft;
 }
 
@@ -477,7 +561,7 @@ static void finish(struct board *b, uint8_t reason, struct orders_measure *m)
 	if (reason != END_REASON_BASKET)
 		return;
 	b->status |= STATUS_CHOC_PANIER;
-	control_reset(&b->control);
+	b->handover.reset = 1;
 	recal_basket(b, m);
 }
 
@@ -528,71 +612,63 @@ static int8_t angle_2deg_of(int32_t cdeg)
 	return cdeg >= 0 ? (int8_t)q : (int8_t) - (int16_t)q;
 }
 
-static void publish(struct board *b, const struct board_inputs *in, const struct orders_measure *m)
+/* The reply snapshot of the last period, drafted for the next hand-over (proto_draft()). */
+static void publish(struct board *b)
 {
-	struct proto_snapshot s;
+	const struct board_snapshot *p = &b->period[b->period_index ^ 1u];
+	const struct orders_measure *m = &b->m;
+	struct proto_snapshot *s = proto_draft(&b->proto);
 	int32_t cdeg = fx_turn32_to_cdeg(m->pose.heading_turn32);
 
-	s.x_mm = mm_of(m->pose.x_um);
-	s.y_mm = mm_of(m->pose.y_um);
-	s.angle_2deg = angle_2deg_of(cdeg); /* -90..90 */
-	s.radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
-	s.status = b->status;
-	s.sensors = in->shocks;
-	s.debug.tick = b->tick;
-	s.debug.heading_cdeg = (int16_t)cdeg;
-	s.debug.speed_mm_s = mm_of(m->dist_speed_um_s);
-	s.debug.turn_rate_cdeg_s = fx_sat16(
-		fx_mul_s16((int16_t)fx_turn32_to_cdeg((uint32_t)b->odometry.step.dtheta_turn32),
-			   (int16_t)b->cfg.tick_hz));
-	s.debug.dist_err_um = fx_sat16(b->control.dist_err_um);
-	s.debug.angle_err_um = fx_sat16(b->control.angle_err_um);
-	s.debug.duty_left_q15 = b->control.duty_q15[0];
-	s.debug.duty_right_q15 = b->control.duty_q15[1];
-	s.debug.current_left_ma = in->current_ma[0];
-	s.debug.current_right_ma = in->current_ma[1];
-	s.debug.order_state = b->orders.state;
-	s.debug.end_reason = (b->timed_out && !orders_busy(&b->orders)) ? END_REASON_TIMEOUT
-									: b->orders.end_reason;
-	proto_publish(&b->proto, &s);
+	s->x_mm = mm_of(m->pose.x_um);
+	s->y_mm = mm_of(m->pose.y_um);
+	s->angle_2deg = angle_2deg_of(cdeg); /* -90..90 */
+	s->radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
+	s->status = b->status;
+	s->sensors = p->in.shocks;
+	s->debug.tick = p->tick;
+	s->debug.heading_cdeg = (int16_t)cdeg;
+	s->debug.speed_mm_s = mm_of(m->dist_speed_um_s);
+	s->debug.turn_rate_cdeg_s = fx_sat16(fx_mul_s16(
+		(int16_t)fx_turn32_to_cdeg((uint32_t)p->dtheta_turn32), (int16_t)b->slow_hz));
+	s->debug.dist_err_um = fx_sat16(p->dist_err_um);
+	s->debug.angle_err_um = fx_sat16(p->angle_err_um);
+	s->debug.duty_left_q15 = p->duty_q15[0];
+	s->debug.duty_right_q15 = p->duty_q15[1];
+	s->debug.current_left_ma = p->in.current_ma[0];
+	s->debug.current_right_ma = p->in.current_ma[1];
+	s->debug.order_state = b->orders.state;
+	s->debug.end_reason = (b->timed_out && !orders_busy(&b->orders)) ? END_REASON_TIMEOUT
+									 : b->orders.end_reason;
+	b->handover.publish = 1;
 }
 
-void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out)
+/* The slow steps but the reply snapshot, on the last period (b->period[period_index ^ 1]). */
+static void slow_steps(struct board *b)
 {
-	const struct odometry_step *step;
-	struct orders_measure m;
+	struct board_snapshot *p = &b->period[b->period_index ^ 1u];
+	struct orders_measure *m = &b->m;
 	struct faults_inputs fi;
 	struct proto_msg msg;
 	uint8_t reason, event;
-	int encoder_fault;
 
-	/* 1. Encoders -> odometry (a wheel that jumps more than a tick can travel is a fault). */
-	encoder_fault = odometry_update(&b->odometry, in->free_count[0], in->free_count[1]) != 0;
-	step = &b->odometry.step;
-	/* The angle axis only moves with the heading. */
-	if (step->dtheta_turn32 != 0)
-		angle_axis_step(b, step->dtheta_turn32);
-	else
-		b->arc_um = 0;
+	/* 1. Error radius, from the period's travel. */
+	uncertainty_update(&b->uncertainty, p->left_q16, p->right_q16, p->heading_turn32);
 
-	/* 2. Error radius. */
-	uncertainty_update(&b->uncertainty, step->left_q16, step->right_q16,
-			   b->odometry.heading_turn32);
+	/* 2. The measure of the period's end; the switches; line crossings. */
+	*m = p->m;
+	b->shocks = p->in.shocks;
+	recal_lines(b, &p->edges, m);
 
-	/* 3. The two polar axes and the pose, measured; the switches; line crossings. */
-	measure(b, in, &m);
-	b->shocks = in->shocks;
-	recal_lines(b, in, &m);
+	/* 3. Messages from the master, in the order they arrived, until the period's end. */
+	while (b->proto.tail != p->msg_head && proto_poll(&b->proto, &msg))
+		apply(b, &msg, m);
 
-	/* 4. Messages from the master, in the order they arrived. */
-	while (proto_poll(&b->proto, &msg))
-		apply(b, &msg, &m);
-
-	/* 4b. The master's silence (SET_TIMEOUT): any transaction that addresses the board, even
+	/* 3b. The master's silence (SET_TIMEOUT): any transaction that addresses the board, even
 	 * a poll or a rejected write, shows the master alive. When it has been silent for the
 	 * timeout, the running order stops at the current limits, as by STOP. */
-	if (b->proto.transactions != b->transactions_seen) {
-		b->transactions_seen = b->proto.transactions;
+	if (p->transactions != b->transactions_seen) {
+		b->transactions_seen = p->transactions;
 		b->silent_ticks = 0;
 	} else if (b->silent_ticks < UINT32_MAX) {
 		b->silent_ticks++;
@@ -603,49 +679,224 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 		b->timed_out = 1;
 	}
 
-	/* 5. Stop conditions: shocks, motor problems, unrecoverable faults. */
+	/* 4. Stop conditions: shocks, motor problems, unrecoverable faults. */
 	/* Pushing a basket closes the front bumper with the basket switch: the expected contact. */
 	/* Against the border, the front switches are the expected contact. */
-	fi.shocks = (b->orders.state == ORDER_STATE_PUSH && in->basket) ? 0 : in->shocks;
+	fi.shocks = (b->orders.state == ORDER_STATE_PUSH && p->in.basket) ? 0 : p->in.shocks;
 	fi.shocks &= (uint8_t)~orders_expected_shocks(&b->orders);
-	fi.current_ma[0] = in->current_ma[0];
-	fi.current_ma[1] = in->current_ma[1];
-	fi.motor_count[0] = in->motor_count[0];
-	fi.motor_count[1] = in->motor_count[1];
-	fi.free_step_q16[0] = step->left_q16;
-	fi.free_step_q16[1] = step->right_q16;
+	fi.current_ma[0] = p->in.current_ma[0];
+	fi.current_ma[1] = p->in.current_ma[1];
+	fi.motor_count[0] = p->in.motor_count[0];
+	fi.motor_count[1] = p->in.motor_count[1];
+	fi.free_step_q16[0] = p->left_q16;
+	fi.free_step_q16[1] = p->right_q16;
 	fi.free_ratio_q16 = b->free_ratio_q16;
-	fi.dist_err_um = sub_sat(b->orders.sp_dist.pos_um, m.dist_um);
-	fi.angle_err_um = sub_sat(b->orders.sp_angle.pos_um, m.angle_um);
+	fi.dist_err_um = sub_sat(p->sp_dist_um, m->dist_um);
+	fi.angle_err_um = sub_sat(p->sp_angle_um, m->angle_um);
 	fi.moving = (uint8_t)orders_busy(&b->orders);
 	fi.pushing = b->orders.state == ORDER_STATE_PUSH || b->orders.state == ORDER_STATE_SQUARE;
 	event = faults_check(&b->faults, &fi);
-	react(b, encoder_fault ? FAULTS_GRAVE : event, &m);
+	react(b, p->encoder_fault ? FAULTS_GRAVE : event, m);
 
-	/* 6. Orders -> profiles -> setpoints of both axes; the contact recalibrations. */
-	reason = orders_update(&b->orders, &m);
-	recal_border(b, &m);
-	finish(b, reason, &m);
+	/* 5. Orders -> profiles -> set points of both axes; the contact recalibrations. */
+	reason = orders_update(&b->orders, m);
+	recal_border(b, m);
+	finish(b, reason, m);
 	select_gains(b);
 	update_status(b);
 
-	/* 7. Control: feed-forward + PID on both axes, mixed into the motor duties. After a
-	 * motor problem the motors stay off until the next order: holding the position would
-	 * drive the same stalled, slipping or overloaded motor again. Nothing holds the robot
-	 * then, so the set points follow it and the next order starts from where it is. */
-	if (b->status & (STATUS_PB_GRAVE | STATUS_PB_MOTEUR)) {
-		orders_abort(&b->orders, &m, b->orders.end_reason);
-		control_off(&b->control);
-	} else
-		control_update(&b->control, &b->orders.sp_dist, &b->orders.sp_angle, m.dist_um,
-			       m.angle_um);
+	/* 6. After a motor problem the motors stay off until the next order: holding the position
+	 * would drive the same stalled, slipping or overloaded motor again. Nothing holds the
+	 * robot then, so the set points follow it and the next order starts from where it is. */
+	b->handover.motors_off = (b->status & (STATUS_PB_GRAVE | STATUS_PB_MOTEUR)) != 0;
+	if (b->handover.motors_off) {
+		orders_abort(&b->orders, m, b->orders.end_reason);
+		b->handover.jump = 1;
+	}
+	b->handover.sp_dist = b->orders.sp_dist;
+	b->handover.sp_angle = b->orders.sp_angle;
+}
 
-	/* 8. Outputs. */
+void board_slow(struct board *b)
+{
+	slow_steps(b);
+	publish(b);
+	b->slow_due = 0;
+}
+
+/* One axis's set point a tick further towards the handed-over one (reached at the period's
+ * last tick). */
+static void sp_advance(struct orders_axis *sp, const struct orders_axis *step,
+		       const struct orders_axis *end, int last)
+{
+	if (last) {
+		*sp = *end;
+		return;
+	}
+	sp->pos_um += step->pos_um;
+	sp->vel_um_s += step->vel_um_s;
+	sp->acc_um_s2 = end->acc_um_s2;
+}
+
+/* (end - from) / 2^shift, rounded down: a tick's share of a period's change. */
+static void sp_step(struct orders_axis *step, const struct orders_axis *from,
+		    const struct orders_axis *end, uint8_t shift)
+{
+	step->pos_um = (end->pos_um - from->pos_um) >> shift;
+	step->vel_um_s = (end->vel_um_s - from->vel_um_s) >> shift;
+	step->acc_um_s2 = 0;
+}
+
+/* The slow steps' results, taken by the servo. */
+static void take_handover(struct board *b)
+{
+	struct board_handover *h = &b->handover;
+
+	if (h->set_odometry) {
+		(void)odometry_set_config(&b->odometry, &h->odometry_cfg); /* checked before */
+		h->set_odometry = 0;
+	}
+	if (h->set_pose) {
+		/* The estimate has moved on since the snapshot: the correction is a move. */
+		struct odometry_pose now = odometry_get_pose(&b->odometry);
+
+		now.x_um += h->pose_to.x_um - h->pose_from.x_um;
+		now.y_um += h->pose_to.y_um - h->pose_from.y_um;
+		now.heading_turn32 += h->pose_to.heading_turn32 - h->pose_from.heading_turn32;
+		odometry_set_pose(&b->odometry, &now);
+		h->set_pose = 0;
+	}
+	if (h->set_gains) {
+		control_set_gains(&b->control, &h->gains);
+		h->set_gains = 0;
+	}
+	if (h->reset) {
+		control_reset(&b->control);
+		h->reset = 0;
+	}
+	b->motors_off = h->motors_off;
+	if (h->publish) {
+		proto_flip(&b->proto);
+		h->publish = 0;
+	}
+	/* The set points go from where they are to the new ones over the next period. */
+	b->sp_dist_end = h->sp_dist;
+	b->sp_angle_end = h->sp_angle;
+	sp_step(&b->sp_dist_step, &b->sp_dist, &b->sp_dist_end, b->cfg.slow_shift);
+	sp_step(&b->sp_angle_step, &b->sp_angle, &b->sp_angle_end, b->cfg.slow_shift);
+	b->phase = 0;
+	if (h->jump) {
+		b->sp_dist = b->sp_dist_end;
+		b->sp_angle = b->sp_angle_end;
+		b->phase = (uint8_t)(1u << b->cfg.slow_shift);
+		h->jump = 0;
+	}
+}
+
+/* The period's end: what the slow steps work on, and a new period. */
+static void take_snapshot(struct board *b, const struct board_inputs *in)
+{
+	struct board_snapshot *p = &b->period[b->period_index];
+	uint8_t shocks = p->in.shocks, basket = p->in.basket;
+
+	p->in = *in;
+	p->in.shocks = shocks;
+	p->in.basket = basket;
+	measure(b, p, &p->m);
+	p->heading_turn32 = b->odometry.heading_turn32;
+	p->sp_dist_um = b->sp_dist.pos_um;
+	p->sp_angle_um = b->sp_angle.pos_um;
+	p->msg_head = b->proto.head;
+	p->transactions = b->proto.transactions;
+	b->period_index ^= 1u;
+	period_clear(&b->period[b->period_index]);
+	b->period[b->period_index].edges.on = p->edges.on;
+}
+
+/* The control's side of the snapshot: this tick's, after the control. */
+static void snapshot_control(struct board *b, struct board_snapshot *p)
+{
+	p->tick = b->tick;
+	p->dist_err_um = b->control.dist_err_um;
+	p->angle_err_um = b->control.angle_err_um;
+	p->duty_q15[0] = b->control.duty_q15[0];
+	p->duty_q15[1] = b->control.duty_q15[1];
+}
+
+void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out)
+{
+	struct board_snapshot *p = &b->period[b->period_index];
+	const struct odometry_step *step;
+	uint8_t slow_tick = (b->tick & b->slow_mask) == 0, shift = b->cfg.slow_shift;
+
+	/* 1. Encoders -> odometry (a wheel that jumps more than a tick can travel is a fault). */
+	if (odometry_update(&b->odometry, in->free_count[0], in->free_count[1]) != 0)
+		p->encoder_fault = 1;
+	step = &b->odometry.step;
+	/* The angle axis only moves with the heading. */
+	if (step->dtheta_turn32 != 0)
+		angle_axis_step(b, step->dtheta_turn32);
+	else
+		b->arc_um = 0;
+
+	/* 2. The period's sums for the slow steps; the switches, kept if pressed at any tick; the
+	 * line sensors' edges, timed at their tick. */
+	p->left_q16 = fx_add_sat32(p->left_q16, step->left_q16);
+	p->right_q16 = fx_add_sat32(p->right_q16, step->right_q16);
+	p->ds_um = fx_add_sat32(p->ds_um, step->ds_um);
+	p->arc_um = fx_add_sat32(p->arc_um, b->arc_um);
+	p->dtheta_turn32 = (int32_t)((uint32_t)p->dtheta_turn32 + (uint32_t)step->dtheta_turn32);
+	p->in.shocks |= in->shocks;
+	p->in.basket |= in->basket;
+	recal_sense(&b->lines, &p->edges, in->lines & b->line_mask,
+		    odometry_get_distance_um(&b->odometry));
+
+	/* 3. At a slow tick, the slow steps' results: with slow_shift 0 those of this tick's
+	 * period, run now; otherwise those of the last period, unless they are still running. */
+	if (shift == 0) {
+		take_snapshot(b, in);
+		slow_steps(b);
+		take_handover(b);
+	} else if (slow_tick) {
+		if (b->slow_due)
+			b->slow_overruns++;
+		else
+			take_handover(b);
+	}
+
+	/* 4. The set points of this tick, a step towards the handed-over ones. */
+	if (b->phase < (1u << shift)) {
+		b->phase++;
+		sp_advance(&b->sp_dist, &b->sp_dist_step, &b->sp_dist_end,
+			   b->phase == (1u << shift));
+		sp_advance(&b->sp_angle, &b->sp_angle_step, &b->sp_angle_end,
+			   b->phase == (1u << shift));
+	}
+
+	/* 5. Control: feed-forward + PID on both axes, mixed into the motor duties; none after a
+	 * motor problem (slow_steps()). */
+	if (b->motors_off)
+		control_off(&b->control);
+	else
+		control_update(&b->control, &b->sp_dist, &b->sp_angle,
+			       odometry_get_distance_um(&b->odometry), b->angle_um);
+
+	/* 6. Outputs. */
 	out->duty_q15[0] = b->control.duty_q15[0];
 	out->duty_q15[1] = b->control.duty_q15[1];
 	b->last_out = *out;
-
-	/* 9. The state replies are built from, all of this tick. */
 	b->tick++;
-	publish(b, in, &m);
+
+	/* 7. The state the replies are built from: with slow_shift 0 now; otherwise the slow
+	 * steps start on this period (unless the last ones still run: it goes on). */
+	if (shift == 0) {
+		snapshot_control(b, &b->period[b->period_index ^ 1u]);
+		publish(b);
+		proto_flip(&b->proto);
+		b->handover.publish = 0;
+	} else if (slow_tick && !b->slow_due) {
+		snapshot_control(b, p);
+		take_snapshot(b, in);
+		b->slow_due = 1;
+	}
 }

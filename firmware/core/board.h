@@ -1,6 +1,14 @@
-/* The board: odometry, orders, motion profiles, control and stop conditions, run by one tick
- * function. A port samples its inputs, calls board_tick() once per control period and applies
- * the outputs; its I2C interrupt talks to &board.proto (protocol.h). */
+/* The board: odometry, orders, motion profiles, control and stop conditions. A port samples its
+ * inputs, calls board_tick() once per control period and applies the outputs; its I2C interrupt
+ * talks to &board.proto (protocol.h).
+ *
+ * Two rates (docs/control.md, "Two rates"): board_tick() is the servo (odometry, set points, the
+ * two PIDs, the duties), every tick; board_slow() is the rest (messages, stop conditions, orders
+ * and profiles, error radius, recalibrations, reply snapshot), every 2^slow_shift ticks, on a
+ * snapshot the servo took, its results handed back to the servo at the next slow tick. With
+ * slow_shift 0 board_tick() runs both itself, in the same tick. With slow_shift > 0 a port may
+ * run board_slow() in a lower-priority context (the AVR's main loop, preempted by the servo's
+ * interrupt); the results do not depend on when, within its period, it runs. */
 #ifndef ASSERV_BOARD_H
 #define ASSERV_BOARD_H
 
@@ -30,7 +38,8 @@ struct board_outputs {
 };
 
 struct board_config {
-	uint16_t tick_hz; /* control rate, 100..2000 */
+	uint16_t tick_hz;   /* control rate, 100..2000 */
+	uint8_t slow_shift; /* the slow steps every 2^slow_shift ticks, 0..3, at 100 Hz or more */
 	struct odometry_config odometry;
 	struct uncertainty_config uncertainty;
 	struct control_config control;
@@ -44,6 +53,47 @@ struct board_config {
 	uint32_t start_heading_bound_turn32;
 };
 
+/* What the servo hands the slow steps at a slow tick: the measure of that tick and the sums of
+ * the period since the last one. */
+struct board_snapshot {
+	struct board_inputs in; /* of that tick, but shocks and basket: pressed at any tick of it */
+	struct orders_measure m;
+	int32_t left_q16; /* free wheels' travel over the period [um * 2^16] */
+	int32_t right_q16;
+	int32_t ds_um;         /* distance axis change over the period */
+	int32_t arc_um;        /* angle axis change over the period */
+	int32_t dtheta_turn32; /* heading change over the period */
+	uint32_t heading_turn32;
+	int32_t sp_dist_um; /* the servo's set points at that tick */
+	int32_t sp_angle_um;
+	int32_t dist_err_um; /* the control's, for DEBUG */
+	int32_t angle_err_um;
+	int16_t duty_q15[2];
+	struct recal_edges edges; /* the line sensors' edges of the period */
+	uint16_t tick;
+	uint8_t encoder_fault; /* a wheel jumped at a tick of the period */
+	uint8_t msg_head;      /* the messages queued until then; later ones wait a period */
+	uint8_t transactions;
+};
+
+/* What the slow steps hand the servo, applied at the next slow tick (or at once with
+ * slow_shift 0). */
+struct board_handover {
+	struct orders_axis sp_dist; /* the set points at the end of the next period */
+	struct orders_axis sp_angle;
+	struct odometry_pose pose_from; /* set_pose: the estimate moves by pose_to - pose_from */
+	struct odometry_pose pose_to;
+	struct odometry_config odometry_cfg; /* set_odometry */
+	struct control_gains gains;          /* set_gains */
+	uint8_t set_pose;
+	uint8_t set_odometry;
+	uint8_t set_gains;
+	uint8_t reset;      /* forget the PIDs' integrals */
+	uint8_t jump;       /* the set points at once, not over the period (a stop: hold here) */
+	uint8_t motors_off; /* PB_GRAVE or PB_MOTEUR: no control until the next order */
+	uint8_t publish;    /* a reply snapshot is drafted (proto_draft()) */
+};
+
 struct board {
 	struct board_config cfg;
 	struct proto proto; /* shared with the I2C interrupt */
@@ -54,7 +104,8 @@ struct board {
 	struct faults faults;
 	struct recal recal;
 	uint8_t soft;                     /* FILTRE_SOUPLE's gains put in by a border push */
-	struct control_gains saved_gains; /* ... and the gains it replaced */
+	struct control_gains gains;       /* in effect, or handed over to be */
+	struct control_gains saved_gains; /* ... and the gains a border push replaced */
 	/* The angle axis: the exact sum of the odometry's heading steps [turn * 2^32] times
 	 * pi * drive track [um], i.e. [um * 2^32], as hi 2^32 + lo (hi an int32_t modulo 2^32). */
 	uint32_t angle_hi;
@@ -62,12 +113,35 @@ struct board {
 	int32_t angle_um;       /* the angle axis, rounded */
 	int32_t arc_um;         /* this tick's heading step on the angle axis, rounded */
 	int32_t free_ratio_q16; /* drive track / encoder track [2^-16] */
+	/* The servo's side. */
 	uint16_t tick;
-	uint8_t shocks;            /* this tick's shock sensors */
+	uint16_t slow_hz;           /* tick_hz >> slow_shift */
+	uint8_t slow_mask;          /* 2^slow_shift - 1 */
+	uint8_t line_mask;          /* the line sensors in use */
+	uint8_t motors_off;         /* handed over: the duties stay 0 */
+	uint8_t phase;              /* ticks into the set points' period, 1..2^slow_shift */
+	uint16_t slow_overruns;     /* slow ticks whose hand-over waited for board_slow() */
+	struct orders_axis sp_dist; /* the set points of this tick */
+	struct orders_axis sp_angle;
+	struct orders_axis sp_dist_step; /* per tick, towards the handed-over set points */
+	struct orders_axis sp_angle_step;
+	struct orders_axis sp_dist_end; /* the handed-over set points */
+	struct orders_axis sp_angle_end;
+	struct recal_sense lines; /* the line sensors' state for timing their edges */
+	/* The period being summed, period[period_index], and the last one, the slow steps' input
+	 * (the servo only flips them when board_slow() is done with it). */
+	struct board_snapshot period[2];
+	uint8_t period_index;
+	/* The slow steps' results; the servo reads them only when slow_due is 0. */
+	struct board_handover handover;
+	volatile uint8_t slow_due; /* set by the servo at a slow tick, cleared by board_slow() */
+	/* The slow steps' side. */
+	struct orders_measure m;   /* the snapshot's measure, as the slow steps corrected it */
+	uint8_t shocks;            /* the snapshot's shock sensors */
 	uint8_t status;            /* STATUS_* owned by the core */
-	uint32_t timeout_ticks;    /* SET_TIMEOUT [ticks], 0: off (power-on) */
-	uint32_t silent_ticks;     /* [ticks] since a transaction last addressed the board */
-	uint8_t transactions_seen; /* proto.transactions at the last tick */
+	uint32_t timeout_ticks;    /* SET_TIMEOUT [slow ticks], 0: off (power-on) */
+	uint32_t silent_ticks;     /* [slow ticks] since a transaction last addressed the board */
+	uint8_t transactions_seen; /* proto.transactions at the last slow tick */
 	uint8_t timed_out;         /* the last order was stopped by the timeout */
 	struct board_outputs last_out;
 };
@@ -81,10 +155,24 @@ void board_default_config(struct board_config *cfg);
  * Returns 0, or -1 when the configuration is out of range. Interrupt-safe: no. */
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
 
-/* One control period, in order: encoders -> odometry -> error radius -> line recalibration ->
- * messages -> the master's silence -> stop conditions -> orders -> profiles -> border/basket
- * recalibration -> control -> outputs -> reply snapshot.
+/* One control period, the servo: encoders -> odometry -> (slow tick: the hand-over) -> set
+ * points -> control -> outputs -> (slow tick: the snapshot). With slow_shift 0 the slow steps
+ * run between the odometry and the set points (board_slow()).
  * Interrupt-safe: it is the control interrupt; it must not be re-entered. */
 void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out);
+
+/* 1 when board_slow() has a snapshot to work on (slow_shift > 0). Interrupt-safe: yes. */
+static inline int board_slow_due(const struct board *b)
+{
+	return b->slow_due != 0;
+}
+
+/* The slow steps, on the last snapshot: error radius -> line recalibration -> messages -> the
+ * master's silence -> stop conditions -> orders -> profiles -> border/basket recalibration ->
+ * reply snapshot. With slow_shift > 0 a port calls it when board_slow_due(), and it must end
+ * before the next slow tick (2^slow_shift ticks later; otherwise that tick counts a
+ * slow_overrun and hands nothing over). Interrupt-safe: it may be preempted by board_tick(),
+ * not re-entered. */
+void board_slow(struct board *b);
 
 #endif

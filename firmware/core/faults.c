@@ -5,16 +5,6 @@
 
 #define N_FAULT_TIMES 8u
 
-/* a + b, saturated: the leaky sums must not wrap however long a disagreement lasts. */
-static int32_t add_sat(int32_t a, int32_t b)
-{
-	if (b > 0 && a > INT32_MAX - b)
-		return INT32_MAX;
-	if (b < 0 && a < INT32_MIN - b)
-		return INT32_MIN;
-	return a + b;
-}
-
 /* A wheel travel above 4 mm in one tick (4 m/s) is a glitch: clamped there, the sums of four
  * travels below fit in 32 bits [um * 2^16]. */
 #define STEP_MAX_Q16 ((int32_t)1 << 28)
@@ -106,11 +96,11 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 	diff_d = (m[0] + m[1]) - (fr[0] + fr[1]);
 	diff_a = (m[1] - m[0]) - free_a;
 	f->slip_dist_q16 =
-		add_sat(f->slip_dist_q16 - shr_round(f->slip_dist_q16, f->cfg.slip_shift),
-			fx_shr_round(diff_d, 1));
+		fx_add_sat32(f->slip_dist_q16 - shr_round(f->slip_dist_q16, f->cfg.slip_shift),
+			     fx_shr_round(diff_d, 1));
 	f->slip_angle_q16 =
-		add_sat(f->slip_angle_q16 - shr_round(f->slip_angle_q16, f->cfg.slip_shift),
-			fx_shr_round(diff_a, 1));
+		fx_add_sat32(f->slip_angle_q16 - shr_round(f->slip_angle_q16, f->cfg.slip_shift),
+			     fx_shr_round(diff_a, 1));
 	if (!in->moving) {
 		/* No order to abandon: a robot pushed while it holds its position, or rocking
 		 * after an order was abandoned, is not a motor problem. */

@@ -45,6 +45,16 @@ static inline uint32_t fx_mag32(int32_t v)
 	return v >= 0 ? (uint32_t)v : (uint32_t)0 - (uint32_t)v;
 }
 
+/* a + b saturated to 32 bits (sums that must not wrap, however long they run). */
+static inline int32_t fx_add_sat32(int32_t a, int32_t b)
+{
+	if (b > 0 && a > INT32_MAX - b)
+		return INT32_MAX;
+	if (b < 0 && a < INT32_MIN - b)
+		return INT32_MIN;
+	return a + b;
+}
+
 static inline int16_t fx_sat16(int32_t v)
 {
 	if (v > INT16_MAX)

@@ -236,6 +236,11 @@ int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_
 	return 0;
 }
 
+int odometry_check_config(const struct odometry_config *cfg)
+{
+	return config_valid(cfg) ? 0 : -EDOM;
+}
+
 int odometry_set_config(struct odometry *o, const struct odometry_config *cfg)
 {
 	if (!config_valid(cfg))

@@ -97,6 +97,9 @@ int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_
  * interrupt-safe: no (call between two ticks). */
 int odometry_set_config(struct odometry *o, const struct odometry_config *cfg);
 
+/* 0 when odometry_set_config() would take cfg, or -EDOM. Interrupt-safe: yes. */
+int odometry_check_config(const struct odometry_config *cfg);
+
 /* One tick: read both counters (free-running, wrapping at 65536; at most 32767 counts of travel
  * per tick in either direction) and integrate the pose. Returns 0, or -ERANGE if a wheel moved
  * more than ODOMETRY_STEP_Q16_MAX in the tick: its travel is then clamped to that value and the

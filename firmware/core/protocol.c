@@ -366,11 +366,19 @@ int proto_poll(struct proto *p, struct proto_msg *out)
 	return 1;
 }
 
+struct proto_snapshot *proto_draft(struct proto *p)
+{
+	return &p->snap[(p->snap_index + 1u) & 1u];
+}
+
+void proto_flip(struct proto *p)
+{
+	p->snap_index = (uint8_t)((p->snap_index + 1u) & 1u);
+	p->orders_published = p->orders_taken;
+}
+
 void proto_publish(struct proto *p, const struct proto_snapshot *s)
 {
-	uint8_t next = (uint8_t)((p->snap_index + 1u) & 1u);
-
-	p->snap[next] = *s;
-	p->snap_index = next;
-	p->orders_published = p->orders_taken;
+	*proto_draft(p) = *s;
+	proto_flip(p);
 }

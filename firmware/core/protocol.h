@@ -4,7 +4,8 @@
  * Two contexts share a struct proto:
  *   - the I2C interrupt calls proto_on_*() and proto_read_byte(): no heap, no floating point,
  *     bounded time per byte;
- *   - the control tick calls proto_poll() and proto_publish().
+ *   - the control core calls proto_poll() and proto_publish() (or proto_draft() and
+ *     proto_flip(), from two contexts of its own: board.h).
  * They communicate only through a single-producer single-consumer queue of messages and a
  * double-buffered snapshot whose index is one byte, so neither needs to mask the other.
  * docs/protocol.md is the master-side description of the same behaviour.
@@ -136,6 +137,11 @@ int proto_poll(struct proto *p, struct proto_msg *out);
 /* Control tick: publish the state replies are built from, once per tick after the messages
  * taken by proto_poll() have been applied. Interrupt-safe: no (one producer). */
 void proto_publish(struct proto *p, const struct proto_snapshot *s);
+
+/* proto_publish() in two steps: the buffer the interrupt does not read, to fill, then the flip
+ * that makes it the published one. Nothing may flip between the two. Interrupt-safe: no. */
+struct proto_snapshot *proto_draft(struct proto *p);
+void proto_flip(struct proto *p);
 
 /* The status byte a read would return now: the core's bits, COMMANDE_REJETEE, and the busy bits
  * of an order accepted but not yet published. Interrupt-safe: yes. */

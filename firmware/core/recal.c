@@ -32,9 +32,8 @@ int recal_init(struct recal *r, const struct recal_config *cfg, int32_t dist_um)
 			return -1;
 	r->cfg = *cfg;
 	fx_sincos(cfg->max_angle_turn32, &r->sin_max_q30, &c);
-	r->on = 0;
 	r->armed = 0;
-	r->prev_dist_um = dist_um;
+	recal_sense_init(&r->sense, &r->edges, dist_um);
 	r->last_valid = 0;
 	r->crossings = 0;
 	r->ignored = 0;
@@ -195,37 +194,98 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 	r->last_mid_um = s_mid;
 }
 
-void recal_update(struct recal *r, uint8_t lines, int enabled, const struct odometry_pose *pose,
-		  int32_t dist_um, const struct uncertainty *u, struct recal_fix *fix)
+void recal_sense_init(struct recal_sense *s, struct recal_edges *e, int32_t dist_um)
 {
-	uint8_t mask = (uint8_t)((1u << r->cfg.n_sensors) - 1u);
-	uint8_t now = lines & mask;
-	uint8_t changed = now ^ r->on;
-	int32_t step = dist_um - r->prev_dist_um;
-	/* An edge seen at this tick happened during the last period: its best estimate is the
-	 * period's middle (the detection's delay cancels between entry and exit anyway). */
-	int32_t edge_um = r->prev_dist_um + step / 2;
+	s->on = 0;
+	s->prev_dist_um = dist_um;
+	e->on = 0;
+	e->rose = 0;
+	e->fell = 0;
+}
 
+void recal_sense(struct recal_sense *s, struct recal_edges *e, uint8_t lines, int32_t dist_um)
+{
+	uint8_t changed = lines ^ s->on;
+	int32_t step = dist_um - s->prev_dist_um;
+
+	if (changed) {
+		int32_t edge_um = s->prev_dist_um + step / 2;
+
+		for (uint8_t i = 0; i < RECAL_MAX_SENSORS; i++) {
+			uint8_t bit = (uint8_t)(1u << i);
+
+			if (!(changed & bit))
+				continue;
+			if (lines & bit) {
+				e->rose |= bit;
+				e->rise_um[i] = edge_um;
+			} else {
+				e->fell |= bit;
+				e->fall_um[i] = edge_um;
+				e->fall_step_um[i] = step;
+			}
+		}
+	}
+	s->on = lines;
+	e->on = lines;
+	s->prev_dist_um = dist_um;
+}
+
+/* Sensor i entered a line at rise_um. */
+static void entry(struct recal *r, uint8_t i, int32_t rise_um)
+{
+	r->entry_um[i] = rise_um;
+	r->armed |= (uint8_t)(1u << i);
+}
+
+/* Sensor i left a line: a crossing if its entry was seen. */
+static void exit_line(struct recal *r, uint8_t i, const struct recal_edges *e, int32_t dist_um,
+		      const struct uncertainty *u, struct recal_fix *fix)
+{
+	uint8_t bit = (uint8_t)(1u << i);
+
+	if (!(r->armed & bit))
+		return;
+	r->armed &= (uint8_t)~bit;
+	crossing(r, i, r->entry_um[i], e->fall_um[i], dist_um, e->fall_step_um[i], u, fix);
+}
+
+void recal_take(struct recal *r, struct recal_edges *e, int enabled,
+		const struct odometry_pose *pose, int32_t dist_um, const struct uncertainty *u,
+		struct recal_fix *fix)
+{
 	fix->what = 0;
 	fix->pose = *pose;
 	if (!enabled) {
 		r->armed = 0;
 		r->last_valid = 0;
-	} else if (changed) {
+	} else if (e->rose | e->fell) {
 		for (uint8_t i = 0; i < r->cfg.n_sensors; i++) {
 			uint8_t bit = (uint8_t)(1u << i);
 
-			if (!(changed & bit))
-				continue;
-			if (now & bit) {
-				r->entry_um[i] = edge_um;
-				r->armed |= bit;
-			} else if (r->armed & bit) {
-				r->armed &= (uint8_t)~bit;
-				crossing(r, i, r->entry_um[i], edge_um, dist_um, step, u, fix);
+			/* Both in one period: the sensor's state at its end gives their order. */
+			if ((e->rose & e->fell & bit) && (e->on & bit)) {
+				exit_line(r, i, e, dist_um, u, fix);
+				entry(r, i, e->rise_um[i]);
+			} else if (e->rose & e->fell & bit) {
+				entry(r, i, e->rise_um[i]);
+				exit_line(r, i, e, dist_um, u, fix);
+			} else if (e->rose & bit) {
+				entry(r, i, e->rise_um[i]);
+			} else if (e->fell & bit) {
+				exit_line(r, i, e, dist_um, u, fix);
 			}
 		}
 	}
-	r->on = now;
-	r->prev_dist_um = dist_um;
+	e->rose = 0;
+	e->fell = 0;
+}
+
+void recal_update(struct recal *r, uint8_t lines, int enabled, const struct odometry_pose *pose,
+		  int32_t dist_um, const struct uncertainty *u, struct recal_fix *fix)
+{
+	uint8_t mask = (uint8_t)((1u << r->cfg.n_sensors) - 1u);
+
+	recal_sense(&r->sense, &r->edges, lines & mask, dist_um);
+	recal_take(r, &r->edges, enabled, pose, dist_um, u, fix);
 }

@@ -61,13 +61,31 @@ struct recal_fix {
 #define RECAL_FIX_POSITION 1u
 #define RECAL_FIX_HEADING 2u
 
+/* The line sensors as the tick sees them, to time their edges (recal_sense()). */
+struct recal_sense {
+	uint8_t on;           /* bit n: sensor n saw a line at the last tick */
+	int32_t prev_dist_um; /* the distance axis one tick ago */
+};
+
+/* The edges of a period of one or more ticks, each timed at its tick: what recal_take() judges
+ * the crossings from. An edge seen at a tick happened during the tick's period: its best
+ * estimate is the middle of that step. */
+struct recal_edges {
+	uint8_t on;   /* bit n: sensor n on a line at the period's end */
+	uint8_t rose; /* bit n: sensor n entered a line during the period (the last entry kept) */
+	uint8_t fell; /* bit n: ... left one (the last exit kept) */
+	int32_t rise_um[RECAL_MAX_SENSORS];      /* distance axis at the entry [um] */
+	int32_t fall_um[RECAL_MAX_SENSORS];      /* ... at the exit [um] */
+	int32_t fall_step_um[RECAL_MAX_SENSORS]; /* the exit tick's step: its timing error */
+};
+
 struct recal {
 	struct recal_config cfg;
 	int32_t sin_max_q30; /* sin(max_angle) [2^-30] */
-	uint8_t on;          /* bit n: sensor n saw a line at the last tick */
 	uint8_t armed;       /* bit n: its entry was seen while enabled (a crossing in progress) */
 	int32_t entry_um[RECAL_MAX_SENSORS]; /* distance axis at the entry [um] */
-	int32_t prev_dist_um;                /* the distance axis one tick ago */
+	struct recal_sense sense;            /* recal_update()'s, one tick per call */
+	struct recal_edges edges;
 	/* The last crossing applied, to pair it with another sensor's crossing of the same line. */
 	uint8_t last_valid;
 	uint8_t last_sensor;
@@ -80,6 +98,20 @@ struct recal {
 /* Returns 0, or -1 when the configuration is out of range. dist_um: the distance axis now.
  * interrupt-safe: no. */
 int recal_init(struct recal *r, const struct recal_config *cfg, int32_t dist_um);
+
+/* Start timing edges: no sensor on a line, the distance axis at dist_um. */
+void recal_sense_init(struct recal_sense *s, struct recal_edges *e, int32_t dist_um);
+
+/* One tick: the sensors now (lines, bit n = sensor n on a line, unused bits 0) and the distance
+ * axis; their changes are added to e (cleared by recal_take()). Cheap: the servo's tick runs it.
+ * interrupt-safe: no (tick only). */
+void recal_sense(struct recal_sense *s, struct recal_edges *e, uint8_t lines, int32_t dist_um);
+
+/* The edges of e (then cleared) judged as recal_update() does, at the period's end: enabled,
+ * the estimate and the distance axis now. interrupt-safe: no. */
+void recal_take(struct recal *r, struct recal_edges *e, int enabled,
+		const struct odometry_pose *pose, int32_t dist_um, const struct uncertainty *u,
+		struct recal_fix *fix);
 
 /* One tick: lines (bit n = sensor n on a line), enabled (the running order allows line
  * recalibration and drives straight), the estimate, the distance axis, and the uncertainty, whose

@@ -12,8 +12,12 @@
 #include <cmocka.h>
 
 #include "host.h"
+#include "port.h"
 
 static struct host h;
+
+/* The whole suite runs twice: the slow steps at every tick, and at every 8th (board.h). */
+static uint8_t slow_shift;
 
 static void setup_field(struct sim_field *f)
 {
@@ -27,7 +31,15 @@ static void start(const struct sim_field *f)
 
 	sim_config_defaults(&sc);
 	host_board_config(&sc, f, &bc);
+	bc.slow_shift = slow_shift;
 	assert_int_equal(host_init(&h, &bc, &sc, f), 0);
+}
+
+/* Ticks for a message to act on the servo: the next slow tick takes it, the one after hands
+ * the result over (board.h); with the slow steps at every tick, the next tick. */
+static uint32_t latency_ticks(void)
+{
+	return slow_shift ? 2u << slow_shift : 1u;
 }
 
 static void send(const uint8_t *bytes, uint8_t n)
@@ -114,8 +126,8 @@ static void test_goto_arrives(void **state)
 	}
 	/* A 3.8 degree turn is inside the heading window: translation starts at once, once the
 	 * bearing is known: the order's first tick aims on the next (docs/control.md), so at most
-	 * one tick shows ROTATE. */
-	assert_true(saw_rotate <= 1 && saw_translate > 0 && saw_settle > 0);
+	 * one (slow) tick shows ROTATE. */
+	assert_true(saw_rotate <= (1u << slow_shift) && saw_translate > 0 && saw_settle > 0);
 	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
 	assert_int_equal(status(), 0);
 	position(&x, &y, &a, &r);
@@ -204,7 +216,8 @@ static void test_stop(void **state)
 	assert_true(x1 - x0 > 230.0 && x1 - x0 < 270.0);
 }
 
-/* A new GOTO while moving replaces the order without a jump of the setpoints. */
+/* A new GOTO while moving replaces the order without a jump of the setpoints: those the servo
+ * follows, every tick (between two slow ticks, interpolated). */
 static void test_replace_is_smooth(void **state)
 {
 	struct sim_field f;
@@ -221,7 +234,7 @@ static void test_replace_is_smooth(void **state)
 		if (i == 1500)
 			goto_mm(0, 600);
 		host_tick(&h);
-		v = h.board.orders.sp_dist.vel_um_s;
+		v = h.board.sp_dist.vel_um_s;
 		dv = v > prev_v ? v - prev_v : prev_v - v;
 		if (dv > max_dv)
 			max_dv = dv;
@@ -263,8 +276,8 @@ static void test_replace_near_target_at_speed(void **state)
 	assert_true(fabs(tx + 100.0) < 2.0);
 }
 
-/* A shock sensor stops the trajectory in the tick it closes: CHOC_BORD, motors no longer
- * driving forward. */
+/* A shock sensor stops the trajectory in the tick it closes (with the slow steps every 8th tick,
+ * within two of their periods): CHOC_BORD, motors no longer driving forward. */
 static void test_shock_stops(void **state)
 {
 	struct sim_field f;
@@ -281,8 +294,12 @@ static void test_shock_stops(void **state)
 		sim_read_sensors(&h.sim, &s);
 		if (s.shock_mask) {
 			/* The board sees the switch at this tick: it must stop now. */
-			host_tick(&h);
-			ticks++;
+			uint32_t n = 0;
+
+			do {
+				host_tick(&h);
+				ticks++;
+			} while (++n < latency_ticks() && h.board.last_out.duty_q15[0] >= 3000);
 			assert_true(h.board.status & STATUS_CHOC_BORD);
 			assert_true(h.board.last_out.duty_q15[0] < 3000);
 			break;
@@ -588,7 +605,8 @@ static void test_set_odometrie(void **state)
 	/* ratio +2000 ppm, track 280.12 mm, scale -1000 ppm */
 	send((const uint8_t[]){PROTO_SET_ODOMETRIE, 0x07, 0xD0, 0x6D, 0x6C, 0xFC, 0x18}, 7);
 	assert_int_equal(h.board.odometry.cfg.track_um, 280000); /* not before the tick */
-	host_tick(&h);
+	for (uint32_t i = 0; i < latency_ticks(); i++)
+		host_tick(&h);
 	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5136896);
 	assert_int_equal(h.board.odometry.cfg.right_um_per_count_q16, 5147180);
 	assert_int_equal(h.board.odometry.cfg.track_um, 280120);
@@ -601,7 +619,8 @@ static void test_set_odometrie(void **state)
 	assert_int_equal(status() & STATUS_COMMANDE_REJETEE, 0);
 	/* Absolute, not cumulative: the nominal values again. */
 	send((const uint8_t[]){PROTO_SET_ODOMETRIE, 0, 0, 0x6D, 0x60, 0, 0}, 7);
-	host_tick(&h);
+	for (uint32_t i = 0; i < latency_ticks(); i++)
+		host_tick(&h);
 	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5147185);
 	assert_int_equal(h.board.odometry.cfg.right_um_per_count_q16, 5147185);
 	assert_int_equal(h.board.odometry.cfg.track_um, 280000);
@@ -652,6 +671,55 @@ static void test_radius_grows(void **state)
 	assert_true(r1 > r0);
 }
 
+/* The slow steps late (a port that did not run board_slow() in time): each slow tick that
+ * finds them still due counts an overrun and hands nothing over; the servo holds the last set
+ * points and the period goes on; once they run, the board carries on. With slow_shift 0 the
+ * tick runs them itself: never due. */
+static void test_slow_overrun(void **state)
+{
+	struct sim_field f;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	goto_mm(-1000, -850);
+	for (int i = 0; i < 17; i++) {
+		port_control_tick(&h.board);
+		assert_int_equal(board_slow_due(&h.board), slow_shift != 0);
+	}
+	/* Ticks 8 and 16 found tick 0's snapshot still waiting. */
+	assert_int_equal(h.board.slow_overruns, slow_shift ? 2 : 0);
+	assert_int_equal(h.board.sp_dist.vel_um_s, 0);
+	port_slow(&h.board);
+	assert_false(board_slow_due(&h.board));
+	run_until_idle(20000);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+	assert_int_equal(h.board.slow_overruns, slow_shift ? 2 : 0);
+}
+
+/* The slow steps' rate: 2^0..2^3 ticks, dividing the tick, at 100 Hz or more. */
+static void test_slow_shift_range(void **state)
+{
+	static const struct {
+		uint16_t tick_hz;
+		uint8_t shift;
+		int ok;
+	} cases[] = {
+		{1000, 0, 1}, {1000, 3, 1}, {1000, 4, 0}, {800, 3, 1},
+		{500, 2, 1},  {500, 3, 0},  {100, 1, 0},  {1001, 1, 0},
+	};
+	struct board_inputs in = {0};
+	struct board_config bc;
+
+	(void)state;
+	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
+		board_default_config(&bc);
+		bc.tick_hz = bc.control.tick_hz = bc.orders.tick_hz = cases[i].tick_hz;
+		bc.slow_shift = cases[i].shift;
+		assert_int_equal(board_init(&h.board, &bc, &in), cases[i].ok ? 0 : -1);
+	}
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -675,6 +743,14 @@ int main(void)
 		cmocka_unit_test(test_set_new_pos_stays_in_range),
 		cmocka_unit_test(test_set_odometrie),
 		cmocka_unit_test(test_radius_grows),
+		cmocka_unit_test(test_slow_overrun),
+		cmocka_unit_test(test_slow_shift_range),
 	};
-	return cmocka_run_group_tests(tests, NULL, NULL);
+	int failed;
+
+	slow_shift = 0;
+	failed = cmocka_run_group_tests_name("slow steps every tick", tests, NULL, NULL);
+	slow_shift = 3;
+	failed += cmocka_run_group_tests_name("slow steps every 8th tick", tests, NULL, NULL);
+	return failed;
 }

@@ -46,6 +46,8 @@ void ref_tick(struct ref *r)
 
 	inputs(r, &in);
 	board_tick(&r->board, &in, &out);
+	if (board_slow_due(&r->board))
+		board_slow(&r->board);
 	sim_set_duty(&r->sim, pwm(out.duty_q15[0]), pwm(out.duty_q15[1]));
 	/* One substep per call, as the AVR's lockstep runs it (it needs the encoder positions of
 	 * each substep): the simulator sums a call's encoder travel at its end, so a longer call

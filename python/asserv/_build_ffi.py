@@ -264,6 +264,7 @@ struct orders_config {
 };
 struct board_config {
     uint16_t tick_hz;
+    uint8_t slow_shift;
     struct odometry_config odometry;
     struct uncertainty_config uncertainty;
     struct control_config control;

@@ -116,6 +116,7 @@ SETUP = (
     "board_start",
     "start_uncertainty",
     "config",
+    "board",
     "bus_hz",
     "pec",
 )
@@ -139,6 +140,7 @@ class Scenario:
     board_start: tuple[float, float, float] | None = None
     start_uncertainty: tuple[float, float] = (0.0, 0.0)
     config: dict[str, Any] = dataclasses.field(default_factory=dict)
+    board: dict[str, Any] = dataclasses.field(default_factory=dict)
     bus_hz: int = 100_000
     pec: bool = False
     steps: list[Step] = dataclasses.field(default_factory=list)
@@ -155,6 +157,7 @@ class Scenario:
             bus_hz=self.bus_hz,
             board_start=self.board_start,
             start_uncertainty=self.start_uncertainty,
+            board_config=self.board,
         )
 
 
@@ -224,6 +227,12 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
                     value: Any = values[0] if len(values) == 1 else values
                     Simulator({rest[0]: value}, record=False)  # checks the name and the value
                     scn.config[rest[0]] = value
+                elif cmd == "board":
+                    if len(rest) != 2:
+                        raise fail("board takes a setting and its value: board KEY VALUE")
+                    # checks the name and the value
+                    Simulator(board_config={rest[0]: _int(rest[1])}, record=False)
+                    scn.board[rest[0]] = _int(rest[1])
                 elif cmd == "bus_hz":
                     if len(rest) != 1 or not 1000 <= _int(rest[0]) <= 1_000_000:
                         raise fail("bus_hz takes one integer 1000..1000000")

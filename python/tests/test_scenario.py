@@ -27,6 +27,9 @@ from asserv.cli import main
         ("start 0 0\ngoto 0 0\n", 1, "start takes three numbers"),
         ("wait -1\n", 1, "positive number of seconds"),
         ("pec maybe\ngoto 0 0\n", 1, "pec takes on or off"),
+        ("board slow_shiftt 3\ngoto 0 0\n", 1, "unknown board setting 'slow_shiftt'"),
+        ("board slow_shift 4\ngoto 0 0\n", 1, "the simulator refused this configuration"),
+        ("board slow_shift\ngoto 0 0\n", 1, "board takes a setting and its value"),
     ],
 )
 def test_bad_lines_are_named(text: str, line: int, message: str) -> None:
@@ -56,6 +59,26 @@ def test_annex_scenario_plays_to_the_basket() -> None:
     err = scenario.summary(res, lines.append)
     assert err <= res.board.position().radius_mm  # the truth lies within the reported radius
     assert any("GOTO x_mm=100 y_mm=50" in ln for ln in lines)
+
+
+@pytest.mark.parametrize("name", ["annex", "recal_line", "recal_border", "recal_basket"])
+def test_scenarios_with_slow_steps_at_125_hz(name: str) -> None:
+    """The slow steps every 8th tick (the AVR's schedule, docs/control.md): every scenario ends
+    as it does with them at every tick, its final estimate within 2 mm of that one's and the
+    truth within the reported radius."""
+    ends = []
+    for shift in (0, 3):
+        scn = scenario.load(scenario.SCENARIO_DIR / f"{name}.txt")
+        scn.board["slow_shift"] = shift
+        res = scenario.play(scn, lambda _line: None)
+        assert res.ok
+        err = scenario.summary(res, lambda _line: None)
+        pose = res.board.position()
+        assert err <= pose.radius_mm
+        ends.append((res.final_status, pose.x_mm, pose.y_mm, pose.angle_2deg))
+    (s0, x0, y0, a0), (s3, x3, y3, a3) = ends
+    assert s3 == s0
+    assert abs(x3 - x0) <= 2 and abs(y3 - y0) <= 2 and abs(a3 - a0) <= 1
 
 
 def test_cli_reports_a_bad_scenario_and_runs_nothing(

@@ -28,3 +28,9 @@ void port_control_tick(struct board *b)
 	hal_motor_set(HAL_LEFT, out.duty_q15[0]);
 	hal_motor_set(HAL_RIGHT, out.duty_q15[1]);
 }
+
+void port_slow(struct board *b)
+{
+	if (board_slow_due(b))
+		board_slow(b);
+}

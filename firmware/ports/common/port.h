@@ -12,4 +12,8 @@ void port_sample(struct board_inputs *in);
 /* Sample, board_tick(), hal_motor_set(). Must not be re-entered. */
 void port_control_tick(struct board *b);
 
+/* The slow steps when they are due (board_slow()): a port with one context calls it after each
+ * port_control_tick(); one with two runs it in the lower-priority one. */
+void port_slow(struct board *b);
+
 #endif

@@ -150,6 +150,7 @@ static void control_tick(struct host *h)
 {
 	read_sensors(h);
 	port_control_tick(&h->board);
+	port_slow(&h->board);
 	sim_set_duty(&h->sim, duty[HAL_LEFT], duty[HAL_RIGHT]);
 	h->ticks++;
 }
@@ -203,8 +204,8 @@ static void record(const struct host *h, struct host_sample *r)
 	r->radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
 	r->v_mm_s = t.v_mm_s;
 	r->omega_deg_s = t.omega_rad_s * rad_deg;
-	r->v_set_mm_s = b->orders.sp_dist.vel_um_s * 1e-3;
-	r->omega_set_deg_s = b->orders.sp_angle.vel_um_s / half_track_um * rad_deg;
+	r->v_set_mm_s = b->sp_dist.vel_um_s * 1e-3;
+	r->omega_set_deg_s = b->sp_angle.vel_um_s / half_track_um * rad_deg;
 	r->duty_left = duty[HAL_LEFT] / 32768.0;
 	r->duty_right = duty[HAL_RIGHT] / 32768.0;
 	r->current_left_A = t.current_A[SIM_LEFT];
