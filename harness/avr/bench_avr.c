@@ -126,32 +126,32 @@ static void print_two_rates(const struct phase *p, uint32_t tick_hz, uint8_t slo
 	double servo_slow_worst = (double)s->servo.max / period + (double)s->slow.max / slow_period;
 
 	printf("  servo tick (TICK high, without the interrupts nested in it)\n"
-	       "                                   %8.0f cycles mean %8llu worst\n",
-	       mean(&s->servo), (unsigned long long)s->servo.max);
+	       "%35s%8.0f cycles mean %8llu worst\n",
+	       "", mean(&s->servo), (unsigned long long)s->servo.max);
 	printf("  slow steps, a run every %u ticks (SLOW high, without what preempted them)\n"
-	       "                                   %8.0f cycles mean %8llu worst  (%llu runs)\n",
-	       n, mean(&s->slow), (unsigned long long)s->slow.max, (unsigned long long)s->slow.n);
-	printf("  interrupts per period            %8.0f cycles mean %8.0f worst  (each at its\n"
-	       "                                   rate, its longest)\n",
-	       im, iw);
-	printf("    as measured in one period      %8.0f cycles mean %8llu in the busiest\n",
-	       mean(&s->isr_sum), (unsigned long long)s->isr_sum.max);
-	printf("  CPU load at %u Hz, (servo + interrupts) / period + slow steps / %u periods\n"
-	       "  (goal: 40 %% worst)\n"
-	       "                                   %7.1f %% mean    %7.1f %% worst\n",
-	       tick_hz, n, 100.0 * (servo_slow_mean + im / period),
-	       100.0 * (servo_slow_worst + iw / period));
-	printf("    worst with the busiest period's interrupts     %7.1f %%\n",
+	       "%35s%8.0f cycles mean %8llu worst  (%llu runs)\n",
+	       n, "", mean(&s->slow), (unsigned long long)s->slow.max,
+	       (unsigned long long)s->slow.n);
+	printf("  interrupts per period (each at its rate, its longest run)\n"
+	       "%35s%8.0f cycles mean %8.0f worst\n",
+	       "", im, iw);
+	printf("  interrupts in one period, measured\n"
+	       "%35s%8.0f cycles mean %8llu in the busiest\n",
+	       "", mean(&s->isr_sum), (unsigned long long)s->isr_sum.max);
+	printf("  CPU load at %u Hz: (servo + interrupts) / period + slow steps / %u periods "
+	       "(goal: 40 %% worst)\n"
+	       "%35s%7.1f %% mean    %7.1f %% worst\n"
+	       "%35s%25.1f %% worst with the busiest period's interrupts\n",
+	       tick_hz, n, "", 100.0 * (servo_slow_mean + im / period),
+	       100.0 * (servo_slow_worst + iw / period), "",
 	       100.0 * (servo_slow_worst + (double)s->isr_sum.max / period));
-	printf("  measured, servo + interrupts in one period\n"
-	       "                                   %7.1f %% mean    %7.1f %% in the busiest (of %u "
-	       "cycles)\n",
-	       100.0 * mean(&s->fast) / period, 100.0 * (double)s->fast.max / period, period);
-	printf("  measured, cycles awake in %u periods (all the work, the main loop's wake-ups "
+	printf("  measured: servo + interrupts in one period\n"
+	       "%35s%7.1f %% mean    %7.1f %% in the busiest (of %u cycles)\n",
+	       "", 100.0 * mean(&s->fast) / period, 100.0 * (double)s->fast.max / period, period);
+	printf("  measured: cycles awake in %u periods (all the work, the main loop's wake-ups "
 	       "included)\n"
-	       "                                   %7.1f %% mean    %7.1f %% in the busiest (of %u "
-	       "cycles)\n",
-	       n, 100.0 * mean(&s->window) / slow_period,
+	       "%35s%7.1f %% mean    %7.1f %% in the busiest (of %u cycles)\n",
+	       n, "", 100.0 * mean(&s->window) / slow_period,
 	       100.0 * (double)s->window.max / slow_period, slow_period);
 }
 
