@@ -978,6 +978,15 @@ static void step(struct avrsim *h)
 		fail(h, "the AVR core stopped (crashed, or sleeping with interrupts off)");
 }
 
+/* -1 with the error on stderr if the run failed, else 0. */
+static int reported(const struct avrsim *h)
+{
+	if (!h->error[0])
+		return 0;
+	fprintf(stderr, "avrsim: %s\n", h->error);
+	return -1;
+}
+
 int avrsim_run_to_tick_end(struct avrsim *h)
 {
 	uint64_t n = h->ticks, limit = h->avr->cycle + 100u * AVRSIM_F_CPU / 1000u;
@@ -987,11 +996,7 @@ int avrsim_run_to_tick_end(struct avrsim *h)
 		if (h->avr->cycle > limit)
 			fail(h, "no control tick for 100 ms");
 	}
-	if (h->error[0]) {
-		fprintf(stderr, "avrsim: %s\n", h->error);
-		return -1;
-	}
-	return 0;
+	return reported(h);
 }
 
 int avrsim_run_to_slow_done(struct avrsim *h)
@@ -1003,11 +1008,7 @@ int avrsim_run_to_slow_done(struct avrsim *h)
 		if (h->avr->cycle > limit)
 			fail(h, "the slow steps did not finish in 100 ms");
 	}
-	if (h->error[0]) {
-		fprintf(stderr, "avrsim: %s\n", h->error);
-		return -1;
-	}
-	return h->ticks != n;
+	return reported(h) ? -1 : h->ticks != n;
 }
 
 int avrsim_run_slow_steps(struct avrsim *h)
@@ -1029,11 +1030,7 @@ int avrsim_run_slow_steps(struct avrsim *h)
 	while (!avrsim_slow_pending(h) && !h->error[0])
 		if (avrsim_run_to_tick_end(h))
 			return -1;
-	if (h->error[0]) {
-		fprintf(stderr, "avrsim: %s\n", h->error);
-		return -1;
-	}
-	return 0;
+	return reported(h);
 }
 
 int avrsim_run_until_idle(struct avrsim *h)
@@ -1045,11 +1042,7 @@ int avrsim_run_until_idle(struct avrsim *h)
 		if (h->avr->cycle > limit)
 			fail(h, "the firmware did not sleep for 100 ms");
 	} while ((h->avr->state != cpu_Sleeping || h->tick_pin) && !h->error[0]);
-	if (h->error[0]) {
-		fprintf(stderr, "avrsim: %s\n", h->error);
-		return -1;
-	}
-	return 0;
+	return reported(h);
 }
 
 int avrsim_run_cycles(struct avrsim *h, uint64_t n)
@@ -1058,11 +1051,7 @@ int avrsim_run_cycles(struct avrsim *h, uint64_t n)
 
 	while (h->avr->cycle < end && !h->error[0])
 		step(h);
-	if (h->error[0]) {
-		fprintf(stderr, "avrsim: %s\n", h->error);
-		return -1;
-	}
-	return 0;
+	return reported(h);
 }
 
 static int run_transaction(struct avrsim *h)
@@ -1092,11 +1081,7 @@ static int run_transaction(struct avrsim *h)
 		if (h->avr->cycle > limit)
 			fail(h, "I2C transaction timed out");
 	}
-	if (h->error[0]) {
-		fprintf(stderr, "avrsim: %s\n", h->error);
-		return -1;
-	}
-	return h->nack ? -1 : 0;
+	return reported(h) ? -1 : h->nack ? -1 : 0;
 }
 
 int avrsim_i2c_write(struct avrsim *h, const uint8_t *data, uint8_t n, int stop)
