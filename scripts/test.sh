@@ -28,9 +28,16 @@ step "fuzz: the protocol layer and the board tick, 30 s each (libFuzzer, ASan + 
 bash fuzz/run.sh 30
 
 step "AVR: build the firmware, print its size, run it in simavr (and the core's Cortex-M4 size)"
-cmake -S . -B build-avr -G Ninja -DASSERV_AVR_HARNESS=ON -DASSERV_TESTS=OFF >/dev/null
+cmake -S . -B build-avr -G Ninja -DASSERV_AVR_HARNESS=ON -DASSERV_TESTS=OFF \
+	-DASSERV_AVR_SLOW_SHIFT=3 >/dev/null
 cmake --build build-avr
 cmake -S cmake/cortex-m4 -B build-avr/m4 -G Ninja -DCMAKE_TOOLCHAIN_FILE="$ROOT/cmake/arm-none-eabi.cmake" >/dev/null
 cmake --build build-avr/m4
 build-avr/harness/avr/bench_avr build-avr/harness/avr/firmware/asserv_avr.elf
 ctest --test-dir build-avr -L avr --output-on-failure
+
+step "AVR, one rate (the whole tick in the main loop, ASSERV_AVR_SLOW_SHIFT=0): the same tests"
+cmake -S . -B build-avr0 -G Ninja -DASSERV_AVR_HARNESS=ON -DASSERV_TESTS=OFF \
+	-DASSERV_AVR_SLOW_SHIFT=0 >/dev/null
+cmake --build build-avr0
+ctest --test-dir build-avr0 -L avr --output-on-failure
