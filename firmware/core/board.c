@@ -369,7 +369,9 @@ static int set_odometrie(struct board *b, const struct proto_msg *msg)
 		return err;
 	if (uncertainty_set_config(&b->uncertainty, &uc))
 		return -EDOM;
-	b->handover.odometry_cfg = oc; /* the odometry is the servo's */
+	/* The odometry is the servo's: its tables are derived here, the servo copies them. */
+	(void)odometry_derive_config(&oc, b->handover.odometry_wheels); /* checked above */
+	b->handover.odometry_cfg = oc;
 	b->handover.set_odometry = 1;
 	b->free_ratio_q16 = free_ratio_q16(&b->cfg, oc.track_um);
 	return 0;
@@ -753,7 +755,7 @@ static void take_handover(struct board *b)
 	struct board_handover *h = &b->handover;
 
 	if (h->set_odometry) {
-		(void)odometry_set_config(&b->odometry, &h->odometry_cfg); /* checked before */
+		odometry_install_config(&b->odometry, &h->odometry_cfg, h->odometry_wheels);
 		h->set_odometry = 0;
 	}
 	if (h->set_pose) {

@@ -83,8 +83,9 @@ struct board_handover {
 	struct orders_axis sp_angle;
 	struct odometry_pose pose_from; /* set_pose: the estimate moves by pose_to - pose_from */
 	struct odometry_pose pose_to;
-	struct odometry_config odometry_cfg; /* set_odometry */
-	struct control_gains gains;          /* set_gains */
+	struct odometry_config odometry_cfg; /* set_odometry, with its tables */
+	struct odometry_wheel odometry_wheels[2];
+	struct control_gains gains; /* set_gains */
 	uint8_t set_pose;
 	uint8_t set_odometry;
 	uint8_t set_gains;

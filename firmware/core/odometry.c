@@ -73,6 +73,23 @@ static void derive(struct odometry *o)
 	derive_wheel(&o->right, o->cfg.right_um_per_count_q16, o->cfg.track_um);
 }
 
+int odometry_derive_config(const struct odometry_config *cfg, struct odometry_wheel wheels[2])
+{
+	if (!config_valid(cfg))
+		return -EDOM;
+	derive_wheel(&wheels[0], cfg->left_um_per_count_q16, cfg->track_um);
+	derive_wheel(&wheels[1], cfg->right_um_per_count_q16, cfg->track_um);
+	return 0;
+}
+
+void odometry_install_config(struct odometry *o, const struct odometry_config *cfg,
+			     const struct odometry_wheel wheels[2])
+{
+	o->cfg = *cfg;
+	o->left = wheels[0];
+	o->right = wheels[1];
+}
+
 /* m counts beyond the tables: two 16 x 16 products for the travel (clamped to
  * ODOMETRY_STEP_Q16_MAX beyond it, and -ERANGE returned), four for m u modulo 2^64. Out of line:
  * only a wheel faster than the tables (2.5 m/s at 1 kHz for the reference robot) comes here. */

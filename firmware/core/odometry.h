@@ -100,6 +100,16 @@ int odometry_set_config(struct odometry *o, const struct odometry_config *cfg);
 /* 0 when odometry_set_config() would take cfg, or -EDOM. Interrupt-safe: yes. */
 int odometry_check_config(const struct odometry_config *cfg);
 
+/* odometry_set_config() in two steps, for a caller that prepares in one context and installs in
+ * another (board.h): the wheels' tables of cfg, the costly part (two long divisions: about
+ * 75 000 cycles on an AVR); returns 0, or -EDOM (wheels untouched). Interrupt-safe: yes. */
+int odometry_derive_config(const struct odometry_config *cfg, struct odometry_wheel wheels[2]);
+
+/* ... then cfg and its tables in place of the current ones, the pose kept: a copy of 780 bytes.
+ * Interrupt-safe: no (between two updates). */
+void odometry_install_config(struct odometry *o, const struct odometry_config *cfg,
+			     const struct odometry_wheel wheels[2]);
+
 /* One tick: read both counters (free-running, wrapping at 65536; at most 32767 counts of travel
  * per tick in either direction) and integrate the pose. Returns 0, or -ERANGE if a wheel moved
  * more than ODOMETRY_STEP_Q16_MAX in the tick: its travel is then clamped to that value and the
