@@ -656,6 +656,7 @@ static void slow_steps(struct board *b)
 
 	/* 1. Error radius, from the period's travel. */
 	uncertainty_update(&b->uncertainty, p->left_q16, p->right_q16, p->heading_turn32);
+	uncertainty_advance(&b->uncertainty, b->slow_mask); /* its stages as fast in time */
 
 	/* 2. The measure of the period's end; the switches; line crossings. */
 	*m = p->m;

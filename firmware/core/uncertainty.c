@@ -745,6 +745,12 @@ void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q
 		run_stage(u);
 }
 
+void uncertainty_advance(struct uncertainty *u, uint8_t n)
+{
+	while (n-- != 0 && u->stage != STAGE_IDLE)
+		run_stage(u);
+}
+
 uint8_t uncertainty_get_radius_mm(const struct uncertainty *u)
 {
 	return u->radius_mm;

@@ -111,6 +111,12 @@ int uncertainty_set_config(struct uncertainty *u, const struct uncertainty_confi
 void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q16,
 			uint32_t heading_turn32);
 
+/* Up to n more stages of the batch in flight, if there is one: a caller that runs
+ * uncertainty_update() less often (the board's slow steps every 2^k ticks, with n = 2^k - 1)
+ * keeps the propagation as fast in time, so that a batch is never finished at once on the way.
+ * interrupt-safe: no. */
+void uncertainty_advance(struct uncertainty *u, uint8_t n);
+
 /* The error radius [mm], rounded up, 0..255 (255 also means "255 or more").
  * interrupt-safe: yes (one byte). */
 uint8_t uncertainty_get_radius_mm(const struct uncertainty *u);

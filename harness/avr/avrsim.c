@@ -120,6 +120,10 @@ struct avrsim {
 	uint8_t freeze_pending; /* exact mode: stop the control timer once this instruction is done
 				 */
 	uint8_t tccr3b;         /* its clock selection while stopped */
+	/* exact mode, avrsim_master_hold(): the control timer's interrupt is held (masked) while
+	 * the master acts; a compare match meanwhile is raised again when the hold ends */
+	uint8_t hold, hold_ocie, compare_held, releasing;
+	avr_int_vector_t *t3_vec;
 
 	/* physics */
 	enum avrsim_lockstep mode;
@@ -524,8 +528,8 @@ static void on_compare(struct avr_irq_t *irq, uint32_t value, void *param)
 	uint64_t now = h->avr->cycle;
 
 	(void)irq;
-	if (!value)
-		return;
+	if (!value || h->releasing)
+		return; /* cleared, or a held compare match raised again: counted when it came */
 	if (h->compares) {
 		uint64_t awake = now - h->last_compare - h->period_idle + h->period_resp;
 		uint32_t w = 1u << h->slow_shift;
@@ -552,6 +556,10 @@ static void on_compare(struct avr_irq_t *irq, uint32_t value, void *param)
 			fail(h, "exact lockstep: the period's physics did not finish before its "
 				"compare match");
 		h->freeze_pending = 1;
+		if (h->hold && h->hold_ocie) {
+			h->compare_held = 1;
+			h->st.compares_held++;
+		}
 	}
 }
 
@@ -1137,6 +1145,39 @@ void avrsim_tick_enable(struct avrsim *h, int on)
 		*r &= (uint8_t) ~(1u << m1284p.ocie3a);
 }
 
+int avrsim_master_hold(struct avrsim *h, int on)
+{
+	uint8_t *r = &h->avr->data[m1284p.timsk3];
+	uint8_t bit = (uint8_t)(1u << m1284p.ocie3a);
+
+	if (h->mode != AVRSIM_EXACT)
+		return 0;
+	if (on) {
+		if (h->hold)
+			return 0;
+		/* A compare match has come and its tick has not ended: it goes first. */
+		if (h->compares != h->ticks)
+			return 1;
+		h->hold = 1;
+		h->hold_ocie = *r & bit;
+		*r &= (uint8_t)~bit; /* simavr then only sets the flag (and calls on_compare) */
+		return 0;
+	}
+	if (!h->hold)
+		return 0;
+	h->hold = 0;
+	*r |= h->hold_ocie;
+	if (h->compare_held) {
+		/* Its interrupt now, as if the compare match came at this cycle; the timer and the
+		 * physics have stood still since it came (on_compare). */
+		h->compare_held = 0;
+		h->releasing = 1;
+		avr_raise_interrupt(h->avr, h->t3_vec);
+		h->releasing = 0;
+	}
+	return 0;
+}
+
 /* ---------------------------------------------------------------------------------------------
  * Set-up
  */
@@ -1301,6 +1342,8 @@ struct avrsim *avrsim_open(const char *elf_path, uint32_t i2c_hz)
 	for (int i = 0; i < avr->interrupts.vector_count; i++)
 		if (avr->interrupts.vector[i]->vector == m1284p.vec_twi)
 			h->twi_vec = avr->interrupts.vector[i];
+		else if (avr->interrupts.vector[i]->vector == m1284p.vec_timer3_compa)
+			h->t3_vec = avr->interrupts.vector[i];
 	/* The TWCR handler is ours (see simavr.md): replace simavr's, which serves the master. */
 	avr->io[AVR_DATA_TO_IO(m1284p.twcr)].w.c = twcr_write;
 	avr->io[AVR_DATA_TO_IO(m1284p.twcr)].w.param = h;

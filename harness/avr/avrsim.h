@@ -65,6 +65,8 @@ struct avrsim_stats {
 	struct avrsim_count edge_wait;   /* from an encoder edge to the first instruction of the
 					  * interrupt that reads it [cycles] */
 	uint64_t stop_pending_at_start;  /* a START waited for the last STOP's interrupt */
+	uint64_t compares_held;          /* exact mode: compare matches whose interrupt waited
+					  * for the master (avrsim_master_hold()) */
 	uint16_t sp_min;                 /* lowest stack pointer seen */
 };
 
@@ -110,6 +112,16 @@ void avrsim_i2c_address(struct avrsim *h, uint8_t address);
 /* Masks or unmasks the control timer's interrupt (as a debugger would): with it masked, no
  * tick runs and the protocol's queue and snapshot stay as they are. */
 void avrsim_tick_enable(struct avrsim *h, int on);
+
+/* Exact mode (nothing in the others): with on, the master is about to act between two ticks,
+ * as the native run's master does; a compare match that comes before it is done (off) waits:
+ * its interrupt is held until then, and the control timer and the physics stand still from the
+ * compare match as for any tick, so the tick samples the same inputs and its duty acts from
+ * the same instant. The firmware sees a compare match at the end of the hold. Meant for a
+ * master that waited for the slow steps (avrsim_run_to_slow_done()), which would otherwise go
+ * on during the hold. Returns 1 without holding if a compare match has already come and its
+ * tick not ended (run it first: avrsim_run_to_tick_end()), else 0. */
+int avrsim_master_hold(struct avrsim *h, int on);
 
 /* Without physics: the four encoders (as below) turn at constant rates [counts/s, signed] from
  * now on, their edges evenly spaced. Returns 0, or -1 with physics attached. */
