@@ -720,10 +720,21 @@ static void slow_steps(struct board *b)
 	b->handover.sp_angle = b->orders.sp_angle;
 }
 
+/* The compiler may not move memory accesses across it: the snapshot is read after slow_due said
+ * it is there, and the hand-over is complete in memory before slow_due says so, since the
+ * servo's interrupt may come right after. */
+#ifdef __GNUC__
+#define BOARD_BARRIER() __asm__ __volatile__("" ::: "memory")
+#else
+#define BOARD_BARRIER() ((void)0)
+#endif
+
 void board_slow(struct board *b)
 {
+	BOARD_BARRIER();
 	slow_steps(b);
 	publish(b);
+	BOARD_BARRIER();
 	b->slow_due = 0;
 }
 
