@@ -254,7 +254,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->arc_um = 0;
 	b->free_ratio_q16 = free_ratio_q16(cfg, cfg->odometry.track_um);
 	if (orders_init(&b->orders, &oc, odometry_get_distance_um(&b->odometry), 0) ||
-	    recal_init(&b->recal, &cfg->recal, odometry_get_distance_um(&b->odometry)))
+	    recal_init(&b->recal, &cfg->recal))
 		return -1;
 	b->line_mask = (uint8_t)((1u << cfg->recal.n_sensors) - 1u);
 	b->tick = 0;
@@ -295,7 +295,6 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	update_status(b);
 	publish(b);
 	proto_flip(&b->proto);
-	b->handover.publish = 0;
 	return 0;
 }
 
@@ -614,7 +613,7 @@ static int8_t angle_2deg_of(int32_t cdeg)
 	return cdeg >= 0 ? (int8_t)q : (int8_t) - (int16_t)q;
 }
 
-/* The reply snapshot of the last period, drafted for the next hand-over (proto_draft()). */
+/* The reply snapshot of the last period, drafted (proto_draft()): the caller flips it public. */
 static void publish(struct board *b)
 {
 	const struct board_snapshot *p = &b->period[b->period_index ^ 1u];
@@ -642,7 +641,6 @@ static void publish(struct board *b)
 	s->debug.order_state = b->orders.state;
 	s->debug.end_reason = (b->timed_out && !orders_busy(&b->orders)) ? END_REASON_TIMEOUT
 									 : b->orders.end_reason;
-	b->handover.publish = 1;
 }
 
 /* The slow steps but the reply snapshot, on the last period (b->period[period_index ^ 1]). */
@@ -734,6 +732,7 @@ void board_slow(struct board *b)
 	BOARD_BARRIER();
 	slow_steps(b);
 	publish(b);
+	b->handover.publish = 1; /* made public at the hand-over */
 	BOARD_BARRIER();
 	b->slow_due = 0;
 }
@@ -907,7 +906,6 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 		snapshot_control(b, &b->period[b->period_index ^ 1u]);
 		publish(b);
 		proto_flip(&b->proto);
-		b->handover.publish = 0;
 	} else if (slow_tick && !b->slow_due) {
 		snapshot_control(b, p);
 		take_snapshot(b, in);

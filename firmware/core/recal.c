@@ -17,7 +17,7 @@ static int line_usable(const struct recal_line *l)
 	return (l->x0_um == l->x1_um) != (l->y0_um == l->y1_um) && l->width_um > 0;
 }
 
-int recal_init(struct recal *r, const struct recal_config *cfg, int32_t dist_um)
+int recal_init(struct recal *r, const struct recal_config *cfg)
 {
 	int32_t c;
 
@@ -33,7 +33,6 @@ int recal_init(struct recal *r, const struct recal_config *cfg, int32_t dist_um)
 	r->cfg = *cfg;
 	fx_sincos(cfg->max_angle_turn32, &r->sin_max_q30, &c);
 	r->armed = 0;
-	recal_sense_init(&r->sense, &r->edges, dist_um);
 	r->last_valid = 0;
 	r->crossings = 0;
 	r->ignored = 0;
@@ -279,13 +278,4 @@ void recal_take(struct recal *r, struct recal_edges *e, int enabled,
 	}
 	e->rose = 0;
 	e->fell = 0;
-}
-
-void recal_update(struct recal *r, uint8_t lines, int enabled, const struct odometry_pose *pose,
-		  int32_t dist_um, const struct uncertainty *u, struct recal_fix *fix)
-{
-	uint8_t mask = (uint8_t)((1u << r->cfg.n_sensors) - 1u);
-
-	recal_sense(&r->sense, &r->edges, lines & mask, dist_um);
-	recal_take(r, &r->edges, enabled, pose, dist_um, u, fix);
 }

@@ -84,8 +84,6 @@ struct recal {
 	int32_t sin_max_q30; /* sin(max_angle) [2^-30] */
 	uint8_t armed;       /* bit n: its entry was seen while enabled (a crossing in progress) */
 	int32_t entry_um[RECAL_MAX_SENSORS]; /* distance axis at the entry [um] */
-	struct recal_sense sense;            /* recal_update()'s, one tick per call */
-	struct recal_edges edges;
 	/* The last crossing applied, to pair it with another sensor's crossing of the same line. */
 	uint8_t last_valid;
 	uint8_t last_sensor;
@@ -95,9 +93,8 @@ struct recal {
 	uint16_t ignored;    /* crossings seen but refused by the rules, wrapping */
 };
 
-/* Returns 0, or -1 when the configuration is out of range. dist_um: the distance axis now.
- * interrupt-safe: no. */
-int recal_init(struct recal *r, const struct recal_config *cfg, int32_t dist_um);
+/* Returns 0, or -1 when the configuration is out of range. interrupt-safe: no. */
+int recal_init(struct recal *r, const struct recal_config *cfg);
 
 /* Start timing edges: no sensor on a line, the distance axis at dist_um. */
 void recal_sense_init(struct recal_sense *s, struct recal_edges *e, int32_t dist_um);
@@ -107,18 +104,13 @@ void recal_sense_init(struct recal_sense *s, struct recal_edges *e, int32_t dist
  * interrupt-safe: no (tick only). */
 void recal_sense(struct recal_sense *s, struct recal_edges *e, uint8_t lines, int32_t dist_um);
 
-/* The edges of e (then cleared) judged as recal_update() does, at the period's end: enabled,
- * the estimate and the distance axis now. interrupt-safe: no. */
+/* The edges of e (then cleared), at the period's end: enabled (the running order allows line
+ * recalibration and drives straight), the estimate and the distance axis now, and the
+ * uncertainty, whose error radius and heading bound are read only when a sensor left a line.
+ * Fills fix (fix->what == 0 when nothing is to be applied); the caller applies fix->pose and
+ * resets the uncertainty. interrupt-safe: no. */
 void recal_take(struct recal *r, struct recal_edges *e, int enabled,
 		const struct odometry_pose *pose, int32_t dist_um, const struct uncertainty *u,
 		struct recal_fix *fix);
-
-/* One tick: lines (bit n = sensor n on a line), enabled (the running order allows line
- * recalibration and drives straight), the estimate, the distance axis, and the uncertainty, whose
- * error radius and heading bound are read only when a sensor leaves a line. Fills fix
- * (fix->what == 0 when nothing is to be applied); the caller applies fix->pose and resets the
- * uncertainty. interrupt-safe: no (tick only). */
-void recal_update(struct recal *r, uint8_t lines, int enabled, const struct odometry_pose *pose,
-		  int32_t dist_um, const struct uncertainty *u, struct recal_fix *fix);
 
 #endif

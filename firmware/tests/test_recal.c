@@ -74,6 +74,20 @@ static void uncertainty_known(struct uncertainty *u, uint8_t radius_mm, uint32_t
 	assert_int_equal(uncertainty_get_radius_mm(u), radius_mm);
 }
 
+/* The line sensors' edge timing of the board's servo (recal_sense()), for one recalibration at a
+ * time. */
+static struct recal_sense sense;
+static struct recal_edges edges;
+
+/* One tick at the board's every-tick rate (slow_shift 0): the sensors' edges, then judged. */
+static void recal_tick(struct recal *r, uint8_t lines, int enabled,
+		       const struct odometry_pose *pose, int32_t dist_um,
+		       const struct uncertainty *u, struct recal_fix *fix)
+{
+	recal_sense(&sense, &edges, lines & (uint8_t)((1u << r->cfg.n_sensors) - 1u), dist_um);
+	recal_take(r, &edges, enabled, pose, dist_um, u, fix);
+}
+
 static struct run drive(const struct recal_config *c, double x0, double y0, double heading_deg,
 			double step_um, int n, double ex, double ey, double eh_deg,
 			uint8_t radius_mm, uint32_t heading_bound, int enabled)
@@ -87,7 +101,8 @@ static struct run drive(const struct recal_config *c, double x0, double y0, doub
 
 	p.heading_turn32 =
 		(uint32_t)(int64_t)llround((heading_deg + eh_deg) / 360.0 * 4294967296.0);
-	assert_int_equal(recal_init(&r, c, 0), 0);
+	assert_int_equal(recal_init(&r, c), 0);
+	recal_sense_init(&sense, &edges, 0);
 	uncertainty_known(&u, radius_mm, heading_bound);
 	for (int i = 1; i <= n; i++) {
 		double s = i * step_um;
@@ -106,7 +121,7 @@ static struct run drive(const struct recal_config *c, double x0, double y0, doub
 		est_y += step_um * sin(he);
 		p.x_um = (int32_t)lround(est_x);
 		p.y_um = (int32_t)lround(est_y);
-		recal_update(&r, lines, enabled, &p, (int32_t)lround(s), &u, &fix);
+		recal_tick(&r, lines, enabled, &p, (int32_t)lround(s), &u, &fix);
 		if (fix.what) {
 			out.fixes++;
 			out.what |= fix.what;
@@ -194,7 +209,8 @@ static void test_wrong_width_ignored(void **state)
 
 	(void)state;
 	base_config(&c);
-	assert_int_equal(recal_init(&rr, &c, 0), 0);
+	assert_int_equal(recal_init(&rr, &c), 0);
+	recal_sense_init(&sense, &edges, 0);
 	uncertainty_known(&u, 10, 0);
 	{
 		struct odometry_pose p = {0, 0, 0};
@@ -204,8 +220,8 @@ static void test_wrong_width_ignored(void **state)
 		/* 60 mm on the line, then off: the board knows a 20 mm line there. */
 		for (int i = 0; i <= 100; i++) {
 			p.x_um = -30000 + i * 1000;
-			recal_update(&rr, (i >= 1 && i <= 60) ? 3 : 0, 1, &p, p.x_um + 30000, &u,
-				     &fix);
+			recal_tick(&rr, (i >= 1 && i <= 60) ? 3 : 0, 1, &p, p.x_um + 30000, &u,
+				   &fix);
 			fixes += fix.what != 0;
 		}
 		assert_int_equal(fixes, 0);
@@ -275,13 +291,13 @@ static void test_config_checked(void **state)
 	(void)state;
 	base_config(&c);
 	c.n_sensors = RECAL_MAX_SENSORS + 1;
-	assert_int_equal(recal_init(&r, &c, 0), -1);
+	assert_int_equal(recal_init(&r, &c), -1);
 	base_config(&c);
 	c.max_angle_turn32 = (uint32_t)1 << 30;
-	assert_int_equal(recal_init(&r, &c, 0), -1);
+	assert_int_equal(recal_init(&r, &c), -1);
 	base_config(&c);
 	c.pair_window_um = 0;
-	assert_int_equal(recal_init(&r, &c, 0), -1);
+	assert_int_equal(recal_init(&r, &c), -1);
 }
 
 int main(void)
