@@ -181,7 +181,7 @@ static void publish(struct board *b);
 /* The measure at the end of period p, whose sums and switches are in p. */
 static void measure(const struct board *b, const struct board_snapshot *p, struct orders_measure *m)
 {
-	m->pose = odometry_get_pose(&b->odometry);
+	/* m->pose: the slow steps' (slow_steps(), step 0). */
 	m->dist_um = odometry_get_distance_um(&b->odometry);
 	m->angle_um = b->angle_um;
 	/* A period's steps are below 32.8 mm up to 3 m/s: 16 x 16-bit products. */
@@ -200,6 +200,7 @@ static void period_clear(struct board_snapshot *p)
 	p->ds_um = 0;
 	p->arc_um = 0;
 	p->dtheta_turn32 = 0;
+	p->heading_moved_turn32 = 0;
 	p->in.shocks = 0;
 	p->in.basket = 0;
 	p->encoder_fault = 0;
@@ -287,6 +288,8 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	p->in.shocks = in->shocks;
 	p->in.basket = in->basket;
 	measure(b, p, &b->m);
+	b->m.pose = odometry_get_pose(&b->odometry);
+	p->heading_turn32 = b->m.pose.heading_turn32;
 	p->tick = 0;
 	p->dist_err_um = 0;
 	p->angle_err_um = 0;
@@ -479,15 +482,15 @@ static void react(struct board *b, uint8_t event, const struct orders_measure *m
 	b->timed_out = 0; /* a stop for the timeout ends on the fault instead */
 }
 
-/* A new estimate, for the servo to take from where the snapshot was: the estimate moves by
- * p - (the snapshot's pose). */
+/* A new estimate: the position at once (the slow steps' own); the heading for the servo to
+ * take, moved by as much as it differs from the snapshot's. */
 static void set_pose(struct board *b, const struct odometry_pose *p, struct orders_measure *m)
 {
 	struct board_handover *h = &b->handover;
 
-	h->pose_from = b->period[b->period_index ^ 1u].m.pose;
-	h->pose_to = *p;
-	h->set_pose = 1;
+	odometry_set_position(&b->odometry, p->x_um, p->y_um);
+	h->heading_move_turn32 = p->heading_turn32 - b->period[b->period_index ^ 1u].heading_turn32;
+	h->set_heading = 1;
 	m->pose = *p;
 }
 
@@ -652,6 +655,28 @@ static void slow_steps(struct board *b)
 	struct proto_msg msg;
 	uint8_t reason, event;
 
+	/* 0. The position, along the period's travel as one arc; the measure's pose. */
+	{
+		struct odometry_arc arc;
+
+		odometry_arc_of(&arc, p->left_q16, p->right_q16, p->dtheta_turn32,
+				p->heading_turn32 - p->heading_moved_turn32);
+		odometry_advance(&b->odometry, &arc);
+#ifndef __AVR__
+		{
+			extern int printf(const char *, ...);
+			if (b->tick > 500 && b->tick < 540)
+				printf("DBG tick %u both %lu neg %u dth %ld hd %lu x %lu+%u\n",
+				       b->tick, (unsigned long)arc.twice_ds_q16, arc.neg,
+				       (long)arc.dtheta_turn32, (unsigned long)arc.heading_turn32,
+				       (unsigned long)b->odometry.x_um, b->odometry.x_frac);
+		}
+#endif
+		p->m.pose.x_um = odometry_round_um(b->odometry.x_um, b->odometry.x_frac, 0x8000u);
+		p->m.pose.y_um = odometry_round_um(b->odometry.y_um, b->odometry.y_frac, 0x8000u);
+		p->m.pose.heading_turn32 = p->heading_turn32;
+	}
+
 	/* 1. Error radius, from the period's travel. */
 	uncertainty_update(&b->uncertainty, p->left_q16, p->right_q16, p->heading_turn32);
 	uncertainty_advance(&b->uncertainty, b->slow_mask); /* its stages as fast in time */
@@ -760,24 +785,21 @@ static void sp_step(struct orders_axis *step, const struct orders_axis *from,
 	step->acc_um_s2 = 0;
 }
 
-/* The slow steps' results, taken by the servo. */
-static void take_handover(struct board *b)
+/* The slow steps' results, taken by the servo; returns the heading's move. */
+static uint32_t take_handover(struct board *b)
 {
 	struct board_handover *h = &b->handover;
+	uint32_t moved = 0;
 
 	if (h->set_odometry) {
 		odometry_install_config(&b->odometry, &h->odometry_cfg, h->odometry_wheels);
 		h->set_odometry = 0;
 	}
-	if (h->set_pose) {
-		/* The estimate has moved on since the snapshot: the correction is a move. */
-		struct odometry_pose now = odometry_get_pose(&b->odometry);
-
-		now.x_um += h->pose_to.x_um - h->pose_from.x_um;
-		now.y_um += h->pose_to.y_um - h->pose_from.y_um;
-		now.heading_turn32 += h->pose_to.heading_turn32 - h->pose_from.heading_turn32;
-		odometry_set_pose(&b->odometry, &now);
-		h->set_pose = 0;
+	if (h->set_heading) {
+		/* The heading has moved on since the snapshot: the correction is a move. */
+		moved = h->heading_move_turn32;
+		odometry_set_heading(&b->odometry, b->odometry.heading_turn32 + moved);
+		h->set_heading = 0;
 	}
 	if (h->set_gains) {
 		control_set_gains(&b->control, &h->gains);
@@ -804,6 +826,7 @@ static void take_handover(struct board *b)
 		b->phase = (uint8_t)(1u << b->cfg.slow_shift);
 		h->jump = 0;
 	}
+	return moved;
 }
 
 /* The period's end: what the slow steps work on, and a new period. */
@@ -843,7 +866,7 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	uint8_t slow_tick = (b->tick & b->slow_mask) == 0, shift = b->cfg.slow_shift;
 
 	/* 1. Encoders -> odometry (a wheel that jumps more than a tick can travel is a fault). */
-	if (odometry_update(&b->odometry, in->free_count[0], in->free_count[1]) != 0)
+	if (odometry_count(&b->odometry, in->free_count[0], in->free_count[1]) != 0)
 		p->encoder_fault = 1;
 	step = &b->odometry.step;
 	/* The angle axis only moves with the heading. */
@@ -873,8 +896,8 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	} else if (slow_tick) {
 		if (b->slow_due)
 			b->slow_overruns++;
-		else
-			take_handover(b);
+		else /* after this period's travel: the slow steps' arc ends before the move */
+			p->heading_moved_turn32 += take_handover(b);
 	}
 
 	/* 4. The set points of this tick, a step towards the handed-over ones. */

@@ -64,6 +64,9 @@ struct board_snapshot {
 	int32_t arc_um;        /* angle axis change over the period */
 	int32_t dtheta_turn32; /* heading change over the period */
 	uint32_t heading_turn32;
+	/* The heading moves handed over at the period's last tick, after its travel: the travel
+	 * ended at heading_turn32 - heading_moved_turn32. */
+	uint32_t heading_moved_turn32;
 	int32_t sp_dist_um; /* the servo's set points at that tick */
 	int32_t sp_angle_um;
 	int32_t dist_err_um; /* the control's, for DEBUG */
@@ -81,12 +84,12 @@ struct board_snapshot {
 struct board_handover {
 	struct orders_axis sp_dist; /* the set points at the end of the next period */
 	struct orders_axis sp_angle;
-	struct odometry_pose pose_from; /* set_pose: the estimate moves by pose_to - pose_from */
-	struct odometry_pose pose_to;
+	/* set_heading: the heading moves by this (the position is the slow steps' own). */
+	uint32_t heading_move_turn32;
 	struct odometry_config odometry_cfg; /* set_odometry, with its tables */
 	struct odometry_wheel odometry_wheels[2];
 	struct control_gains gains; /* set_gains */
-	uint8_t set_pose;
+	uint8_t set_heading;
 	uint8_t set_odometry;
 	uint8_t set_gains;
 	uint8_t reset;      /* forget the PIDs' integrals */

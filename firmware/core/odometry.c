@@ -172,20 +172,22 @@ static inline uint32_t mul_shr31(uint32_t a, uint32_t b)
 }
 
 /* round(|both| (1 - sin(x)/x)) [um * 2^17], x = dtheta/2, for t = |dtheta| < 2^24 [turn * 2^32]
- * (0.0245 rad per tick): 1 - sin(x)/x = x^2/6 - x^4/120..., x = t pi / 2^32, and
- * f = 2^32 x^2/6 = t^2 pi^2 / (6 2^32) is below 1.1e5, where x^4/120 is below 0.82 unit of f
+ * (0.0245 rad per arc, a tick's or a period's): 1 - sin(x)/x = x^2/6 - x^4/120..., x = t pi / 2^32,
+ * and f = 2^32 x^2/6 = t^2 pi^2 / (6 2^32) is below 1.1e5, where x^4/120 is below 0.82 unit of f
  * (left out: at most 0.82 unit of the result). Below t = 2^15, f is below 0.41: no correction.
- * Out of line: only the ticks that turn come here, and in line its registers cost the others
+ * f reaches 2^16 from t = 1.31e7: its sum is taken in 32 bits (an AVR's int has 16).
+ * Out of line: only the arcs that turn come here, and in line its registers cost the others
  * more than the call. */
 static FX_NOINLINE uint32_t arc_correction(uint32_t both, uint32_t t)
 {
 	uint16_t th = fx_hi16(t), tl = fx_lo16(t);
 	/* q = floor(t^2 / 2^16), below 2^32 for t < 2^24 (th < 2^8). */
-	uint32_t q = ((uint32_t)(uint16_t)((uint16_t)(uint8_t)th * (uint8_t)th) << 16) +
+	uint32_t q = ((uint32_t)((uint16_t)(uint8_t)th * (uint16_t)(uint8_t)th) << 16) +
 		     (fx_mul_u16(th, tl) << 1) + fx_hi16(fx_mul_u16(tl, tl));
 	/* f = q pi^2/6 / 2^16 = q / 2^16 + q 42265.2 / 2^32. */
-	uint32_t f = fx_hi16(q) + fx_hi16(fx_mul_u16(fx_hi16(q), 42265u) +
-					  fx_hi16(fx_mul_u16(fx_lo16(q), 42265u)) + 0x8000u);
+	uint32_t f =
+		(uint32_t)fx_hi16(q) + fx_hi16(fx_mul_u16(fx_hi16(q), 42265u) +
+					       fx_hi16(fx_mul_u16(fx_lo16(q), 42265u)) + 0x8000u);
 	uint16_t bh = fx_hi16(both), fl = fx_lo16(f);
 	uint32_t c;
 
@@ -197,8 +199,8 @@ static FX_NOINLINE uint32_t arc_correction(uint32_t both, uint32_t t)
 }
 
 /* The same for any t, in 64 bits (sin(x)/x to the x^4 term: its error stays below 2e-10 while
- * |dtheta| <= 0.2 rad per tick). Runs only above 0.0245 rad per tick, which a robot turns at
- * 1 kHz only above 24 rad/s. */
+ * |dtheta| <= 0.2 rad per arc). Runs only above 0.0245 rad per arc: above 24 rad/s with an arc
+ * a tick at 1 kHz, above 3 rad/s with an arc a period at 125 Hz (board.c). */
 static FX_NOINLINE uint32_t arc_correction_wide(uint32_t both, uint32_t t)
 {
 	int64_t x = fx_shr_round64((int64_t)t * QUARTER_PI_Q32, 32);
@@ -268,7 +270,7 @@ int odometry_set_config(struct odometry *o, const struct odometry_config *cfg)
 	return 0;
 }
 
-int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count)
+int odometry_count(struct odometry *o, uint16_t left_count, uint16_t right_count)
 {
 	int err = 0;
 	uint32_t both;
@@ -337,66 +339,117 @@ int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_coun
 		o->step.ds_um = neg ? -ds : ds;
 	}
 
-	/* Exact arc: the chord, ds * sin(dtheta/2) / (dtheta/2), along the mean heading. With no
-	 * travel of the midpoint (standing still, or turning on the spot) the position does not
-	 * move: the sine and cosine are skipped. */
+	/* The distance: both [um * 2^17] into whole um and 17 bits of fraction. */
 	if (both != 0) {
-		uint32_t t = fx_mag32(dtheta);
-		uint32_t chord = both; /* [um * 2^17] */
-		/* The heading before the step plus dtheta / 2 rounded half away from zero: the
-		 * heading after it less the rest, |dtheta| / 2 rounded down. */
-		uint32_t mid =
-			dtheta >= 0 ? o->heading_turn32 - (t >> 1) : o->heading_turn32 + (t >> 1);
+		uint32_t fr = both & 0x1ffffu;
+		uint32_t wh = fx_shr_u32(both, 17);
 
-		if (t >= ((uint32_t)1 << 24))
-			chord -= arc_correction_wide(both, t);
-		else if (t >= ((uint32_t)1 << 15))
-			chord -= arc_correction(both, t);
-		/* While the robot goes straight the mean heading repeats from tick to tick: the
-		 * last sine and cosine are kept with their angle (same input, same output). */
-		if (mid != o->trig_turn32) {
-			fx_sincos(mid, &o->trig_sin_q30, &o->trig_cos_q30);
-			o->trig_turn32 = mid;
-		}
-		/* chord [um * 2^17] * cos [2^-30] / 2^31 = [um * 2^16], below 2^31. */
-		add_q16(&o->x_um, &o->x_frac, mul_shr31(chord, fx_mag32(o->trig_cos_q30)),
-			neg != (o->trig_cos_q30 < 0));
-		add_q16(&o->y_um, &o->y_frac, mul_shr31(chord, fx_mag32(o->trig_sin_q30)),
-			neg != (o->trig_sin_q30 < 0));
-		/* The distance: both [um * 2^17] into whole um and 17 bits of fraction. */
-		{
-			uint32_t fr = both & 0x1ffffu;
-			uint32_t wh = fx_shr_u32(both, 17);
-
-			if (!neg) {
-				fr += o->distance_frac;
-				if (fr >= 0x20000u) {
-					fr -= 0x20000u;
-					wh++;
-				}
-				o->distance_um += wh;
-			} else {
-				if (fr > o->distance_frac) {
-					fr = o->distance_frac + 0x20000u - fr;
-					wh++;
-				} else {
-					fr = o->distance_frac - fr;
-				}
-				o->distance_um -= wh;
+		if (!neg) {
+			fr += o->distance_frac;
+			if (fr >= 0x20000u) {
+				fr -= 0x20000u;
+				wh++;
 			}
-			o->distance_frac = fr;
+			o->distance_um += wh;
+		} else {
+			if (fr > o->distance_frac) {
+				fr = o->distance_frac + 0x20000u - fr;
+				wh++;
+			} else {
+				fr = o->distance_frac - fr;
+			}
+			o->distance_um -= wh;
 		}
+		o->distance_frac = fr;
 	}
 	return err;
 }
 
-void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose)
+void odometry_arc_of(struct odometry_arc *a, int32_t left_q16, int32_t right_q16,
+		     int32_t dtheta_turn32, uint32_t heading_turn32)
 {
-	o->x_um = (uint32_t)pose->x_um;
-	o->y_um = (uint32_t)pose->y_um;
+	uint32_t al = fx_mag32(left_q16), ar = fx_mag32(right_q16);
+	uint8_t lneg = left_q16 < 0, rneg = right_q16 < 0;
+
+	/* As in odometry_count(): twice the midpoint travel as sign and magnitude. Two
+	 * magnitudes of 2^31 (saturated sums) would wrap: kept at the largest instead. */
+	if (lneg == rneg) {
+		a->twice_ds_q16 = al + ar < al ? UINT32_MAX : al + ar;
+		a->neg = lneg;
+	} else if (al >= ar) {
+		a->twice_ds_q16 = al - ar;
+		a->neg = lneg;
+	} else {
+		a->twice_ds_q16 = ar - al;
+		a->neg = rneg;
+	}
+	a->dtheta_turn32 = dtheta_turn32;
+	a->heading_turn32 = heading_turn32;
+}
+
+/* Out of line: once a period, and inlined into a one-rate AVR tick it left avr-gcc too few
+ * registers for the control's assembly. */
+FX_NOINLINE void odometry_advance(struct odometry *o, const struct odometry_arc *a)
+{
+	uint32_t both = a->twice_ds_q16, t, chord, mid;
+	int32_t dtheta = a->dtheta_turn32;
+	uint8_t neg = a->neg;
+
+	/* Exact arc: the chord, ds * sin(dtheta/2) / (dtheta/2), along the mean heading. With no
+	 * travel of the midpoint (standing still, or turning on the spot) the position does not
+	 * move: the sine and cosine are skipped. */
+	if (both == 0)
+		return;
+	t = fx_mag32(dtheta);
+	chord = both; /* [um * 2^17] */
+	/* The heading before the arc plus dtheta / 2 rounded half away from zero: the heading
+	 * after it less the rest, |dtheta| / 2 rounded down. */
+	mid = dtheta >= 0 ? a->heading_turn32 - (t >> 1) : a->heading_turn32 + (t >> 1);
+	if (t >= ((uint32_t)1 << 24))
+		chord -= arc_correction_wide(both, t);
+	else if (t >= ((uint32_t)1 << 15))
+		chord -= arc_correction(both, t);
+	/* While the robot goes straight the mean heading repeats from arc to arc: the last sine
+	 * and cosine are kept with their angle (same input, same output). */
+	if (mid != o->trig_turn32) {
+		fx_sincos(mid, &o->trig_sin_q30, &o->trig_cos_q30);
+		o->trig_turn32 = mid;
+	}
+	/* chord [um * 2^17] * cos [2^-30] / 2^31 = [um * 2^16], below 2^31. */
+	add_q16(&o->x_um, &o->x_frac, mul_shr31(chord, fx_mag32(o->trig_cos_q30)),
+		neg != (o->trig_cos_q30 < 0));
+	add_q16(&o->y_um, &o->y_frac, mul_shr31(chord, fx_mag32(o->trig_sin_q30)),
+		neg != (o->trig_sin_q30 < 0));
+}
+
+int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count)
+{
+	struct odometry_arc a;
+	int err = odometry_count(o, left_count, right_count);
+
+	odometry_arc_of(&a, o->step.left_q16, o->step.right_q16, o->step.dtheta_turn32,
+			o->heading_turn32);
+	odometry_advance(o, &a);
+	return err;
+}
+
+void odometry_set_position(struct odometry *o, int32_t x_um, int32_t y_um)
+{
+	o->x_um = (uint32_t)x_um;
+	o->y_um = (uint32_t)y_um;
 	o->x_frac = 0;
 	o->y_frac = 0;
+}
+
+void odometry_set_heading(struct odometry *o, uint32_t heading_turn32)
+{
 	o->heading_q64[0] = 0;
-	o->heading_q64[1] = pose->heading_turn32;
-	o->heading_turn32 = pose->heading_turn32;
+	o->heading_q64[1] = heading_turn32;
+	o->heading_turn32 = heading_turn32;
+}
+
+void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose)
+{
+	odometry_set_position(o, pose->x_um, pose->y_um);
+	odometry_set_heading(o, pose->heading_turn32);
 }

@@ -31,12 +31,21 @@ struct odometry_pose {
 	uint32_t heading_turn32; /* [turn * 2^32] */
 };
 
-/* What the last odometry_update measured. */
+/* What the last odometry_count (or odometry_update) measured. */
 struct odometry_step {
 	int32_t left_q16;      /* travel of the left wheel [um * 2^16], exact */
 	int32_t right_q16;     /* travel of the right wheel [um * 2^16], exact */
 	int32_t ds_um;         /* travel of the midpoint, (left + right) / 2, rounded [um] */
 	int32_t dtheta_turn32; /* heading change [turn * 2^32], counter-clockwise positive */
+};
+
+/* A stretch of travel for odometry_advance(): the midpoint's, twice, as sign and magnitude, the
+ * heading change along it and the heading at its end. */
+struct odometry_arc {
+	uint32_t twice_ds_q16; /* |left + right| [um * 2^16] */
+	uint8_t neg;           /* the midpoint went backwards */
+	int32_t dtheta_turn32; /* [turn * 2^32], counter-clockwise positive */
+	uint32_t heading_turn32;
 };
 
 /* Counts per tick up to this many (exclusive) are looked up rather than multiplied: 32 covers
@@ -111,15 +120,34 @@ void odometry_install_config(struct odometry *o, const struct odometry_config *c
 			     const struct odometry_wheel wheels[2]);
 
 /* One tick: read both counters (free-running, wrapping at 65536; at most 32767 counts of travel
- * per tick in either direction) and integrate the pose. Returns 0, or -ERANGE if a wheel moved
- * more than ODOMETRY_STEP_Q16_MAX in the tick: its travel is then clamped to that value and the
- * caller should treat it as an encoder fault.
+ * per tick in either direction) and integrate the pose: odometry_count() then odometry_advance()
+ * along the tick's arc. Returns 0, or -ERANGE if a wheel moved more than ODOMETRY_STEP_Q16_MAX in
+ * the tick: its travel is then clamped to that value and the caller should treat it as an
+ * encoder fault.
  * interrupt-safe: no (call from the tick only). */
 int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count);
+
+/* odometry_update() in two halves, for a caller that runs the position at a lower rate
+ * (board.h): first, every tick, the counters -> the heading, the step and the distance, not the
+ * position (same return value) ... */
+int odometry_count(struct odometry *o, uint16_t left_count, uint16_t right_count);
+
+/* ... then, once per tick or once per period, the position moved along one arc: a tick's, or a
+ * period's made of its summed wheel travels and heading changes and the heading at its end (one
+ * arc of constant curvature from the period's start to its end). Called every tick after
+ * odometry_count(), the pair is odometry_update() bit for bit.
+ * Interrupt-safe: both yes against each other (they share no field); each no against itself. */
+void odometry_arc_of(struct odometry_arc *a, int32_t left_q16, int32_t right_q16,
+		     int32_t dtheta_turn32, uint32_t heading_turn32);
+void odometry_advance(struct odometry *o, const struct odometry_arc *a);
 
 /* Replace the pose (start position, recalibration, SET_NEW_POS); the counters are untouched.
  * interrupt-safe: no (call between two ticks). */
 void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose);
+
+/* The same in two halves, each owned by one of odometry_count() and odometry_advance(). */
+void odometry_set_position(struct odometry *o, int32_t x_um, int32_t y_um);
+void odometry_set_heading(struct odometry *o, uint32_t heading_turn32);
 
 /* A length kept as whole um (an int32_t in a uint32_t) and a fraction, half = half a um in the
  * fraction's unit, rounded to nearest with ties away from zero (saturated). For the accessors

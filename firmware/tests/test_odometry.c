@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
+#include <string.h>
 
 #include <cmocka.h>
 
@@ -322,6 +323,85 @@ static void test_driven_quarter_circle(void **state)
 	assert_true(absl(turn32_error(p.heading_turn32, PI_L / 2)) <= 23400.0L);
 }
 
+/* The position moved once per period of 2^shift ticks (odometry_count() every tick, then
+ * odometry_advance() along the period's summed travels, as board.c does with two rates): a
+ * quarter circle of 500 mm radius then a straight with speed ramps, and a rotation in place.
+ * Every tick (shift 0), the pair is odometry_update() bit for bit; every 8 ticks the curvature
+ * changes within a period only at the ramps' ends and at the turn's start and end, and the
+ * position stays within 1 um of the per-tick one. */
+static void drive_in_periods(uint8_t shift, struct odometry *o, struct odometry *per_tick)
+{
+	struct robot r;
+	const long double radius = 500000;
+	int n = trapezoid_ticks(radius * PI_L / 2, steps, 20000), total = 0;
+	int32_t sum_l = 0, sum_r = 0, sum_th = 0;
+
+	memset(o, 0, sizeof(*o)); /* padding too: the two are compared as bytes */
+	memset(per_tick, 0, sizeof(*per_tick));
+	odometry_init(o, &cfg_default, 40000, 7);
+	odometry_init(per_tick, &cfg_default, 40000, 7);
+	robot_init(&r, &cfg_default, 40000, 7);
+	for (int leg = 0; leg < 3; leg++) {
+		if (leg == 1)
+			n = trapezoid_ticks(300000, steps, 20000);
+		if (leg == 2)
+			n = trapezoid_ticks(PI_L / 3 * TRACK_UM / 2, steps, 20000);
+		for (int i = 0; i < n; i++, total++) {
+			long double dphi = steps[i] / radius;
+			long double dl = leg == 0   ? dphi * (radius - TRACK_UM / 2.0L)
+					 : leg == 1 ? steps[i]
+						    : -steps[i];
+			long double dr = leg == 0 ? dphi * (radius + TRACK_UM / 2.0L) : steps[i];
+			uint16_t lc, rc;
+
+			r.left_um += dl;
+			r.right_um += dr;
+			lc = (uint16_t)((r.left0 + robot_left_counts(&r)) & 0xffff);
+			rc = (uint16_t)((r.right0 + robot_right_counts(&r)) & 0xffff);
+			assert_int_equal(odometry_update(per_tick, lc, rc), 0);
+			assert_int_equal(odometry_count(o, lc, rc), 0);
+			sum_l += o->step.left_q16;
+			sum_r += o->step.right_q16;
+			sum_th += o->step.dtheta_turn32;
+			if (((total + 1) & ((1 << shift) - 1)) == 0) {
+				struct odometry_arc a;
+
+				odometry_arc_of(&a, sum_l, sum_r, sum_th, o->heading_turn32);
+				odometry_advance(o, &a);
+				sum_l = sum_r = sum_th = 0;
+			}
+		}
+	}
+	/* The last period, however short. */
+	if (sum_l || sum_r) {
+		struct odometry_arc a;
+
+		odometry_arc_of(&a, sum_l, sum_r, sum_th, o->heading_turn32);
+		odometry_advance(o, &a);
+	}
+}
+
+static void test_position_in_periods(void **state)
+{
+	struct odometry o, t;
+	struct odometry_pose p, q;
+
+	(void)state;
+	drive_in_periods(0, &o, &t);
+	assert_memory_equal(&o, &t, sizeof(o));
+	drive_in_periods(3, &o, &t);
+	p = odometry_get_pose(&o);
+	q = odometry_get_pose(&t);
+	print_message("position in periods of 8 ticks: (%d, %d) um, per tick (%d, %d) um\n", p.x_um,
+		      p.y_um, q.x_um, q.y_um);
+	assert_int_equal(p.heading_turn32, q.heading_turn32);
+	assert_true(p.x_um - q.x_um <= 1 && q.x_um - p.x_um <= 1);
+	assert_true(p.y_um - q.y_um <= 1 && q.y_um - p.y_um <= 1);
+	/* It did move along the path: 500 mm up, then 300 mm along y. */
+	assert_true(p.x_um > 490000 && p.x_um < 510000);
+	assert_true(p.y_um > 790000 && p.y_um < 810000);
+}
+
 /* A 1 m square: straight, quarter turn in place, four times. The corners follow from the
  * counts: the heading of each side is (Nr - Nl) k / b, each side is N k long. Sides and turns
  * are whole counts of each wheel (the nearest to 1 m and a quarter turn), so that the counters
@@ -586,6 +666,7 @@ int main(void)
 		cmocka_unit_test(test_rotation_in_place),
 		cmocka_unit_test(test_arcs_of_known_radius),
 		cmocka_unit_test(test_driven_quarter_circle),
+		cmocka_unit_test(test_position_in_periods),
 		cmocka_unit_test(test_square),
 		cmocka_unit_test(test_counter_wraparound),
 		cmocka_unit_test(test_heading_does_not_drift),

@@ -39,6 +39,7 @@ static const char *const op_name[CTA_OPS] = {
 	[CTA_CTL_RESET] = "control_reset",
 	[CTA_CTL_OFF] = "control_off",
 	[CTA_CTL_UPDATE] = "control_update",
+	[CTA_ODO_ADVANCE] = "odometry_advance",
 };
 
 struct target {
@@ -393,6 +394,43 @@ static void control_round(struct target *t)
 	}
 }
 
+/* odometry_advance along arcs of a tick and of a period (board.c integrates the position once
+ * per period with two rates): small and large wheel travels, either way, with heading changes
+ * around each of the arc correction's paths (none below 2^15 turn * 2^-32, 32 bits below 2^24,
+ * 64 bits above), from the position and kept sine and cosine of the last arc. The first arc is
+ * one that a 16-bit int product in the 32-bit path once got wrong on the AVR. */
+static void test_odometry_arcs(void **state)
+{
+	struct target *t = *state;
+	const int32_t t_bits[] = {14, 15, 20, 23, 24, 25, 28, 31};
+	int32_t x = -1, y = 0, xf = 46594, yf = 0, trig[3] = {0, 0, 1 << 30};
+
+	CHECK(t, CTA_ODO_ADVANCE, 2573592, 2573593, 13996990, 441192811, x, y, xf, yf, trig[0],
+	      trig[1], trig[2]);
+	for (uint32_t n = 0; n < 20u * RANDOM_ROUNDS; n++) {
+		int32_t l = val(below(4) ? 24 : 31), r = below(4) ? l + val(16) : val(31);
+		int32_t dtheta = val((unsigned)t_bits[below(8)]);
+		uint32_t heading = below(4) ? rnd() : (uint32_t)trig[0] + (uint32_t)(dtheta / 2);
+		int32_t res[CTA_N_RES], args[11];
+
+		if (below(8) == 0) {
+			l = below(2) ? INT32_MAX : INT32_MIN;
+			r = below(2) ? l : -l;
+		}
+		if (below(8) == 0) {
+			x = (int32_t)rnd();
+			y = (int32_t)rnd();
+		}
+		args[0] = l, args[1] = r, args[2] = dtheta, args[3] = (int32_t)heading;
+		args[4] = x, args[5] = y, args[6] = xf, args[7] = yf;
+		args[8] = trig[0], args[9] = trig[1], args[10] = trig[2];
+		check(t, CTA_ODO_ADVANCE, args, 11);
+		cta_run(&t->host, CTA_ODO_ADVANCE, args, res);
+		x = res[1], y = res[2], xf = res[3], yf = res[4];
+		trig[0] = res[5], trig[1] = res[6], trig[2] = res[7];
+	}
+}
+
 static void test_random(void **state)
 {
 	struct target *t = *state;
@@ -445,6 +483,7 @@ int main(int argc, char **argv)
 		cmocka_unit_test(test_pid_edges),
 		cmocka_unit_test(test_control_edges),
 		cmocka_unit_test(test_random),
+		cmocka_unit_test(test_odometry_arcs),
 	};
 
 	if (argc != 2) {

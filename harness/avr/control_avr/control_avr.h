@@ -10,6 +10,7 @@
 #include <stdint.h>
 
 #include "control.h"
+#include "odometry.h"
 #include "pid.h"
 
 #define CTA_N_ARGS 14
@@ -21,27 +22,32 @@
 #define CTA_SIZE (CTA_OFF_RES + 4 * CTA_N_RES)
 
 /* res[0] is the function's return value (0 for void); the rest, the state after it: the pid's
- * for CTA_PID_*, the control's for CTA_CTL_* (cta_run lists them). */
+ * for CTA_PID_*, the control's for CTA_CTL_*, the position's and the kept sine and cosine for
+ * CTA_ODO_ADVANCE (cta_run lists them). */
 enum cta_op {
-	CTA_NOP = 1,    /* nothing: the mailbox's own cycles */
-	CTA_PID_INIT,   /* pid_init(p, i, d, out_limit_q15, tick_hz) */
-	CTA_PID_SET,    /* pid_set_config(the same) */
-	CTA_PID_RESET,  /* pid_reset() */
-	CTA_PID_UPDATE, /* pid_update(err_um) */
-	CTA_CTL_INIT,   /* control_init(tick_hz, duty_max_q15, ff speed, accel, angle accel,
-			 * the presets' p i d x 3) */
-	CTA_CTL_GAINS,  /* control_set_gains(p, i, d) */
-	CTA_CTL_PRESET, /* control_set_preset(n) */
-	CTA_CTL_RESET,  /* control_reset() */
-	CTA_CTL_OFF,    /* control_off() */
-	CTA_CTL_UPDATE, /* control_update(sp_dist pos vel acc, sp_angle pos vel acc, dist_um,
-			 * angle_um) */
+	CTA_NOP = 1,     /* nothing: the mailbox's own cycles */
+	CTA_PID_INIT,    /* pid_init(p, i, d, out_limit_q15, tick_hz) */
+	CTA_PID_SET,     /* pid_set_config(the same) */
+	CTA_PID_RESET,   /* pid_reset() */
+	CTA_PID_UPDATE,  /* pid_update(err_um) */
+	CTA_CTL_INIT,    /* control_init(tick_hz, duty_max_q15, ff speed, accel, angle accel,
+			  * the presets' p i d x 3) */
+	CTA_CTL_GAINS,   /* control_set_gains(p, i, d) */
+	CTA_CTL_PRESET,  /* control_set_preset(n) */
+	CTA_CTL_RESET,   /* control_reset() */
+	CTA_CTL_OFF,     /* control_off() */
+	CTA_CTL_UPDATE,  /* control_update(sp_dist pos vel acc, sp_angle pos vel acc, dist_um,
+			  * angle_um) */
+	CTA_ODO_ADVANCE, /* odometry_arc_of(left_q16, right_q16, dtheta, heading) then
+			  * odometry_advance() from x_um, y_um, x_frac, y_frac and the kept
+			  * trig_turn32, trig_sin_q30, trig_cos_q30 */
 	CTA_OPS
 };
 
 struct cta_state {
 	struct pid pid;
 	struct control ctl;
+	struct odometry odo;
 };
 
 void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res);

@@ -106,6 +106,21 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		axis_of(arg + 3, &sa);
 		control_update(c, &sd, &sa, arg[6], arg[7]);
 		break;
+	case CTA_ODO_ADVANCE: {
+		struct odometry_arc a;
+		struct odometry *o = &s->odo;
+
+		o->x_um = (uint32_t)arg[4];
+		o->y_um = (uint32_t)arg[5];
+		o->x_frac = (uint16_t)arg[6];
+		o->y_frac = (uint16_t)arg[7];
+		o->trig_turn32 = (uint32_t)arg[8];
+		o->trig_sin_q30 = arg[9];
+		o->trig_cos_q30 = arg[10];
+		odometry_arc_of(&a, arg[0], arg[1], arg[2], (uint32_t)arg[3]);
+		odometry_advance(o, &a);
+		break;
+	}
 	default:
 		break;
 	}
@@ -131,5 +146,13 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		res[15] = c->dist.d_err_fast_um;
 		pid_state(&c->dist, res + 16);
 		pid_state(&c->angle, res + 21);
+	} else if (op == CTA_ODO_ADVANCE) {
+		res[1] = (int32_t)s->odo.x_um;
+		res[2] = (int32_t)s->odo.y_um;
+		res[3] = s->odo.x_frac;
+		res[4] = s->odo.y_frac;
+		res[5] = (int32_t)s->odo.trig_turn32;
+		res[6] = s->odo.trig_sin_q30;
+		res[7] = s->odo.trig_cos_q30;
 	}
 }
