@@ -182,8 +182,8 @@ static void publish(struct board *b);
 static void measure(const struct board *b, const struct board_snapshot *p, struct orders_measure *m)
 {
 	/* m->pose: the slow steps' (slow_steps(), step 0). */
-	m->dist_um = odometry_get_distance_um(&b->odometry);
-	m->angle_um = b->angle_um;
+	m->dist_um = p->dist_um;
+	m->angle_um = p->angle_um;
 	/* A period's steps are below 32.8 mm up to 3 m/s: 16 x 16-bit products. */
 	m->dist_speed_um_s = fx_mul_s16(fx_sat16(p->ds_um), (int16_t)b->slow_hz);
 	m->angle_speed_um_s = fx_mul_s16(fx_sat16(p->arc_um), (int16_t)b->slow_hz);
@@ -272,11 +272,10 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->slow_overruns = 0;
 	b->sp_dist = b->orders.sp_dist;
 	b->sp_angle = b->orders.sp_angle;
-	b->sp_dist_end = b->sp_dist;
-	b->sp_angle_end = b->sp_angle;
+	b->setpoints[0] = (struct board_setpoints){b->sp_dist, b->sp_angle, {0, 0, 0}, {0, 0, 0}};
+	b->setpoints[1] = b->setpoints[0];
+	b->setpoints_index = 0;
 	b->handover = (struct board_handover){0};
-	b->handover.sp_dist = b->sp_dist;
-	b->handover.sp_angle = b->sp_angle;
 	b->slow_due = 0;
 	b->period_index = 0;
 	period_clear(&b->period[0]);
@@ -287,6 +286,8 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	period_clear(p);
 	p->in.shocks = in->shocks;
 	p->in.basket = in->basket;
+	p->dist_um = odometry_get_distance_um(&b->odometry);
+	p->angle_um = b->angle_um;
 	measure(b, p, &b->m);
 	b->m.pose = odometry_get_pose(&b->odometry);
 	p->heading_turn32 = b->m.pose.heading_turn32;
@@ -298,6 +299,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	update_status(b);
 	publish(b);
 	proto_flip(&b->proto);
+	period_clear(p); /* the servo's next period */
 	return 0;
 }
 
@@ -646,6 +648,15 @@ static void publish(struct board *b)
 									 : b->orders.end_reason;
 }
 
+/* (end - from) / 2^shift, rounded down: a tick's share of a period's change. */
+static void sp_step(struct orders_axis *step, const struct orders_axis *from,
+		    const struct orders_axis *end, uint8_t shift)
+{
+	step->pos_um = (end->pos_um - from->pos_um) >> shift;
+	step->vel_um_s = (end->vel_um_s - from->vel_um_s) >> shift;
+	step->acc_um_s2 = 0;
+}
+
 /* The slow steps but the reply snapshot, on the last period (b->period[period_index ^ 1]). */
 static void slow_steps(struct board *b)
 {
@@ -662,27 +673,17 @@ static void slow_steps(struct board *b)
 		odometry_arc_of(&arc, p->left_q16, p->right_q16, p->dtheta_turn32,
 				p->heading_turn32 - p->heading_moved_turn32);
 		odometry_advance(&b->odometry, &arc);
-#ifndef __AVR__
-		{
-			extern int printf(const char *, ...);
-			if (b->tick > 500 && b->tick < 540)
-				printf("DBG tick %u both %lu neg %u dth %ld hd %lu x %lu+%u\n",
-				       b->tick, (unsigned long)arc.twice_ds_q16, arc.neg,
-				       (long)arc.dtheta_turn32, (unsigned long)arc.heading_turn32,
-				       (unsigned long)b->odometry.x_um, b->odometry.x_frac);
-		}
-#endif
-		p->m.pose.x_um = odometry_round_um(b->odometry.x_um, b->odometry.x_frac, 0x8000u);
-		p->m.pose.y_um = odometry_round_um(b->odometry.y_um, b->odometry.y_frac, 0x8000u);
-		p->m.pose.heading_turn32 = p->heading_turn32;
+		m->pose.x_um = odometry_round_um(b->odometry.x_um, b->odometry.x_frac, 0x8000u);
+		m->pose.y_um = odometry_round_um(b->odometry.y_um, b->odometry.y_frac, 0x8000u);
+		m->pose.heading_turn32 = p->heading_turn32;
+		measure(b, p, m);
 	}
 
 	/* 1. Error radius, from the period's travel. */
 	uncertainty_update(&b->uncertainty, p->left_q16, p->right_q16, p->heading_turn32);
 	uncertainty_advance(&b->uncertainty, b->slow_mask); /* its stages as fast in time */
 
-	/* 2. The measure of the period's end; the switches; line crossings. */
-	*m = p->m;
+	/* 2. The switches; line crossings. */
 	b->shocks = p->in.shocks;
 	recal_lines(b, &p->edges, m);
 
@@ -739,8 +740,17 @@ static void slow_steps(struct board *b)
 		orders_abort(&b->orders, m, b->orders.end_reason);
 		b->handover.jump = 1;
 	}
-	b->handover.sp_dist = b->orders.sp_dist;
-	b->handover.sp_angle = b->orders.sp_angle;
+	{
+		const struct board_setpoints *now = &b->setpoints[b->setpoints_index];
+		struct board_setpoints *next = &b->setpoints[b->setpoints_index ^ 1u];
+
+		next->dist = b->orders.sp_dist;
+		next->angle = b->orders.sp_angle;
+		/* From the last ones, where the servo is at the hand-over (it gets there at the
+		 * period's last tick, or at once by a jump). */
+		sp_step(&next->dist_step, &now->dist, &next->dist, b->cfg.slow_shift);
+		sp_step(&next->angle_step, &now->angle, &next->angle, b->cfg.slow_shift);
+	}
 }
 
 /* The compiler may not move memory accesses across it: the snapshot is read after slow_due said
@@ -757,7 +767,8 @@ void board_slow(struct board *b)
 	BOARD_BARRIER();
 	slow_steps(b);
 	publish(b);
-	b->handover.publish = 1; /* made public at the hand-over */
+	b->handover.publish = 1;                        /* made public at the hand-over */
+	period_clear(&b->period[b->period_index ^ 1u]); /* the servo's next period */
 	BOARD_BARRIER();
 	b->slow_due = 0;
 }
@@ -774,15 +785,6 @@ static void sp_advance(struct orders_axis *sp, const struct orders_axis *step,
 	sp->pos_um += step->pos_um;
 	sp->vel_um_s += step->vel_um_s;
 	sp->acc_um_s2 = end->acc_um_s2;
-}
-
-/* (end - from) / 2^shift, rounded down: a tick's share of a period's change. */
-static void sp_step(struct orders_axis *step, const struct orders_axis *from,
-		    const struct orders_axis *end, uint8_t shift)
-{
-	step->pos_um = (end->pos_um - from->pos_um) >> shift;
-	step->vel_um_s = (end->vel_um_s - from->vel_um_s) >> shift;
-	step->acc_um_s2 = 0;
 }
 
 /* The slow steps' results, taken by the servo; returns the heading's move. */
@@ -815,14 +817,11 @@ static uint32_t take_handover(struct board *b)
 		h->publish = 0;
 	}
 	/* The set points go from where they are to the new ones over the next period. */
-	b->sp_dist_end = h->sp_dist;
-	b->sp_angle_end = h->sp_angle;
-	sp_step(&b->sp_dist_step, &b->sp_dist, &b->sp_dist_end, b->cfg.slow_shift);
-	sp_step(&b->sp_angle_step, &b->sp_angle, &b->sp_angle_end, b->cfg.slow_shift);
+	b->setpoints_index ^= 1u;
 	b->phase = 0;
 	if (h->jump) {
-		b->sp_dist = b->sp_dist_end;
-		b->sp_angle = b->sp_angle_end;
+		b->sp_dist = b->setpoints[b->setpoints_index].dist;
+		b->sp_angle = b->setpoints[b->setpoints_index].angle;
 		b->phase = (uint8_t)(1u << b->cfg.slow_shift);
 		h->jump = 0;
 	}
@@ -838,14 +837,15 @@ static void take_snapshot(struct board *b, const struct board_inputs *in)
 	p->in = *in;
 	p->in.shocks = shocks;
 	p->in.basket = basket;
-	measure(b, p, &p->m);
+	p->dist_um = odometry_get_distance_um(&b->odometry);
+	p->angle_um = b->angle_um;
 	p->heading_turn32 = b->odometry.heading_turn32;
 	p->sp_dist_um = b->sp_dist.pos_um;
 	p->sp_angle_um = b->sp_angle.pos_um;
 	p->msg_head = b->proto.head;
 	p->transactions = b->proto.transactions;
+	/* The next period was cleared by the slow steps, done with it (board_slow()). */
 	b->period_index ^= 1u;
-	period_clear(&b->period[b->period_index]);
 	b->period[b->period_index].edges.on = p->edges.on;
 }
 
@@ -902,11 +902,11 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 
 	/* 4. The set points of this tick, a step towards the handed-over ones. */
 	if (b->phase < (1u << shift)) {
+		const struct board_setpoints *s = &b->setpoints[b->setpoints_index];
+
 		b->phase++;
-		sp_advance(&b->sp_dist, &b->sp_dist_step, &b->sp_dist_end,
-			   b->phase == (1u << shift));
-		sp_advance(&b->sp_angle, &b->sp_angle_step, &b->sp_angle_end,
-			   b->phase == (1u << shift));
+		sp_advance(&b->sp_dist, &s->dist_step, &s->dist, b->phase == (1u << shift));
+		sp_advance(&b->sp_angle, &s->angle_step, &s->angle, b->phase == (1u << shift));
 	}
 
 	/* 5. Control: feed-forward + PID on both axes, mixed into the motor duties; none after a
@@ -929,6 +929,7 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 		snapshot_control(b, &b->period[b->period_index ^ 1u]);
 		publish(b);
 		proto_flip(&b->proto);
+		period_clear(&b->period[b->period_index ^ 1u]);
 	} else if (slow_tick && !b->slow_due) {
 		snapshot_control(b, p);
 		take_snapshot(b, in);

@@ -57,8 +57,9 @@ struct board_config {
  * the period since the last one. */
 struct board_snapshot {
 	struct board_inputs in; /* of that tick, but shocks and basket: pressed at any tick of it */
-	struct orders_measure m;
-	int32_t left_q16; /* free wheels' travel over the period [um * 2^16] */
+	int32_t dist_um;        /* the distance axis at the period's end */
+	int32_t angle_um;       /* the angle axis at the period's end */
+	int32_t left_q16;       /* free wheels' travel over the period [um * 2^16] */
 	int32_t right_q16;
 	int32_t ds_um;         /* distance axis change over the period */
 	int32_t arc_um;        /* angle axis change over the period */
@@ -79,11 +80,19 @@ struct board_snapshot {
 	uint8_t transactions;
 };
 
+/* The set points of both axes for the end of a period, and the step per tick that takes the
+ * servo there from the last ones: written by the slow steps into the pair's other half, which
+ * the servo takes at the hand-over. */
+struct board_setpoints {
+	struct orders_axis dist;
+	struct orders_axis angle;
+	struct orders_axis dist_step;
+	struct orders_axis angle_step;
+};
+
 /* What the slow steps hand the servo, applied at the next slow tick (or at once with
  * slow_shift 0). */
 struct board_handover {
-	struct orders_axis sp_dist; /* the set points at the end of the next period */
-	struct orders_axis sp_angle;
 	/* set_heading: the heading moves by this (the position is the slow steps' own). */
 	uint32_t heading_move_turn32;
 	struct odometry_config odometry_cfg; /* set_odometry, with its tables */
@@ -127,10 +136,10 @@ struct board {
 	uint16_t slow_overruns;     /* slow ticks whose hand-over waited for board_slow() */
 	struct orders_axis sp_dist; /* the set points of this tick */
 	struct orders_axis sp_angle;
-	struct orders_axis sp_dist_step; /* per tick, towards the handed-over set points */
-	struct orders_axis sp_angle_step;
-	struct orders_axis sp_dist_end; /* the handed-over set points */
-	struct orders_axis sp_angle_end;
+	/* The handed-over set points, setpoints[setpoints_index], and those the slow steps write
+	 * for the next hand-over (set points never change but through them). */
+	struct board_setpoints setpoints[2];
+	uint8_t setpoints_index;
 	struct recal_sense lines; /* the line sensors' state for timing their edges */
 	/* The period being summed, period[period_index], and the last one, the slow steps' input
 	 * (the servo only flips them when board_slow() is done with it). */
