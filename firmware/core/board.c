@@ -666,7 +666,8 @@ static void slow_steps(struct board *b)
 	struct proto_msg msg;
 	uint8_t reason, event;
 
-	/* 0. The position, along the period's travel as one arc; the measure's pose. */
+	/* 0. The position, along the period's travel as one arc; the measure's pose (its heading
+	 * the snapshot's: the odometry's own is the servo's, and moves on). */
 	{
 		struct odometry_arc arc;
 
@@ -829,7 +830,7 @@ static uint32_t take_handover(struct board *b)
 }
 
 /* The period's end: what the slow steps work on, and a new period. */
-static void take_snapshot(struct board *b, const struct board_inputs *in)
+static void take_snapshot(struct board *b, const struct board_inputs *in, int32_t dist_um)
 {
 	struct board_snapshot *p = &b->period[b->period_index];
 	uint8_t shocks = p->in.shocks, basket = p->in.basket;
@@ -837,7 +838,7 @@ static void take_snapshot(struct board *b, const struct board_inputs *in)
 	p->in = *in;
 	p->in.shocks = shocks;
 	p->in.basket = basket;
-	p->dist_um = odometry_get_distance_um(&b->odometry);
+	p->dist_um = dist_um;
 	p->angle_um = b->angle_um;
 	p->heading_turn32 = b->odometry.heading_turn32;
 	p->sp_dist_um = b->sp_dist.pos_um;
@@ -864,11 +865,13 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	struct board_snapshot *p = &b->period[b->period_index];
 	const struct odometry_step *step;
 	uint8_t slow_tick = (b->tick & b->slow_mask) == 0, shift = b->cfg.slow_shift;
+	int32_t dist_um;
 
 	/* 1. Encoders -> odometry (a wheel that jumps more than a tick can travel is a fault). */
 	if (odometry_count(&b->odometry, in->free_count[0], in->free_count[1]) != 0)
 		p->encoder_fault = 1;
 	step = &b->odometry.step;
+	dist_um = odometry_get_distance_um(&b->odometry); /* the tick's distance axis */
 	/* The angle axis only moves with the heading. */
 	if (step->dtheta_turn32 != 0)
 		angle_axis_step(b, step->dtheta_turn32);
@@ -884,13 +887,12 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	p->dtheta_turn32 = (int32_t)((uint32_t)p->dtheta_turn32 + (uint32_t)step->dtheta_turn32);
 	p->in.shocks |= in->shocks;
 	p->in.basket |= in->basket;
-	recal_sense(&b->lines, &p->edges, in->lines & b->line_mask,
-		    odometry_get_distance_um(&b->odometry));
+	recal_sense(&b->lines, &p->edges, in->lines & b->line_mask, dist_um);
 
 	/* 3. At a slow tick, the slow steps' results: with slow_shift 0 those of this tick's
 	 * period, run now; otherwise those of the last period, unless they are still running. */
 	if (shift == 0) {
-		take_snapshot(b, in);
+		take_snapshot(b, in, dist_um);
 		slow_steps(b);
 		take_handover(b);
 	} else if (slow_tick) {
@@ -914,8 +916,7 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	if (b->motors_off)
 		control_off(&b->control);
 	else
-		control_update(&b->control, &b->sp_dist, &b->sp_angle,
-			       odometry_get_distance_um(&b->odometry), b->angle_um);
+		control_update(&b->control, &b->sp_dist, &b->sp_angle, dist_um, b->angle_um);
 
 	/* 6. Outputs. */
 	out->duty_q15[0] = b->control.duty_q15[0];
@@ -932,7 +933,7 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 		period_clear(&b->period[b->period_index ^ 1u]);
 	} else if (slow_tick && !b->slow_due) {
 		snapshot_control(b, p);
-		take_snapshot(b, in);
+		take_snapshot(b, in, dist_um);
 		b->slow_due = 1;
 	}
 }

@@ -270,6 +270,22 @@ int odometry_set_config(struct odometry *o, const struct odometry_config *cfg)
 	return 0;
 }
 
+/* Twice the midpoint travel [um * 2^16], |left + right|, from each wheel's sign and magnitude;
+ * *neg its sign. Modulo 2^32. */
+static inline uint32_t twice_ds(uint32_t al, uint8_t lneg, uint32_t ar, uint8_t rneg, uint8_t *neg)
+{
+	if (lneg == rneg) {
+		*neg = lneg;
+		return al + ar;
+	}
+	if (al >= ar) {
+		*neg = lneg;
+		return al - ar;
+	}
+	*neg = rneg;
+	return ar - al;
+}
+
 int odometry_count(struct odometry *o, uint16_t left_count, uint16_t right_count)
 {
 	int err = 0;
@@ -320,17 +336,7 @@ int odometry_count(struct odometry *o, uint16_t left_count, uint16_t right_count
 		ar = r->travel_q16;
 		o->step.left_q16 = lneg ? -(int32_t)al : (int32_t)al;
 		o->step.right_q16 = rneg ? -(int32_t)ar : (int32_t)ar;
-		/* Twice the midpoint travel [um * 2^16], as sign and magnitude (below 2^32). */
-		if (lneg == rneg) {
-			both = al + ar;
-			neg = lneg;
-		} else if (al >= ar) {
-			both = al - ar;
-			neg = lneg;
-		} else {
-			both = ar - al;
-			neg = rneg;
-		}
+		both = twice_ds(al, lneg, ar, rneg, &neg); /* below 2^32: al, ar below 2^31 */
 	}
 	o->step.dtheta_turn32 = dtheta;
 	{
@@ -371,18 +377,10 @@ void odometry_arc_of(struct odometry_arc *a, int32_t left_q16, int32_t right_q16
 	uint32_t al = fx_mag32(left_q16), ar = fx_mag32(right_q16);
 	uint8_t lneg = left_q16 < 0, rneg = right_q16 < 0;
 
-	/* As in odometry_count(): twice the midpoint travel as sign and magnitude. Two
-	 * magnitudes of 2^31 (saturated sums) would wrap: kept at the largest instead. */
-	if (lneg == rneg) {
-		a->twice_ds_q16 = al + ar < al ? UINT32_MAX : al + ar;
-		a->neg = lneg;
-	} else if (al >= ar) {
-		a->twice_ds_q16 = al - ar;
-		a->neg = lneg;
-	} else {
-		a->twice_ds_q16 = ar - al;
-		a->neg = rneg;
-	}
+	a->twice_ds_q16 = twice_ds(al, lneg, ar, rneg, &a->neg);
+	/* Two magnitudes of 2^31 (saturated sums) wrap to 0: kept at the largest instead. */
+	if (lneg == rneg && a->twice_ds_q16 < al)
+		a->twice_ds_q16 = UINT32_MAX;
 	a->dtheta_turn32 = dtheta_turn32;
 	a->heading_turn32 = heading_turn32;
 }

@@ -411,7 +411,8 @@ static void test_odometry_arcs(void **state)
 		int32_t l = val(below(4) ? 24 : 31), r = below(4) ? l + val(16) : val(31);
 		int32_t dtheta = val((unsigned)t_bits[below(8)]);
 		uint32_t heading = below(4) ? rnd() : (uint32_t)trig[0] + (uint32_t)(dtheta / 2);
-		int32_t res[CTA_N_RES], args[11];
+		int32_t args[11];
+		const struct odometry *o = &t->host.odo;
 
 		if (below(8) == 0) {
 			l = below(2) ? INT32_MAX : INT32_MIN;
@@ -424,10 +425,10 @@ static void test_odometry_arcs(void **state)
 		args[0] = l, args[1] = r, args[2] = dtheta, args[3] = (int32_t)heading;
 		args[4] = x, args[5] = y, args[6] = xf, args[7] = yf;
 		args[8] = trig[0], args[9] = trig[1], args[10] = trig[2];
-		check(t, CTA_ODO_ADVANCE, args, 11);
-		cta_run(&t->host, CTA_ODO_ADVANCE, args, res);
-		x = res[1], y = res[2], xf = res[3], yf = res[4];
-		trig[0] = res[5], trig[1] = res[6], trig[2] = res[7];
+		check(t, CTA_ODO_ADVANCE, args, 11); /* the host's state is the AVR's after it */
+		x = (int32_t)o->x_um, y = (int32_t)o->y_um, xf = o->x_frac, yf = o->y_frac;
+		trig[0] = (int32_t)o->trig_turn32, trig[1] = o->trig_sin_q30,
+		trig[2] = o->trig_cos_q30;
 	}
 }
 
