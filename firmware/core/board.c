@@ -2,6 +2,7 @@
 #include "board.h"
 
 #include <errno.h>
+#include <stddef.h>
 
 #include "field_defs.h"
 #include "fixmath.h"
@@ -195,8 +196,6 @@ static void measure(const struct board *b, const struct board_snapshot *p, struc
 /* A new period: its sums and switches from zero. */
 static void period_clear(struct board_snapshot *p)
 {
-	p->left_q16 = 0;
-	p->right_q16 = 0;
 	p->ds_um = 0;
 	p->arc_um = 0;
 	p->dtheta_turn32 = 0;
@@ -204,6 +203,7 @@ static void period_clear(struct board_snapshot *p)
 	p->in.shocks = 0;
 	p->in.basket = 0;
 	p->encoder_fault = 0;
+	p->wheels_replaced = 0;
 	p->edges.rose = 0;
 	p->edges.fell = 0;
 }
@@ -254,6 +254,8 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->angle_um = 0;
 	b->arc_um = 0;
 	b->free_ratio_q16 = free_ratio_q16(cfg, cfg->odometry.track_um);
+	b->free_base[0] = in->free_count[0];
+	b->free_base[1] = in->free_count[1];
 	if (orders_init(&b->orders, &oc, odometry_get_distance_um(&b->odometry), 0) ||
 	    recal_init(&b->recal, &cfg->recal))
 		return -1;
@@ -665,13 +667,23 @@ static void slow_steps(struct board *b)
 	struct faults_inputs fi;
 	struct proto_msg msg;
 	uint8_t reason, event;
+	int32_t left_q16, right_q16; /* the free wheels' travels over the period */
 
 	/* 0. The position, along the period's travel as one arc; the measure's pose (its heading
-	 * the snapshot's: the odometry's own is the servo's, and moves on). */
+	 * the snapshot's: the odometry's own is the servo's, and moves on). The travels from the
+	 * counts, with the factors the period's ticks had. */
 	{
 		struct odometry_arc arc;
+		const uint16_t *kl = p->wheels_replaced ? p->wheel_k[0] : b->odometry.left.k;
+		const uint16_t *kr = p->wheels_replaced ? p->wheel_k[1] : b->odometry.right.k;
 
-		odometry_arc_of(&arc, p->left_q16, p->right_q16, p->dtheta_turn32,
+		left_q16 =
+			odometry_travel_q16(kl, (int16_t)(p->in.free_count[0] - b->free_base[0]));
+		right_q16 =
+			odometry_travel_q16(kr, (int16_t)(p->in.free_count[1] - b->free_base[1]));
+		b->free_base[0] = p->in.free_count[0];
+		b->free_base[1] = p->in.free_count[1];
+		odometry_arc_of(&arc, left_q16, right_q16, p->dtheta_turn32,
 				p->heading_turn32 - p->heading_moved_turn32);
 		odometry_advance(&b->odometry, &arc);
 		m->pose.x_um = odometry_round_um(b->odometry.x_um, b->odometry.x_frac, 0x8000u);
@@ -681,7 +693,7 @@ static void slow_steps(struct board *b)
 	}
 
 	/* 1. Error radius, from the period's travel. */
-	uncertainty_update(&b->uncertainty, p->left_q16, p->right_q16, p->heading_turn32);
+	uncertainty_update(&b->uncertainty, left_q16, right_q16, p->heading_turn32);
 	uncertainty_advance(&b->uncertainty, b->slow_mask); /* its stages as fast in time */
 
 	/* 2. The switches; line crossings. */
@@ -716,8 +728,8 @@ static void slow_steps(struct board *b)
 	fi.current_ma[1] = p->in.current_ma[1];
 	fi.motor_count[0] = p->in.motor_count[0];
 	fi.motor_count[1] = p->in.motor_count[1];
-	fi.free_step_q16[0] = p->left_q16;
-	fi.free_step_q16[1] = p->right_q16;
+	fi.free_step_q16[0] = left_q16;
+	fi.free_step_q16[1] = right_q16;
 	fi.free_ratio_q16 = b->free_ratio_q16;
 	fi.dist_err_um = sub_sat(p->sp_dist_um, m->dist_um);
 	fi.angle_err_um = sub_sat(p->sp_angle_um, m->angle_um);
@@ -788,13 +800,21 @@ static void sp_advance(struct orders_axis *sp, const struct orders_axis *step,
 	sp->acc_um_s2 = end->acc_um_s2;
 }
 
-/* The slow steps' results, taken by the servo; returns the heading's move. */
-static uint32_t take_handover(struct board *b)
+/* The slow steps' results, taken by the servo; returns the heading's move. p: the period that
+ * ends at this tick, if its travel is not summed yet (then new wheels keep its old factors). */
+static uint32_t take_handover(struct board *b, struct board_snapshot *p)
 {
 	struct board_handover *h = &b->handover;
 	uint32_t moved = 0;
 
 	if (h->set_odometry) {
+		if (p) {
+			p->wheels_replaced = 1;
+			p->wheel_k[0][0] = b->odometry.left.k[0];
+			p->wheel_k[0][1] = b->odometry.left.k[1];
+			p->wheel_k[1][0] = b->odometry.right.k[0];
+			p->wheel_k[1][1] = b->odometry.right.k[1];
+		}
 		odometry_install_config(&b->odometry, &h->odometry_cfg, h->odometry_wheels);
 		h->set_odometry = 0;
 	}
@@ -880,10 +900,8 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 
 	/* 2. The period's sums for the slow steps; the switches, kept if pressed at any tick; the
 	 * line sensors' edges, timed at their tick. */
-	p->left_q16 = fx_add_sat32(p->left_q16, step->left_q16);
-	p->right_q16 = fx_add_sat32(p->right_q16, step->right_q16);
-	p->ds_um = fx_add_sat32(p->ds_um, step->ds_um);
-	p->arc_um = fx_add_sat32(p->arc_um, b->arc_um);
+	p->ds_um = (int32_t)((uint32_t)p->ds_um + (uint32_t)step->ds_um);
+	p->arc_um = (int32_t)((uint32_t)p->arc_um + (uint32_t)b->arc_um);
 	p->dtheta_turn32 = (int32_t)((uint32_t)p->dtheta_turn32 + (uint32_t)step->dtheta_turn32);
 	p->in.shocks |= in->shocks;
 	p->in.basket |= in->basket;
@@ -894,12 +912,12 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	if (shift == 0) {
 		take_snapshot(b, in, dist_um);
 		slow_steps(b);
-		take_handover(b);
+		take_handover(b, NULL); /* from the next tick on */
 	} else if (slow_tick) {
 		if (b->slow_due)
 			b->slow_overruns++;
 		else /* after this period's travel: the slow steps' arc ends before the move */
-			p->heading_moved_turn32 += take_handover(b);
+			p->heading_moved_turn32 += take_handover(b, p);
 	}
 
 	/* 4. The set points of this tick, a step towards the handed-over ones. */

@@ -59,8 +59,9 @@ struct board_snapshot {
 	struct board_inputs in; /* of that tick, but shocks and basket: pressed at any tick of it */
 	int32_t dist_um;        /* the distance axis at the period's end */
 	int32_t angle_um;       /* the angle axis at the period's end */
-	int32_t left_q16;       /* free wheels' travel over the period [um * 2^16] */
-	int32_t right_q16;
+	/* The sums of the ticks' steps over the period, modulo 2^32 (a period's are far below: 8
+	 * ticks of at most 32.8 mm; they would wrap after 2 km in one period, the slow steps
+	 * stuck). The free wheels' travels are the slow steps', from in.free_count. */
 	int32_t ds_um;         /* distance axis change over the period */
 	int32_t arc_um;        /* angle axis change over the period */
 	int32_t dtheta_turn32; /* heading change over the period */
@@ -76,7 +77,11 @@ struct board_snapshot {
 	struct recal_edges edges; /* the line sensors' edges of the period */
 	uint16_t tick;
 	uint8_t encoder_fault; /* a wheel jumped at a tick of the period */
-	uint8_t msg_head;      /* the messages queued until then; later ones wait a period */
+	/* SET_ODOMETRIE's wheels installed at the period's last tick, after its travel: the
+	 * period's counts are worth the factors before, kept here (odometry_wheel.k). */
+	uint8_t wheels_replaced;
+	uint16_t wheel_k[2][2];
+	uint8_t msg_head; /* the messages queued until then; later ones wait a period */
 	uint8_t transactions;
 };
 
@@ -151,6 +156,7 @@ struct board {
 	/* The slow steps' side. */
 	struct orders_measure m;   /* the snapshot's measure, as the slow steps corrected it */
 	uint8_t shocks;            /* the snapshot's shock sensors */
+	uint16_t free_base[2];     /* the free wheels' counts at the last period's end */
 	uint8_t status;            /* STATUS_* owned by the core */
 	uint32_t timeout_ticks;    /* SET_TIMEOUT [slow ticks], 0: off (power-on) */
 	uint32_t silent_ticks;     /* [slow ticks] since a transaction last addressed the board */

@@ -334,8 +334,6 @@ int odometry_count(struct odometry *o, uint16_t left_count, uint16_t right_count
 
 		al = l->travel_q16;
 		ar = r->travel_q16;
-		o->step.left_q16 = lneg ? -(int32_t)al : (int32_t)al;
-		o->step.right_q16 = rneg ? -(int32_t)ar : (int32_t)ar;
 		both = twice_ds(al, lneg, ar, rneg, &neg); /* below 2^32: al, ar below 2^31 */
 	}
 	o->step.dtheta_turn32 = dtheta;
@@ -420,10 +418,26 @@ FX_NOINLINE void odometry_advance(struct odometry *o, const struct odometry_arc 
 		neg != (o->trig_sin_q30 < 0));
 }
 
+int32_t odometry_travel_q16(const uint16_t k[2], int16_t counts)
+{
+	uint16_t m = counts >= 0 ? (uint16_t)counts : (uint16_t)(0u - (uint16_t)counts);
+	uint32_t lo = fx_mul_u16(m, k[0]);
+	uint32_t hi = fx_mul_u16(m, k[1]) + fx_hi16(lo); /* below 2^31 */
+	int32_t t;
+
+	/* As wheel_move_wide(): the tables hold the same products. */
+	t = hi >= 0x8000u ? ODOMETRY_STEP_Q16_MAX : (int32_t)((hi << 16) | fx_lo16(lo));
+	return counts >= 0 ? t : -t;
+}
+
 int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count)
 {
 	struct odometry_arc a;
+	uint16_t left_before = o->left_count, right_before = o->right_count;
 	int err = odometry_count(o, left_count, right_count);
+
+	o->step.left_q16 = odometry_travel_q16(o->left.k, (int16_t)(left_count - left_before));
+	o->step.right_q16 = odometry_travel_q16(o->right.k, (int16_t)(right_count - right_before));
 
 	odometry_arc_of(&a, o->step.left_q16, o->step.right_q16, o->step.dtheta_turn32,
 			o->heading_turn32);

@@ -31,10 +31,12 @@ struct odometry_pose {
 	uint32_t heading_turn32; /* [turn * 2^32] */
 };
 
-/* What the last odometry_count (or odometry_update) measured. */
+/* What the last odometry_count (or odometry_update) measured. The wheels' travels are
+ * odometry_update()'s only: a caller of odometry_count() that needs them over several ticks
+ * takes them from the counts (odometry_travel_q16()). */
 struct odometry_step {
-	int32_t left_q16;      /* travel of the left wheel [um * 2^16], exact */
-	int32_t right_q16;     /* travel of the right wheel [um * 2^16], exact */
+	int32_t left_q16;      /* travel of the left wheel [um * 2^16], exact (odometry_update) */
+	int32_t right_q16;     /* travel of the right wheel [um * 2^16], exact (odometry_update) */
 	int32_t ds_um;         /* travel of the midpoint, (left + right) / 2, rounded [um] */
 	int32_t dtheta_turn32; /* heading change [turn * 2^32], counter-clockwise positive */
 };
@@ -128,14 +130,20 @@ void odometry_install_config(struct odometry *o, const struct odometry_config *c
 int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count);
 
 /* odometry_update() in two halves, for a caller that runs the position at a lower rate
- * (board.h): first, every tick, the counters -> the heading, the step and the distance, not the
- * position (same return value) ... */
+ * (board.h): first, every tick, the counters -> the heading, the step (but the wheels' travels)
+ * and the distance, not the position (same return value) ... */
 int odometry_count(struct odometry *o, uint16_t left_count, uint16_t right_count);
+
+/* The travel of a wheel [um * 2^16] over a signed count change, with its factor k (a wheel's
+ * odometry_wheel.k): exact, a magnitude above ODOMETRY_STEP_Q16_MAX clamped to it. Over a tick,
+ * what odometry_update() gives; over several, the sum of theirs (the travel is linear in the
+ * counts) but in the clamped case. Interrupt-safe: yes. */
+int32_t odometry_travel_q16(const uint16_t k[2], int16_t counts);
 
 /* ... then, once per tick or once per period, the position moved along one arc: a tick's, or a
  * period's made of its summed wheel travels and heading changes and the heading at its end (one
  * arc of constant curvature from the period's start to its end). Called every tick after
- * odometry_count(), the pair is odometry_update() bit for bit.
+ * odometry_count(), with the tick's travels, the pair is odometry_update() bit for bit.
  * Interrupt-safe: both yes against each other (they share no field); each no against itself. */
 void odometry_arc_of(struct odometry_arc *a, int32_t left_q16, int32_t right_q16,
 		     int32_t dtheta_turn32, uint32_t heading_turn32);

@@ -626,6 +626,35 @@ static void test_set_odometrie(void **state)
 	assert_int_equal(h.board.odometry.cfg.track_um, 280000);
 }
 
+/* SET_ODOMETRIE on the move, 3 % larger wheels: the travel up to the tick that installs them
+ * is worth the old factors, the travel after it the new ones, in the position as on the
+ * distance axis (which counts every tick with the factors of that tick). Going straight along
+ * x, the two move together to the micrometre at every period's end. */
+static void test_set_odometrie_moving(void **state)
+{
+	struct sim_field f;
+	int32_t x0, d0, x1 = 0, d1 = 0;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	host_tick(&h);
+	x0 = h.board.m.pose.x_um;
+	d0 = h.board.m.dist_um;
+	goto_mm((int16_t)(x0 / 1000 + 1500), (int16_t)(h.board.m.pose.y_um / 1000));
+	for (int i = 0; i < 1500; i++) {
+		if (i == 600) /* at speed (a period is 800 um): scale +30000 ppm */
+			send((const uint8_t[]){PROTO_SET_ODOMETRIE, 0, 0, 0x6D, 0x60, 0x75, 0x30},
+			     7);
+		host_tick(&h);
+		x1 = h.board.m.pose.x_um - x0;
+		d1 = h.board.m.dist_um - d0;
+		assert_true(x1 - d1 <= 2 && d1 - x1 <= 2);
+	}
+	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5301601);
+	assert_true(x1 > 100000); /* at the power-on 10 cm/s */
+}
+
 /* Repeated corrections keep the estimate within POSITION's range, +-32000 mm, and the robot
  * still takes orders (70 of -32 m would overflow the micrometres: found by fuzz/fuzz_board). */
 static void test_set_new_pos_stays_in_range(void **state)
@@ -742,6 +771,7 @@ int main(void)
 		cmocka_unit_test(test_set_new_pos),
 		cmocka_unit_test(test_set_new_pos_stays_in_range),
 		cmocka_unit_test(test_set_odometrie),
+		cmocka_unit_test(test_set_odometrie_moving),
 		cmocka_unit_test(test_radius_grows),
 		cmocka_unit_test(test_slow_overrun),
 		cmocka_unit_test(test_slow_shift_range),

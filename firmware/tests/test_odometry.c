@@ -329,12 +329,32 @@ static void test_driven_quarter_circle(void **state)
  * Every tick (shift 0), the pair is odometry_update() bit for bit; every 8 ticks the curvature
  * changes within a period only at the ramps' ends and at the turn's start and end, and the
  * position stays within 1 um of the per-tick one. */
+static void advance_period(struct odometry *o, struct odometry *per_tick, uint8_t shift,
+			   int left_counts, int right_counts, int32_t dtheta_turn32)
+{
+	/* The period's travels from its counts, as board.c takes them. */
+	int32_t l = odometry_travel_q16(o->left.k, (int16_t)left_counts);
+	int32_t r = odometry_travel_q16(o->right.k, (int16_t)right_counts);
+	struct odometry_arc a;
+
+	if (shift == 0) { /* a tick's: odometry_update()'s */
+		assert_int_equal(l, per_tick->step.left_q16);
+		assert_int_equal(r, per_tick->step.right_q16);
+		o->step.left_q16 = l;
+		o->step.right_q16 = r;
+	}
+	odometry_arc_of(&a, l, r, dtheta_turn32, o->heading_turn32);
+	odometry_advance(o, &a);
+}
+
 static void drive_in_periods(uint8_t shift, struct odometry *o, struct odometry *per_tick)
 {
 	struct robot r;
 	const long double radius = 500000;
 	int n = trapezoid_ticks(radius * PI_L / 2, steps, 20000), total = 0;
-	int32_t sum_l = 0, sum_r = 0, sum_th = 0;
+	int32_t sum_th = 0;
+	uint16_t base_l = 40000, base_r = 7; /* the counts at the period's start */
+	uint16_t lc = base_l, rc = base_r;
 
 	memset(o, 0, sizeof(*o)); /* padding too: the two are compared as bytes */
 	memset(per_tick, 0, sizeof(*per_tick));
@@ -352,33 +372,25 @@ static void drive_in_periods(uint8_t shift, struct odometry *o, struct odometry 
 					 : leg == 1 ? steps[i]
 						    : -steps[i];
 			long double dr = leg == 0 ? dphi * (radius + TRACK_UM / 2.0L) : steps[i];
-			uint16_t lc, rc;
-
 			r.left_um += dl;
 			r.right_um += dr;
 			lc = (uint16_t)((r.left0 + robot_left_counts(&r)) & 0xffff);
 			rc = (uint16_t)((r.right0 + robot_right_counts(&r)) & 0xffff);
 			assert_int_equal(odometry_update(per_tick, lc, rc), 0);
 			assert_int_equal(odometry_count(o, lc, rc), 0);
-			sum_l += o->step.left_q16;
-			sum_r += o->step.right_q16;
 			sum_th += o->step.dtheta_turn32;
 			if (((total + 1) & ((1 << shift) - 1)) == 0) {
-				struct odometry_arc a;
-
-				odometry_arc_of(&a, sum_l, sum_r, sum_th, o->heading_turn32);
-				odometry_advance(o, &a);
-				sum_l = sum_r = sum_th = 0;
+				advance_period(o, per_tick, shift, lc - base_l, rc - base_r,
+					       sum_th);
+				base_l = lc;
+				base_r = rc;
+				sum_th = 0;
 			}
 		}
 	}
 	/* The last period, however short. */
-	if (sum_l || sum_r) {
-		struct odometry_arc a;
-
-		odometry_arc_of(&a, sum_l, sum_r, sum_th, o->heading_turn32);
-		odometry_advance(o, &a);
-	}
+	if (lc != base_l || rc != base_r)
+		advance_period(o, per_tick, shift, lc - base_l, rc - base_r, sum_th);
 }
 
 static void test_position_in_periods(void **state)
@@ -408,6 +420,35 @@ static void test_position_in_periods(void **state)
  * of a side are straight and those of a turn are a rotation in place: otherwise the rounding of
  * the counters makes the robot move by half counts along the way, which is not the closed form
  * (test_driven_quarter_circle bounds that effect). */
+/* A wheel's travel over a count change is k |n| with n's sign, looked up below
+ * ODOMETRY_TABLE_COUNTS and multiplied above, clamped at ODOMETRY_STEP_Q16_MAX: a period's
+ * travel from its counts is the sum of its ticks'. */
+static void test_travel_of_counts(void **state)
+{
+	struct odometry o;
+	struct odometry_config wide = cfg_default;
+
+	(void)state;
+	assert_int_equal(odometry_init(&o, &cfg_default, 0, 0), 0);
+	for (int n = -3000; n <= 3000; n += (n > -40 && n < 40) ? 1 : 37) {
+		assert_int_equal(odometry_travel_q16(o.left.k, (int16_t)n), n * (int32_t)K_Q16);
+		assert_int_equal(odometry_travel_q16(o.right.k, (int16_t)n), n * (int32_t)K_Q16);
+	}
+	/* Clamped beyond 2^31 [um * 2^16]: 3417 counts of K_Q16. */
+	assert_int_equal(odometry_travel_q16(o.left.k, 3417), 3417 * (int32_t)K_Q16);
+	assert_int_equal(odometry_travel_q16(o.left.k, 3418), ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_travel_q16(o.left.k, INT16_MIN), -ODOMETRY_STEP_Q16_MAX);
+	/* 256 um a count: 127 counts are 2^31 - 2^24 [um * 2^16], 128 clamp. */
+	wide.left_um_per_count_q16 = ODOMETRY_UM_PER_COUNT_Q16_MAX;
+	assert_int_equal(odometry_set_config(&o, &wide), 0);
+	assert_int_equal(odometry_travel_q16(o.left.k, 127), 127 * ((int32_t)1 << 24));
+	assert_int_equal(odometry_travel_q16(o.left.k, -127), -127 * ((int32_t)1 << 24));
+	assert_int_equal(odometry_travel_q16(o.left.k, 128), ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_travel_q16(o.left.k, -128), -ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_travel_q16(o.left.k, INT16_MIN), -ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_travel_q16(o.right.k, 100), 100 * (int32_t)K_Q16);
+}
+
 static void test_square(void **state)
 {
 	struct odometry o;
@@ -667,6 +708,7 @@ int main(void)
 		cmocka_unit_test(test_arcs_of_known_radius),
 		cmocka_unit_test(test_driven_quarter_circle),
 		cmocka_unit_test(test_position_in_periods),
+		cmocka_unit_test(test_travel_of_counts),
 		cmocka_unit_test(test_square),
 		cmocka_unit_test(test_counter_wraparound),
 		cmocka_unit_test(test_heading_does_not_drift),
