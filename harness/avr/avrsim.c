@@ -137,9 +137,9 @@ struct avrsim {
 	int64_t enc_delivered[4];    /* the same, delivered to the pins */
 	double synth_rate[4];        /* synthetic edges without physics [counts/s] */
 	double synth_pos[4];
-	/* The first edge its interrupt has not yet taken, motors [0] and free wheels [1] (0:
+	/* The first edge its interrupt has not yet taken, per pin-change interrupt (enc_isr()) (0:
 	 * none) [cycle]. */
-	uint64_t edge_at[2];
+	uint64_t edge_at[3];
 	char error[160];
 
 	/* I2C master */
@@ -264,6 +264,13 @@ static void set_adc(struct avrsim *h, int ch, uint32_t mv, uint64_t cycle)
 	ev_push(h, cycle, h->adc[ch], mv, -1, 0, -1, 0);
 }
 
+/* Encoder e's pin-change interrupt, as an index of edge_at: free left (PCINT2) 0, free right
+ * (PCINT3) 1, the motors (PCINT0) 2. */
+static int enc_isr(int e)
+{
+	return e < 2 ? e : 2;
+}
+
 /* Drives a pin or an analog input now. A driven pin is also the port's "external" level, which
  * simavr gives the pin again whenever the firmware writes the port register (else an input's
  * pull-up would win over the harness). */
@@ -278,8 +285,8 @@ static void deliver(struct avrsim *h, const struct event *e)
 	}
 	if (e->enc >= 0) {
 		h->enc_delivered[e->enc] = e->count;
-		if (!h->edge_at[e->enc < 2])
-			h->edge_at[e->enc < 2] = h->avr->cycle;
+		if (!h->edge_at[enc_isr(e->enc)])
+			h->edge_at[enc_isr(e->enc)] = h->avr->cycle;
 	}
 	avr_raise_irq(e->irq, e->value);
 }
@@ -316,7 +323,7 @@ static void read_duties(const struct avrsim *h, int16_t *left, int16_t *right)
 {
 	uint16_t a = (uint16_t)(reg(h, m1284p.ocr1a) | reg(h, m1284p.ocr1a + 1u) << 8);
 	uint16_t b = (uint16_t)(reg(h, m1284p.ocr1b) | reg(h, m1284p.ocr1b + 1u) << 8);
-	uint8_t d = reg(h, m1284p.portd);
+	uint8_t d = reg(h, m1284p.portc);
 
 	*left = avrsim_duty_q15(a, (d >> PIN_DIR_LEFT_BIT) & 1u);
 	*right = avrsim_duty_q15(b, (d >> PIN_DIR_RIGHT_BIT) & 1u);
@@ -383,12 +390,14 @@ static uint8_t quad_b(int64_t n)
 	return ((uint64_t)n & 3u) >= 2;
 }
 
-/* Encoder e's pins: free left PC2/PC3, free right PC4/PC5, motor left PA2/PA3, motor right
- * PA4/PA5. */
+/* Encoder e's pins (pinmap.h): free left PC2/PC3, free right PD6/PD7, motor left PA2/PA3, motor
+ * right PA4/PA5. */
 static void enc_pins(int e, int *port, int *bit_a)
 {
-	*port = e < 2 ? 2 : 0;
-	*bit_a = 2 + 2 * (e & 1);
+	static const int8_t port_of[4] = {2, 3, 0, 0}, bit_of[4] = {2, 6, 2, 4};
+
+	*port = port_of[e];
+	*bit_a = bit_of[e];
 }
 
 /* The edges of encoder e as its continuous position goes from p0 to p1 over [c0, c0 + len)
@@ -924,8 +933,8 @@ static void step(struct avrsim *h)
 		h->period_resp += ISR_RESPONSE;
 		if (v == m1284p.vec_twi)
 			h->twi_status_in_isr = reg(h, m1284p.twsr) & 0xF8u;
-		if (v == m1284p.vec_pcint0 || v == m1284p.vec_pcint2) {
-			uint64_t *at = &h->edge_at[v == m1284p.vec_pcint2];
+		if (v == m1284p.vec_pcint0 || v == m1284p.vec_pcint2 || v == m1284p.vec_pcint3) {
+			uint64_t *at = &h->edge_at[v == m1284p.vec_pcint0 ? 2 : v == m1284p.vec_pcint3];
 
 			if (*at)
 				add_count(&h->st.edge_wait, avr->cycle - *at + ISR_RESPONSE);
@@ -1327,8 +1336,8 @@ struct avrsim *avrsim_open(const char *elf_path, uint32_t i2c_hz)
 			avrsim_close(h);
 			return NULL;
 		}
-		/* the pins the harness drives: encoders, switches, lines, the bus */
-		h->port[p]->external.pull_mask = (uint8_t[]){0xFC, 0xFF, 0xFF, 0x04}[p];
+		/* the pins the harness drives: encoders, switches, lines, the bus, the basket */
+		h->port[p]->external.pull_mask = (uint8_t[]){0xFC, 0xFF, 0xCF, 0xC4}[p];
 	}
 	for (int p = 0; p < 4; p++)
 		for (int b = 0; b < 8; b++) {

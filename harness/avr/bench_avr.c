@@ -81,8 +81,8 @@ static double mean(const struct avrsim_count *c)
  * and its mean and worst cycles. */
 static void isr_load(const struct phase *p, double *m, double *w)
 {
-	const uint8_t vec[] = {m1284p.vec_pcint0, m1284p.vec_pcint2, m1284p.vec_adc, m1284p.vec_twi,
-			       m1284p.vec_timer3_compa};
+	const uint8_t vec[] = {m1284p.vec_pcint0, m1284p.vec_pcint2, m1284p.vec_pcint3,
+			       m1284p.vec_adc,    m1284p.vec_twi,    m1284p.vec_timer3_compa};
 
 	*m = *w = 0.0;
 	for (size_t i = 0; i < sizeof(vec); i++) {
@@ -163,7 +163,8 @@ static void print_phase(const char *title, const struct phase *p, uint32_t tick_
 	const struct {
 		const char *name;
 		uint8_t vec;
-	} isr[] = {{"encoders, free wheels (PCINT2)", m1284p.vec_pcint2},
+	} isr[] = {{"encoder, free wheel left (PCINT2)", m1284p.vec_pcint2},
+		   {"encoder, free wheel right (PCINT3)", m1284p.vec_pcint3},
 		   {"encoders, motors (PCINT0)", m1284p.vec_pcint0},
 		   {"current-sense ADC", m1284p.vec_adc},
 		   {"TWI", m1284p.vec_twi},

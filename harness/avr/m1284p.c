@@ -42,6 +42,7 @@ const struct m1284p_regs m1284p = {
 	.vec_timer3_compa = TIMER3_COMPA_vect,
 	.vec_pcint0 = PCINT0_vect,
 	.vec_pcint2 = PCINT2_vect,
+	.vec_pcint3 = PCINT3_vect,
 	.vec_adc = ADC_vect,
 	.ramstart = RAMSTART,
 	.ramend = RAMEND,

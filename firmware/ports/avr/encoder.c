@@ -1,6 +1,7 @@
 /* Quadrature decoding of the four encoders by pin-change interrupts (encoder_isr.S): the free
- * wheels on PC2..PC5 (PCINT2), the motor shafts on PA2..PA5 (PCINT0). Each interrupt reads its
- * port once and steps both channels on it from the tables below. */
+ * wheels on PC2, PC3 (PCINT2) and PD6, PD7 (PCINT3), an interrupt each; the motor shafts on
+ * PA2..PA5 (PCINT0), one interrupt for both. Each interrupt reads its port once and steps the
+ * channels on it from the tables below. */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/pgmspace.h>
@@ -17,13 +18,16 @@
 #define FWD(s) ((s) == 0 ? 1 : (s) == 1 ? 3 : (s) == 3 ? 2 : 0)
 #define STEP(p, n) ((n) == FWD(p) ? 1 : (p) == FWD(n) ? -1 : 0)
 
-/* The interrupt's table index i is swap(previous levels) | current levels, the levels being the
- * port's bits 2..5 (left A, left B, right A, right B): the swap moves the previous left pins to
- * bits 6, 7 and the previous right pins to bits 0, 1, beside the current ones in bits 2..5.
- * quad_step[0][i] is the left channel's step, quad_step[1][i] the right one's. Aligned to 256
- * bytes so that the interrupt puts the index in ZL and a constant in ZH. */
-#define LEFT(i) STEP(3 & ((i) >> 6), 3 & ((i) >> 2))
-#define RIGHT(i) STEP(3 & (i), 3 & ((i) >> 4))
+/* An interrupt's table index i is swap(previous levels) | current levels, the levels being its
+ * port's encoder bits; the swap moves the previous ones beside the current ones. Each table is
+ * aligned to 256 bytes, so that the interrupt puts the index in ZL and a constant in ZH.
+ * quad_step[0]: a channel on bits 2, 3 (the left motor; the left free wheel, alone on its port),
+ * previous levels in bits 6, 7. quad_step[1]: a channel on bits 4, 5 (the right motor), previous
+ * levels in bits 0, 1. quad_step[2]: a channel on bits 6, 7 (the right free wheel, alone on its
+ * port), previous levels in bits 2, 3. */
+#define BITS23(i) STEP(3 & ((i) >> 6), 3 & ((i) >> 2))
+#define BITS45(i) STEP(3 & (i), 3 & ((i) >> 4))
+#define BITS67(i) STEP(3 & ((i) >> 2), 3 & ((i) >> 6))
 #define ROW(f, i) f(i), f((i) + 1), f((i) + 2), f((i) + 3)
 #define ROW16(f, i) ROW(f, i), ROW(f, (i) + 4), ROW(f, (i) + 8), ROW(f, (i) + 12)
 #define ROW64(f, i) ROW16(f, i), ROW16(f, (i) + 16), ROW16(f, (i) + 32), ROW16(f, (i) + 48)
@@ -32,38 +36,41 @@
 		ROW64(f, 0), ROW64(f, 64), ROW64(f, 128), ROW64(f, 192)                            \
 	}
 
-const int8_t quad_step[2][256] PROGMEM __attribute__((aligned(256))) = {TABLE(LEFT), TABLE(RIGHT)};
+const int8_t quad_step[3][256] PROGMEM __attribute__((aligned(256))) = {
+	TABLE(BITS23), TABLE(BITS45), TABLE(BITS67)};
 
 /* Written by encoder_isr.S. A counter is kept as count ^ 0x80: its low byte moves by the step
  * and its high byte by the same step when the low byte overflows as a signed byte (0x7F <-> 0x80,
- * which is count's 0xFF <-> 0x00), so the interrupt needs no 16-bit addition. The state is the
- * port's last levels of the four pins, swapped (see quad_step). */
+ * which is count's 0xFF <-> 0x00), so the interrupt needs no 16-bit addition. A state is its
+ * port's last levels of the encoder pins, swapped (see quad_step). */
 volatile uint16_t avr_free_count[2];
 volatile uint16_t avr_motor_count[2];
-uint8_t avr_free_state;
+uint8_t avr_free_state[2];
 uint8_t avr_motor_state;
 
-#if PIN_FREE_ENC_MASK != 0x3Cu || PIN_MOTOR_ENC_MASK != 0x3Cu
-#error "encoder_isr.S and quad_step expect the encoder pins on bits 2..5 of their ports"
+#if PIN_MOTOR_ENC_MASK != 0x3Cu || PIN_FREE_LEFT_MASK != 0x0Cu || PIN_FREE_RIGHT_MASK != 0xC0u
+#error "encoder_isr.S and quad_step expect the encoder pins of pinmap.h"
 #endif
 
-static uint8_t swapped_levels(uint8_t pins)
+static uint8_t swapped_levels(uint8_t pins, uint8_t mask)
 {
-	uint8_t v = pins & 0x3Cu;
+	uint8_t v = pins & mask;
 
 	return (uint8_t)(v << 4 | v >> 4);
 }
 
 void avr_encoder_init(void)
 {
-	avr_free_state = swapped_levels(PIN_FREE_ENC_PORT);
-	avr_motor_state = swapped_levels(PIN_MOTOR_ENC_PORT);
+	avr_free_state[0] = swapped_levels(PIN_FREE_LEFT_PORT, PIN_FREE_LEFT_MASK);
+	avr_free_state[1] = swapped_levels(PIN_FREE_RIGHT_PORT, PIN_FREE_RIGHT_MASK);
+	avr_motor_state = swapped_levels(PIN_MOTOR_ENC_PORT, PIN_MOTOR_ENC_MASK);
 	for (uint8_t s = 0; s < 2; s++)
 		avr_free_count[s] = avr_motor_count[s] = AVR_COUNT_BIAS;
-	PCMSK2 = PIN_FREE_ENC_MASK;
+	PCMSK2 = PIN_FREE_LEFT_MASK;
+	PCMSK3 = PIN_FREE_RIGHT_MASK;
 	PCMSK0 = PIN_MOTOR_ENC_MASK;
-	PCIFR = _BV(PCIF2) | _BV(PCIF0);
-	PCICR = _BV(PCIE2) | _BV(PCIE0);
+	PCIFR = _BV(PCIF3) | _BV(PCIF2) | _BV(PCIF0);
+	PCICR = _BV(PCIE3) | _BV(PCIE2) | _BV(PCIE0);
 }
 
 uint16_t hal_encoder_free(enum hal_side side)

@@ -20,10 +20,10 @@ volatile uint16_t avr_adc_sum[2];
 
 void avr_motor_init(void)
 {
-	PORTD &= (uint8_t) ~(_BV(PIN_PWM_LEFT_BIT) | _BV(PIN_PWM_RIGHT_BIT) |
-			     _BV(PIN_DIR_LEFT_BIT) | _BV(PIN_DIR_RIGHT_BIT));
-	DDRD |= _BV(PIN_PWM_LEFT_BIT) | _BV(PIN_PWM_RIGHT_BIT) | _BV(PIN_DIR_LEFT_BIT) |
-		_BV(PIN_DIR_RIGHT_BIT);
+	PORTD &= (uint8_t) ~(_BV(PIN_PWM_LEFT_BIT) | _BV(PIN_PWM_RIGHT_BIT));
+	DDRD |= _BV(PIN_PWM_LEFT_BIT) | _BV(PIN_PWM_RIGHT_BIT);
+	PIN_DIR_PORT &= (uint8_t) ~(_BV(PIN_DIR_LEFT_BIT) | _BV(PIN_DIR_RIGHT_BIT));
+	PIN_DIR_DDR |= _BV(PIN_DIR_LEFT_BIT) | _BV(PIN_DIR_RIGHT_BIT);
 	OCR1A = 0;
 	OCR1B = 0;
 	ICR1 = AVR_PWM_TOP;
@@ -50,9 +50,9 @@ __attribute__((always_inline)) inline void hal_motor_set(enum hal_side side, int
 	ATOMIC_BLOCK(ATOMIC_RESTORESTATE)
 	{
 		if (duty_q15 < 0)
-			PORTD |= dir;
+			PIN_DIR_PORT |= dir;
 		else
-			PORTD &= (uint8_t)~dir;
+			PIN_DIR_PORT &= (uint8_t)~dir;
 		if (side == HAL_LEFT)
 			OCR1A = counts;
 		else

@@ -6,13 +6,13 @@
  *          PA6 line sensor 0                PA7 line sensor 1
  *   PORTB  PB0..PB7 shock switches CAPTEUR_0..CAPTEUR_7 (PB5..PB7 are shared with the ISP header)
  *   PORTC  PC0 SCL                          PC1 SDA                       (TWI, address 2)
- *          PC2 free encoder left A          PC3 free encoder left B       (PCINT18/19)
- *          PC4 free encoder right A         PC5 free encoder right B      (PCINT20/21, JTAG off)
+ *          PC2 free encoder left A          PC3 free encoder left B       (PCINT18/19, JTAG off)
+ *          PC4 direction left               PC5 direction right           (high = backward)
  *          PC6 line sensor 2                PC7 line sensor 3
  *   PORTD  PD0 RXD0 (free: a bootloader)    PD1 TXD0, or SLOW with two rates (below)
  *          PD2 basket contact               PD3 TICK: high while the control tick runs
  *          PD4 OC1B PWM right               PD5 OC1A PWM left             (Timer1, 20 kHz)
- *          PD6 direction left               PD7 direction right           (high = backward)
+ *          PD6 free encoder right A         PD7 free encoder right B      (PCINT30/31)
  *
  * Switches and line sensors are active low with the internal pull-ups: an unplugged sensor reads
  * "not pressed", "no line". Encoders: channel A on the lower pin, B on the upper one, A leading
@@ -29,11 +29,16 @@
 #define PIN_I_LEFT_ADC 0 /* ADC channels */
 #define PIN_I_RIGHT_ADC 1
 
-/* Bits 2..5 of their port: left A, left B, right A, right B (encoder_isr.S relies on it). */
+/* The motor encoders on bits 2..5 of port A: left A, left B, right A, right B (one pin-change
+ * interrupt for both). The free wheels' encoders on ports of their own, A then B: the left on
+ * PC2, PC3, the right on PD6, PD7 (an interrupt each, so that an edge steps one counter).
+ * encoder_isr.S and its tables rely on these bits. */
 #define PIN_MOTOR_ENC_PORT PINA
 #define PIN_MOTOR_ENC_MASK 0x3Cu
-#define PIN_FREE_ENC_PORT PINC
-#define PIN_FREE_ENC_MASK 0x3Cu
+#define PIN_FREE_LEFT_PORT PINC
+#define PIN_FREE_LEFT_MASK 0x0Cu
+#define PIN_FREE_RIGHT_PORT PIND
+#define PIN_FREE_RIGHT_MASK 0xC0u
 
 #define PIN_LINE_A_MASK 0xC0u /* PA6, PA7: line sensors 0, 1 */
 #define PIN_LINE_C_MASK 0xC0u /* PC6, PC7: line sensors 2, 3 */
@@ -45,9 +50,11 @@
 #define PIN_TICK_BIT 3      /* PD3 */
 #define PIN_PWM_RIGHT_BIT 4 /* PD4, OC1B */
 #define PIN_PWM_LEFT_BIT 5  /* PD5, OC1A */
-#define PIN_DIR_LEFT_BIT 6  /* PD6 */
-#define PIN_DIR_RIGHT_BIT 7 /* PD7 */
 
-#define PIN_SCL_BIT 0 /* PC0 */
+#define PIN_SCL_BIT 0       /* PC0 */
+#define PIN_DIR_PORT PORTC  /* direction: high = backward */
+#define PIN_DIR_DDR DDRC
+#define PIN_DIR_LEFT_BIT 4  /* PC4 */
+#define PIN_DIR_RIGHT_BIT 5 /* PC5 */
 
 #endif

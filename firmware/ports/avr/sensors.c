@@ -15,8 +15,8 @@
 void avr_sensors_init(void)
 {
 	/* Inputs with pull-ups everywhere but the ADC pins and the TWI pins (the bus has its own
-	 * pull-ups); PD3 (TICK) and, with two rates, PD1 (SLOW) outputs, low. Motor pins:
-	 * motor.c. */
+	 * pull-ups); PD3 (TICK) and, with two rates, PD1 (SLOW) outputs, low. Motor pins (PWM,
+	 * direction): motor.c, after this. */
 	DDRA = 0;
 	PORTA = (uint8_t) ~(_BV(PIN_I_LEFT_ADC) | _BV(PIN_I_RIGHT_ADC));
 	DDRB = 0;
@@ -24,7 +24,7 @@ void avr_sensors_init(void)
 	DDRC = 0;
 	PORTC = (uint8_t) ~(_BV(0) | _BV(1));
 	DDRD = _BV(PIN_TICK_BIT) | SLOW_MASK;
-	PORTD = (uint8_t)((_BV(0) | _BV(1) | _BV(PIN_BASKET_BIT)) & ~SLOW_MASK);
+	PORTD = (uint8_t)((_BV(0) | _BV(1) | _BV(PIN_BASKET_BIT) | PIN_FREE_RIGHT_MASK) & ~SLOW_MASK);
 }
 
 uint8_t hal_shock_read(void)
