@@ -921,12 +921,13 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	}
 
 	/* 4. The set points of this tick, a step towards the handed-over ones. */
-	if (b->phase < (1u << shift)) {
+	if (b->phase <= b->slow_mask) { /* phase < 2^shift */
 		const struct board_setpoints *s = &b->setpoints[b->setpoints_index];
+		uint8_t last = b->phase == b->slow_mask;
 
 		b->phase++;
-		sp_advance(&b->sp_dist, &s->dist_step, &s->dist, b->phase == (1u << shift));
-		sp_advance(&b->sp_angle, &s->angle_step, &s->angle, b->phase == (1u << shift));
+		sp_advance(&b->sp_dist, &s->dist_step, &s->dist, last);
+		sp_advance(&b->sp_angle, &s->angle_step, &s->angle, last);
 	}
 
 	/* 5. Control: feed-forward + PID on both axes, mixed into the motor duties; none after a

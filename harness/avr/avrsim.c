@@ -572,6 +572,18 @@ static void on_compare(struct avr_irq_t *irq, uint32_t value, void *param)
 	}
 }
 
+/* 1 if the tick that just ended was a slow tick (two rates: the one that hands over and takes
+ * the snapshot, board.h), from the board's tick counter. */
+static int slow_tick_ended(struct avrsim *h)
+{
+	uint16_t tick;
+
+	if (!h->slow_shift)
+		return 0;
+	avrsim_peek(h, (uint16_t)(h->board_addr + h->layout.tick), &tick, 2);
+	return (((uint16_t)(tick - 1u)) & ((1u << h->slow_shift) - 1u)) == 0;
+}
+
 static void on_tick_end(struct avrsim *h)
 {
 	uint64_t now = h->avr->cycle, end;
@@ -934,7 +946,8 @@ static void step(struct avrsim *h)
 		if (v == m1284p.vec_twi)
 			h->twi_status_in_isr = reg(h, m1284p.twsr) & 0xF8u;
 		if (v == m1284p.vec_pcint0 || v == m1284p.vec_pcint2 || v == m1284p.vec_pcint3) {
-			uint64_t *at = &h->edge_at[v == m1284p.vec_pcint0 ? 2 : v == m1284p.vec_pcint3];
+			uint64_t *at =
+				&h->edge_at[v == m1284p.vec_pcint0 ? 2 : v == m1284p.vec_pcint3];
 
 			if (*at)
 				add_count(&h->st.edge_wait, avr->cycle - *at + ISR_RESPONSE);
@@ -972,6 +985,8 @@ static void step(struct avrsim *h)
 			add_count(&h->st.tick, len);
 			add_count(&h->st.servo, h->servo_now);
 			on_tick_end(h);
+			add_count(slow_tick_ended(h) ? &h->st.servo_slow : &h->st.servo_other,
+				  h->servo_now);
 		}
 	}
 	/* SLOW is PD1 when it is an output (two rates); with one rate PD1 is an input, pulled up */

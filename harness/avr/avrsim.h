@@ -41,14 +41,17 @@ struct avrsim_count {
 };
 
 struct avrsim_stats {
-	uint64_t cycles;             /* simulated since the last reset of the stats */
-	uint64_t idle;               /* of which asleep */
-	struct avrsim_count tick;    /* TICK pin high, rise to fall (interrupts included) */
-	struct avrsim_count servo;   /* the same without the interrupts that ran inside it */
-	struct avrsim_count slow;    /* two rates: each run of the slow steps (SLOW pin high),
-				      * without the servo and the interrupts that preempted it */
-	struct avrsim_count period;  /* cycles awake per control period (compare to compare),
-				      * with the interrupts' 4-cycle responses */
+	uint64_t cycles;                 /* simulated since the last reset of the stats */
+	uint64_t idle;                   /* of which asleep */
+	struct avrsim_count tick;        /* TICK pin high, rise to fall (interrupts included) */
+	struct avrsim_count servo;       /* the same without the interrupts that ran inside it */
+	struct avrsim_count servo_slow;  /* two rates: servo, at the slow ticks only (the hand-over
+					  * and the snapshot: one tick in 2^slow_shift) */
+	struct avrsim_count servo_other; /* servo, at the other ticks (all of them with one rate) */
+	struct avrsim_count slow;        /* two rates: each run of the slow steps (SLOW pin high),
+					  * without the servo and the interrupts that preempted it */
+	struct avrsim_count period;      /* cycles awake per control period (compare to compare),
+					  * with the interrupts' 4-cycle responses */
 	struct avrsim_count isr_sum; /* cycles of interrupts (the servo's own excluded) per control
 				      * period, responses included */
 	struct avrsim_count fast;    /* the servo's and the interrupts' cycles per control period */

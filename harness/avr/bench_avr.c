@@ -53,6 +53,8 @@ static void merge(struct phase *all, const struct avrsim_stats *s, uint64_t tick
 	a->idle += s->idle;
 	add(&a->tick, &s->tick);
 	add(&a->servo, &s->servo);
+	add(&a->servo_slow, &s->servo_slow);
+	add(&a->servo_other, &s->servo_other);
 	add(&a->slow, &s->slow);
 	add(&a->period, &s->period);
 	add(&a->isr_sum, &s->isr_sum);
@@ -78,8 +80,10 @@ static double mean(const struct avrsim_count *c)
 }
 
 /* Interrupt cycles per control period [mean, worst], from each interrupt's count per period
- * and its mean and worst cycles. */
-static void isr_load(const struct phase *p, double *m, double *w)
+ * and its mean and worst cycles; the TWI's worst from each kind of bus event's rate and its
+ * longest run (the bus events differ: a STOP that takes a message costs three times a byte
+ * sent), or, with all_twi_longest, every TWI interrupt at the longest of any kind. */
+static void isr_load(const struct phase *p, double *m, double *w, int all_twi_longest)
 {
 	const uint8_t vec[] = {m1284p.vec_pcint0, m1284p.vec_pcint2, m1284p.vec_pcint3,
 			       m1284p.vec_adc,    m1284p.vec_twi,    m1284p.vec_timer3_compa};
@@ -90,7 +94,12 @@ static void isr_load(const struct phase *p, double *m, double *w)
 		double per = (double)c->n / (double)p->ticks;
 
 		*m += per * mean(c);
-		*w += per * (double)c->max;
+		if (vec[i] != m1284p.vec_twi || all_twi_longest) {
+			*w += per * (double)c->max;
+			continue;
+		}
+		for (int k = 0; k < 32; k++)
+			*w += (double)p->st.twi[k].n / (double)p->ticks * (double)p->st.twi[k].max;
 	}
 }
 
@@ -113,38 +122,57 @@ static void print_one_rate(const struct phase *p, uint32_t tick_hz, double im, d
 		       100.0 * ((double)s->tick.max + iw * 1000.0 / tick_hz) / 16000.0);
 }
 
-/* Two rates: the servo, the slow steps, the interrupts, and the load they make together (the
- * worst from the worst of each, with the interrupts' worst estimated as in one rate and as the
- * busiest period had them), then the same loads as measured over one period and one slow
- * period (cycles awake; the busiest of each). */
+/* Two rates: the servo (at the slow ticks and at the others), the slow steps, the interrupts, and
+ * the load they make together over a slow period of 2^slow_shift ticks: the mean from the means,
+ * the worst from each at its worst (a slow tick and the others each at the longest of its kind,
+ * the interrupts at their worst rate of cycles, the longest run of the slow steps); then the
+ * cruder bound of every tick at the servo's worst and every TWI interrupt at the longest of any
+ * kind (iw_all), the same with the busiest period's interrupts in every period, and the loads as
+ * measured over one period and one slow period (cycles awake; the busiest of each). */
 static void print_two_rates(const struct phase *p, uint32_t tick_hz, uint8_t slow_shift, double im,
-			    double iw)
+			    double iw, double iw_all)
 {
 	const struct avrsim_stats *s = &p->st;
 	uint32_t period = AVRSIM_F_CPU / tick_hz, n = 1u << slow_shift, slow_period = period * n;
-	double servo_slow_mean = mean(&s->servo) / period + mean(&s->slow) / slow_period;
-	double servo_slow_worst = (double)s->servo.max / period + (double)s->slow.max / slow_period;
+	double servo_ticks_worst =
+		(double)s->servo_slow.max + (n - 1u) * (double)s->servo_other.max;
+	double load_mean = mean(&s->servo) / period + im / period + mean(&s->slow) / slow_period;
+	double load_worst = (servo_ticks_worst + n * iw + (double)s->slow.max) / slow_period;
+	double load_crude =
+		((double)s->servo.max + iw_all) / period + (double)s->slow.max / slow_period;
+	double load_busiest = (servo_ticks_worst + (double)s->slow.max) / slow_period +
+			      (double)s->isr_sum.max / period;
 
 	printf("  servo tick (TICK high, without the interrupts nested in it)\n"
 	       "%35s%8.0f cycles mean %8llu worst\n",
 	       "", mean(&s->servo), (unsigned long long)s->servo.max);
+	printf("    at a slow tick (the hand-over, the snapshot)\n"
+	       "%35s%8.0f cycles mean %8llu worst\n",
+	       "", mean(&s->servo_slow), (unsigned long long)s->servo_slow.max);
+	printf("    at the other %u ticks of a slow period\n"
+	       "%35s%8.0f cycles mean %8llu worst\n",
+	       n - 1u, "", mean(&s->servo_other), (unsigned long long)s->servo_other.max);
 	printf("  slow steps, a run every %u ticks (SLOW high, without what preempted them)\n"
 	       "%35s%8.0f cycles mean %8llu worst  (%llu runs)\n",
 	       n, "", mean(&s->slow), (unsigned long long)s->slow.max,
 	       (unsigned long long)s->slow.n);
-	printf("  interrupts per period (each at its rate, its longest run)\n"
+	printf("  interrupts per period (each at its rate, its longest run; the TWI's per kind of "
+	       "bus event)\n"
 	       "%35s%8.0f cycles mean %8.0f worst\n",
 	       "", im, iw);
 	printf("  interrupts in one period, measured\n"
 	       "%35s%8.0f cycles mean %8llu in the busiest\n",
 	       "", mean(&s->isr_sum), (unsigned long long)s->isr_sum.max);
-	printf("  CPU load at %u Hz: (servo + interrupts) / period + slow steps / %u periods "
-	       "(goal: 40 %% worst)\n"
-	       "%35s%7.1f %% mean    %7.1f %% worst\n"
-	       "%35s%25.1f %% worst with the busiest period's interrupts\n",
-	       tick_hz, n, "", 100.0 * (servo_slow_mean + im / period),
-	       100.0 * (servo_slow_worst + iw / period), "",
-	       100.0 * (servo_slow_worst + (double)s->isr_sum.max / period));
+	printf("  CPU load at %u Hz over a slow period: (servo x %u + interrupts x %u + slow "
+	       "steps) "
+	       "/ %u periods (goal: 40 %% worst)\n"
+	       "%35s%7.1f %% mean    %7.1f %% worst\n",
+	       tick_hz, n, n, n, "", 100.0 * load_mean, 100.0 * load_worst);
+	printf("    cruder bounds: every tick at the servo's worst, every TWI interrupt at its "
+	       "longest\n"
+	       "%35s%25.1f %% worst\n"
+	       "%35s%25.1f %% worst with the busiest period's interrupts in every period\n",
+	       "", 100.0 * load_crude, "", 100.0 * load_busiest);
 	printf("  measured: servo + interrupts in one period\n"
 	       "%35s%7.1f %% mean    %7.1f %% in the busiest (of %u cycles)\n",
 	       "", 100.0 * mean(&s->fast) / period, 100.0 * (double)s->fast.max / period, period);
@@ -159,7 +187,7 @@ static void print_phase(const char *title, const struct phase *p, uint32_t tick_
 			uint8_t slow_shift)
 {
 	const struct avrsim_stats *s = &p->st;
-	double seconds = (double)p->ticks / tick_hz, im, iw;
+	double seconds = (double)p->ticks / tick_hz, im, iw, iw_all;
 	const struct {
 		const char *name;
 		uint8_t vec;
@@ -171,10 +199,11 @@ static void print_phase(const char *title, const struct phase *p, uint32_t tick_
 		   {slow_shift ? "control timer, around the servo" : "control timer",
 		    m1284p.vec_timer3_compa}};
 
-	isr_load(p, &im, &iw);
+	isr_load(p, &im, &iw, 0);
+	isr_load(p, &im, &iw_all, 1);
 	printf("\n%s: %llu ticks (%.2f s)\n", title, (unsigned long long)p->ticks, seconds);
 	if (slow_shift)
-		print_two_rates(p, tick_hz, slow_shift, im, iw);
+		print_two_rates(p, tick_hz, slow_shift, im, iw, iw_all);
 	else
 		print_one_rate(p, tick_hz, im, iw);
 	for (size_t i = 0; i < sizeof(isr) / sizeof(isr[0]); i++) {
