@@ -791,8 +791,10 @@ void board_slow(struct board *b)
 static void sp_advance(struct orders_axis *sp, const struct orders_axis *step,
 		       const struct orders_axis *end, int last)
 {
-	if (last) {
-		*sp = *end;
+	if (last) { /* field by field: avr-gcc copies a whole struct byte by byte in a loop */
+		sp->pos_um = end->pos_um;
+		sp->vel_um_s = end->vel_um_s;
+		sp->acc_um_s2 = end->acc_um_s2;
 		return;
 	}
 	sp->pos_um += step->pos_um;
@@ -853,11 +855,16 @@ static uint32_t take_handover(struct board *b, struct board_snapshot *p)
 static void take_snapshot(struct board *b, const struct board_inputs *in, int32_t dist_um)
 {
 	struct board_snapshot *p = &b->period[b->period_index];
-	uint8_t shocks = p->in.shocks, basket = p->in.basket;
 
-	p->in = *in;
-	p->in.shocks = shocks;
-	p->in.basket = basket;
+	/* The tick's inputs but the switches (the period's): field by field, which avr-gcc does
+	 * in 13 loads and stores where it copies a struct byte by byte in a loop. */
+	p->in.free_count[0] = in->free_count[0];
+	p->in.free_count[1] = in->free_count[1];
+	p->in.motor_count[0] = in->motor_count[0];
+	p->in.motor_count[1] = in->motor_count[1];
+	p->in.current_ma[0] = in->current_ma[0];
+	p->in.current_ma[1] = in->current_ma[1];
+	p->in.lines = in->lines;
 	p->dist_um = dist_um;
 	p->angle_um = b->angle_um;
 	p->heading_turn32 = b->odometry.heading_turn32;
