@@ -518,6 +518,36 @@ static void test_reset_hold_here(void **state)
 }
 
 /* Out-of-range settings are refused. */
+/* The limits in per-tick units are floor(v 2^16 / hz) and floor(a 2^16 / hz^2), to the bit, over
+ * the accepted ranges (their bounds, and a pseudo-random sweep): what the AVR computes with a
+ * 32-bit division and 16 restoring steps (div_shl16), the host's 64-bit division says. */
+static void test_limits_in_tick_units(void **state)
+{
+	struct profile p;
+	uint32_t x = 12345u;
+
+	(void)state;
+	for (int i = 0; i < 20000; i++) {
+		uint16_t hz =
+			(uint16_t)(i < 4 ? (i & 1 ? PROFILE_TICK_HZ_MAX : PROFILE_TICK_HZ_MIN)
+					 : PROFILE_TICK_HZ_MIN + x % (PROFILE_TICK_HZ_MAX -
+								      PROFILE_TICK_HZ_MIN + 1));
+		int32_t v = i < 4 ? (i & 2 ? PROFILE_V_MAX_UM_S : 1)
+				  : 1 + (int32_t)((x >> 3) % PROFILE_V_MAX_UM_S);
+		int32_t a = i < 4 ? (i & 2 ? PROFILE_A_MAX_UM_S2 : PROFILE_A_MIN_UM_S2)
+				  : PROFILE_A_MIN_UM_S2 +
+					    (int32_t)((x >> 7) % (PROFILE_A_MAX_UM_S2 -
+								  PROFILE_A_MIN_UM_S2 + 1));
+		struct profile_config cfg = {.tick_hz = hz, .limits = {v, a, 0}};
+
+		x = x * 1103515245u + 12345u;
+		assert_int_equal(profile_init(&p, &cfg, 0), 0);
+		assert_int_equal(p.prm.v_max_q16, (int32_t)(((uint64_t)v << 16) / hz));
+		assert_int_equal(p.prm.a_full_q16,
+				 (int32_t)(((uint64_t)a << 16) / ((uint64_t)hz * hz)));
+	}
+}
+
 static void test_bad_settings(void **state)
 {
 	struct profile p;
@@ -634,6 +664,7 @@ int main(void)
 		cmocka_unit_test(test_limits_changed_mid_move),
 		cmocka_unit_test(test_stop),
 		cmocka_unit_test(test_reset_hold_here),
+		cmocka_unit_test(test_limits_in_tick_units),
 		cmocka_unit_test(test_bad_settings),
 		cmocka_unit_test(test_scurve_durations),
 		cmocka_unit_test(test_scurve_reversal_and_stop),
