@@ -36,8 +36,8 @@
 		ROW64(f, 0), ROW64(f, 64), ROW64(f, 128), ROW64(f, 192)                            \
 	}
 
-const int8_t quad_step[3][256] PROGMEM __attribute__((aligned(256))) = {
-	TABLE(BITS23), TABLE(BITS45), TABLE(BITS67)};
+const int8_t quad_step[3][256] PROGMEM
+	__attribute__((aligned(256))) = {TABLE(BITS23), TABLE(BITS45), TABLE(BITS67)};
 
 /* Written by encoder_isr.S. A counter is kept as count ^ 0x80: its low byte moves by the step
  * and its high byte by the same step when the low byte overflows as a signed byte (0x7F <-> 0x80,

@@ -51,8 +51,8 @@
 #define PIN_PWM_RIGHT_BIT 4 /* PD4, OC1B */
 #define PIN_PWM_LEFT_BIT 5  /* PD5, OC1A */
 
-#define PIN_SCL_BIT 0       /* PC0 */
-#define PIN_DIR_PORT PORTC  /* direction: high = backward */
+#define PIN_SCL_BIT 0      /* PC0 */
+#define PIN_DIR_PORT PORTC /* direction: high = backward */
 #define PIN_DIR_DDR DDRC
 #define PIN_DIR_LEFT_BIT 4  /* PC4 */
 #define PIN_DIR_RIGHT_BIT 5 /* PC5 */

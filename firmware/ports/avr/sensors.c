@@ -24,7 +24,8 @@ void avr_sensors_init(void)
 	DDRC = 0;
 	PORTC = (uint8_t) ~(_BV(0) | _BV(1));
 	DDRD = _BV(PIN_TICK_BIT) | SLOW_MASK;
-	PORTD = (uint8_t)((_BV(0) | _BV(1) | _BV(PIN_BASKET_BIT) | PIN_FREE_RIGHT_MASK) & ~SLOW_MASK);
+	PORTD = (uint8_t)((_BV(0) | _BV(1) | _BV(PIN_BASKET_BIT) | PIN_FREE_RIGHT_MASK) &
+			  ~SLOW_MASK);
 }
 
 uint8_t hal_shock_read(void)
