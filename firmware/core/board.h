@@ -61,7 +61,8 @@ struct board_snapshot {
 	int32_t angle_um;       /* the angle axis at the period's end */
 	/* The sums of the ticks' steps over the period, modulo 2^32 (a period's are far below: 8
 	 * ticks of at most 32.8 mm; they would wrap after 2 km in one period, the slow steps
-	 * stuck). The free wheels' travels are the slow steps', from in.free_count. */
+	 * stuck). The free wheels' travels are the slow steps', from in.free_count (a period's
+	 * count change is read as a signed 16-bit one: 8 ticks at 2.5 m/s are 256 counts). */
 	int32_t ds_um;         /* distance axis change over the period */
 	int32_t arc_um;        /* angle axis change over the period */
 	int32_t dtheta_turn32; /* heading change over the period */
