@@ -90,14 +90,25 @@ void odometry_install_config(struct odometry *o, const struct odometry_config *c
 	o->right = wheels[1];
 }
 
-/* m counts beyond the tables: two 16 x 16 products for the travel (clamped to
- * ODOMETRY_STEP_Q16_MAX beyond it, and -ERANGE returned), four for m u modulo 2^64. Out of line:
- * only a wheel faster than the tables (2.5 m/s at 1 kHz for the reference robot) comes here. */
+/* m counts' travel with the factor k [um * 2^16]: k m from two 16 x 16 products (the upper
+ * one below 2^31), clamped to ODOMETRY_STEP_Q16_MAX beyond it (*clamped then 1). The tables hold
+ * the same products. */
+FX_INLINE uint32_t travel_of(const uint16_t k[2], uint16_t m, uint8_t *clamped)
+{
+	uint32_t lo = fx_mul_u16(m, k[0]);
+	uint32_t hi = fx_mul_u16(m, k[1]) + fx_hi16(lo);
+
+	*clamped = hi >= 0x8000u;
+	return *clamped ? ODOMETRY_STEP_Q16_MAX : (hi << 16) | fx_lo16(lo);
+}
+
+/* m counts beyond the tables: the travel (-ERANGE if clamped), and four 16 x 16 products for
+ * m u modulo 2^64. Out of line: only a wheel faster than the tables (2.5 m/s at 1 kHz for the
+ * reference robot) comes here. */
 static FX_NOINLINE int wheel_move_wide(const struct odometry_wheel *w, uint16_t m,
 				       struct odometry_move *mv)
 {
-	uint32_t lo = fx_mul_u16(m, w->k[0]);
-	uint32_t hi = fx_mul_u16(m, w->k[1]) + fx_hi16(lo);
+	uint8_t clamped;
 	const uint32_t *u = w->move[1].turn_q64;
 	uint32_t p0 = fx_mul_u16(m, fx_lo16(u[0]));
 	uint32_t p1 = fx_mul_u16(m, fx_hi16(u[0]));
@@ -107,12 +118,8 @@ static FX_NOINLINE int wheel_move_wide(const struct odometry_wheel *w, uint16_t 
 	mv->turn_q64[0] = fx_lo16(p0) | (t << 16);
 	mv->turn_q64[1] = p2 + fx_hi16(p1) + fx_hi16(t) +
 			  ((uint32_t)(uint16_t)((uint32_t)m * fx_hi16(u[1])) << 16);
-	if (hi >= 0x8000u) {
-		mv->travel_q16 = ODOMETRY_STEP_Q16_MAX;
-		return -ERANGE;
-	}
-	mv->travel_q16 = (hi << 16) | fx_lo16(lo);
-	return 0;
+	mv->travel_q16 = travel_of(w->k, m, &clamped);
+	return clamped ? -ERANGE : 0;
 }
 
 /* h += d, or h -= d, modulo 2^64 (two 32-bit words, lower first). On an AVR, eight loads and
@@ -421,12 +428,9 @@ FX_NOINLINE void odometry_advance(struct odometry *o, const struct odometry_arc 
 int32_t odometry_travel_q16(const uint16_t k[2], int16_t counts)
 {
 	uint16_t m = counts >= 0 ? (uint16_t)counts : (uint16_t)(0u - (uint16_t)counts);
-	uint32_t lo = fx_mul_u16(m, k[0]);
-	uint32_t hi = fx_mul_u16(m, k[1]) + fx_hi16(lo); /* below 2^31 */
-	int32_t t;
+	uint8_t clamped;
+	int32_t t = (int32_t)travel_of(k, m, &clamped);
 
-	/* As wheel_move_wide(): the tables hold the same products. */
-	t = hi >= 0x8000u ? ODOMETRY_STEP_Q16_MAX : (int32_t)((hi << 16) | fx_lo16(lo));
 	return counts >= 0 ? t : -t;
 }
 

@@ -23,6 +23,7 @@
  * --realtime runs the same move in the real-time lockstep instead (avrsim.h): the binary must
  * then keep up, and the overruns at the end say whether it did.
  *   bench_avr asserv_avr.elf [--no-profile] [--realtime] */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -81,28 +82,38 @@ static double mean(const struct avrsim_count *c)
 	return c->n ? (double)c->cycles / (double)c->n : 0.0;
 }
 
-/* Interrupt cycles per control period [mean, worst], from each interrupt's count per period
- * and its mean and worst cycles; the TWI's worst from each kind of bus event's rate and its
- * longest run (the bus events differ: a STOP that takes a message costs three times a byte
- * sent), or, with all_twi_longest, every TWI interrupt at the longest of any kind. */
-static void isr_load(const struct phase *p, double *m, double *w, int all_twi_longest)
+/* Interrupt cycles per control period, from each interrupt's count per period and its mean and
+ * longest run: the mean; the worst, the TWI's from each kind of bus event's rate and its longest
+ * run (the bus events differ: a STOP that takes a message costs three times a byte sent); the
+ * cruder worst with every TWI interrupt at the longest of any kind; the encoders' part of the
+ * worst. */
+struct isr_load {
+	double mean, worst, worst_all_twi, worst_encoders;
+};
+
+static struct isr_load isr_load(const struct phase *p)
 {
 	const uint8_t vec[] = {m1284p.vec_pcint0, m1284p.vec_pcint2, m1284p.vec_pcint3,
 			       m1284p.vec_adc,    m1284p.vec_twi,    m1284p.vec_timer3_compa};
+	struct isr_load l = {0.0, 0.0, 0.0, 0.0};
 
-	*m = *w = 0.0;
 	for (size_t i = 0; i < sizeof(vec); i++) {
 		const struct avrsim_count *c = &p->st.isr[vec[i]];
-		double per = (double)c->n / (double)p->ticks;
+		double per = (double)c->n / (double)p->ticks, w = per * (double)c->max;
 
-		*m += per * mean(c);
-		if (vec[i] != m1284p.vec_twi || all_twi_longest) {
-			*w += per * (double)c->max;
+		l.mean += per * mean(c);
+		l.worst_all_twi += w;
+		if (i < 3)
+			l.worst_encoders += w;
+		if (vec[i] != m1284p.vec_twi) {
+			l.worst += w;
 			continue;
 		}
 		for (int k = 0; k < 32; k++)
-			*w += (double)p->st.twi[k].n / (double)p->ticks * (double)p->st.twi[k].max;
+			l.worst += (double)p->st.twi[k].n / (double)p->ticks *
+				   (double)p->st.twi[k].max;
 	}
+	return l;
 }
 
 /* One rate: the tick, the interrupts, and the load of a period. */
@@ -128,20 +139,21 @@ static void print_one_rate(const struct phase *p, uint32_t tick_hz, double im, d
  * the load they make together over a slow period of 2^slow_shift ticks: the mean from the means,
  * the worst from each at its worst (a slow tick and the others each at the longest of its kind,
  * the interrupts at their worst rate of cycles, the longest run of the slow steps); then the
- * cruder bound of every tick at the servo's worst and every TWI interrupt at the longest of any
- * kind (iw_all), the same with the busiest period's interrupts in every period, and the loads as
- * measured over one period and one slow period (cycles awake; the busiest of each). */
-static void print_two_rates(const struct phase *p, uint32_t tick_hz, uint8_t slow_shift, double im,
-			    double iw, double iw_all)
+ * worst by part, and how far it is from 40 %; the cruder bound of every tick at the servo's worst
+ * and every TWI interrupt at the longest of any kind, the same with the busiest period's
+ * interrupts in every period, and the loads as measured over one period and one slow period
+ * (cycles awake; the busiest of each). */
+static void print_two_rates(const struct phase *p, uint32_t tick_hz, uint8_t slow_shift,
+			    const struct isr_load *il)
 {
 	const struct avrsim_stats *s = &p->st;
 	uint32_t period = AVRSIM_F_CPU / tick_hz, n = 1u << slow_shift, slow_period = period * n;
 	double servo_ticks_worst =
 		(double)s->servo_slow.max + (n - 1u) * (double)s->servo_other.max;
-	double load_mean = mean(&s->servo) / period + im / period + mean(&s->slow) / slow_period;
-	double load_worst = (servo_ticks_worst + n * iw + (double)s->slow.max) / slow_period;
-	double load_crude =
-		((double)s->servo.max + iw_all) / period + (double)s->slow.max / slow_period;
+	double load_mean = (mean(&s->servo) + il->mean) / period + mean(&s->slow) / slow_period;
+	double load_worst = (servo_ticks_worst + n * il->worst + (double)s->slow.max) / slow_period;
+	double load_crude = ((double)s->servo.max + il->worst_all_twi) / period +
+			    (double)s->slow.max / slow_period;
 	double load_busiest = (servo_ticks_worst + (double)s->slow.max) / slow_period +
 			      (double)s->isr_sum.max / period;
 
@@ -161,7 +173,7 @@ static void print_two_rates(const struct phase *p, uint32_t tick_hz, uint8_t slo
 	printf("  interrupts per period (each at its rate, its longest run; the TWI's per kind of "
 	       "bus event)\n"
 	       "%35s%8.0f cycles mean %8.0f worst\n",
-	       "", im, iw);
+	       "", il->mean, il->worst);
 	printf("  interrupts in one period, measured\n"
 	       "%35s%8.0f cycles mean %8llu in the busiest\n",
 	       "", mean(&s->isr_sum), (unsigned long long)s->isr_sum.max);
@@ -170,6 +182,14 @@ static void print_two_rates(const struct phase *p, uint32_t tick_hz, uint8_t slo
 	       "/ %u periods (goal: 40 %% worst)\n"
 	       "%35s%7.1f %% mean    %7.1f %% worst\n",
 	       tick_hz, n, n, n, "", 100.0 * load_mean, 100.0 * load_worst);
+	printf("    the worst by part, in %u periods: servo %.0f cycles (%.1f %%), interrupts %.0f "
+	       "(%.1f %%; the encoders' %.0f), slow steps %llu (%.1f %%); 40 %% is %u cycles: "
+	       "%.0f %s\n",
+	       n, servo_ticks_worst, 100.0 * servo_ticks_worst / slow_period, n * il->worst,
+	       100.0 * n * il->worst / slow_period, n * il->worst_encoders,
+	       (unsigned long long)s->slow.max, 100.0 * (double)s->slow.max / slow_period,
+	       slow_period * 2u / 5u, fabs(load_worst * slow_period - slow_period * 0.4),
+	       load_worst > 0.4 ? "to go" : "to spare");
 	printf("    cruder bounds: every tick at the servo's worst, every TWI interrupt at its "
 	       "longest\n"
 	       "%35s%25.1f %% worst\n"
@@ -189,7 +209,7 @@ static void print_phase(const char *title, const struct phase *p, uint32_t tick_
 			uint8_t slow_shift)
 {
 	const struct avrsim_stats *s = &p->st;
-	double seconds = (double)p->ticks / tick_hz, im, iw, iw_all;
+	double seconds = (double)p->ticks / tick_hz;
 	const struct {
 		const char *name;
 		uint8_t vec;
@@ -201,13 +221,13 @@ static void print_phase(const char *title, const struct phase *p, uint32_t tick_
 		   {slow_shift ? "control timer, around the servo" : "control timer",
 		    m1284p.vec_timer3_compa}};
 
-	isr_load(p, &im, &iw, 0);
-	isr_load(p, &im, &iw_all, 1);
+	struct isr_load il = isr_load(p);
+
 	printf("\n%s: %llu ticks (%.2f s)\n", title, (unsigned long long)p->ticks, seconds);
 	if (slow_shift)
-		print_two_rates(p, tick_hz, slow_shift, im, iw, iw_all);
+		print_two_rates(p, tick_hz, slow_shift, &il);
 	else
-		print_one_rate(p, tick_hz, im, iw);
+		print_one_rate(p, tick_hz, il.mean, il.worst);
 	for (size_t i = 0; i < sizeof(isr) / sizeof(isr[0]); i++) {
 		const struct avrsim_count *c = &s->isr[isr[i].vec];
 

@@ -26,10 +26,10 @@
 \back:
 .endm
 
-; The rare half of STEP: the high byte moves by the step too.
-.macro carry counter, back
+; The rare half of a step: the high byte moves by the step (in reg) too.
+.macro carry counter, back, reg=r24
 	lds	r31, \counter + 1
-	add	r31, r24
+	add	r31, \reg
 	sts	\counter + 1, r31
 	rjmp	\back
 .endm
@@ -88,10 +88,7 @@
 	out	_SFR_IO_ADDR(SREG), r30
 	in	r30, _SFR_IO_ADDR(GPIOR0)
 	reti
-2:	lds	r31, \counter + 1
-	add	r31, r30
-	sts	\counter + 1, r31
-	rjmp	1b
+2:	carry	\counter, 1b, r30
 	isr_end	\vector
 .endm
 
