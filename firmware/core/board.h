@@ -181,6 +181,15 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
  * Interrupt-safe: it is the control interrupt; it must not be re-entered. */
 void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out);
 
+/* 1 when the next board_tick() ends a period (a slow tick: every tick with slow_shift 0). Only
+ * then does it read the inputs of the period's end, in->motor_count and in->current_ma (the
+ * snapshot's, for the stop conditions and the replies): a port may leave them unsampled at the
+ * other ticks. Interrupt-safe: from the context that calls board_tick(). */
+static inline int board_period_ends(const struct board *b)
+{
+	return (b->tick & b->slow_mask) == 0;
+}
+
 /* 1 when board_slow() has a snapshot to work on (slow_shift > 0). Interrupt-safe: yes. */
 static inline int board_slow_due(const struct board *b)
 {

@@ -137,9 +137,9 @@ struct avrsim {
 	int64_t enc_delivered[4];    /* the same, delivered to the pins */
 	double synth_rate[4];        /* synthetic edges without physics [counts/s] */
 	double synth_pos[4];
-	/* The first edge its interrupt has not yet taken, per pin-change interrupt (enc_isr()) (0:
-	 * none) [cycle]. */
-	uint64_t edge_at[3];
+	/* The first edge its interrupt has not yet taken, per encoder (each has its pin-change
+	 * interrupt) (0: none) [cycle]. */
+	uint64_t edge_at[4];
 	char error[160];
 
 	/* I2C master */
@@ -264,13 +264,6 @@ static void set_adc(struct avrsim *h, int ch, uint32_t mv, uint64_t cycle)
 	ev_push(h, cycle, h->adc[ch], mv, -1, 0, -1, 0);
 }
 
-/* Encoder e's pin-change interrupt, as an index of edge_at: free left (PCINT2) 0, free right
- * (PCINT3) 1, the motors (PCINT0) 2. */
-static int enc_isr(int e)
-{
-	return e < 2 ? e : 2;
-}
-
 /* Drives a pin or an analog input now. A driven pin is also the port's "external" level, which
  * simavr gives the pin again whenever the firmware writes the port register (else an input's
  * pull-up would win over the harness). */
@@ -285,8 +278,8 @@ static void deliver(struct avrsim *h, const struct event *e)
 	}
 	if (e->enc >= 0) {
 		h->enc_delivered[e->enc] = e->count;
-		if (!h->edge_at[enc_isr(e->enc)])
-			h->edge_at[enc_isr(e->enc)] = h->avr->cycle;
+		if (!h->edge_at[e->enc])
+			h->edge_at[e->enc] = h->avr->cycle;
 	}
 	avr_raise_irq(e->irq, e->value);
 }
@@ -391,10 +384,10 @@ static uint8_t quad_b(int64_t n)
 }
 
 /* Encoder e's pins (pinmap.h): free left PC2/PC3, free right PD6/PD7, motor left PA2/PA3, motor
- * right PA4/PA5. */
+ * right PB2/PB3. */
 static void enc_pins(int e, int *port, int *bit_a)
 {
-	static const int8_t port_of[4] = {2, 3, 0, 0}, bit_of[4] = {2, 6, 2, 4};
+	static const int8_t port_of[4] = {2, 3, 0, 1}, bit_of[4] = {2, 6, 2, 2};
 
 	*port = port_of[e];
 	*bit_a = bit_of[e];
@@ -431,9 +424,12 @@ static void schedule_edges(struct avrsim *h, int e, double p0, double p1, int64_
 static void schedule_sensors(struct avrsim *h, const struct sim_sensors *s, uint64_t at)
 {
 	static const int line_port[4] = {0, 0, 2, 2}, line_bit[4] = {6, 7, 6, 7};
+	/* CAPTEUR_n on PBn, but CAPTEUR_2 and CAPTEUR_3 on PA4 and PA5 */
+	static const int shock_port[8] = {1, 1, 0, 0, 1, 1, 1, 1};
+	static const int shock_bit[8] = {0, 1, 4, 5, 4, 5, 6, 7};
 
 	for (int i = 0; i < 8; i++)
-		set_pin(h, 1, i, !((s->shock_mask >> i) & 1u), at);
+		set_pin(h, shock_port[i], shock_bit[i], !((s->shock_mask >> i) & 1u), at);
 	set_pin(h, 3, PIN_BASKET_BIT, !s->basket, at);
 	for (int i = 0; i < 4; i++)
 		set_pin(h, line_port[i], line_bit[i], !((s->line_mask >> i) & 1u), at);
@@ -945,9 +941,9 @@ static void step(struct avrsim *h)
 		h->period_resp += ISR_RESPONSE;
 		if (v == m1284p.vec_twi)
 			h->twi_status_in_isr = reg(h, m1284p.twsr) & 0xF8u;
-		if (v == m1284p.vec_pcint0 || v == m1284p.vec_pcint2 || v == m1284p.vec_pcint3) {
-			uint64_t *at =
-				&h->edge_at[v == m1284p.vec_pcint0 ? 2 : v == m1284p.vec_pcint3];
+		if (v >= m1284p.vec_pcint[0] && v <= m1284p.vec_pcint[3]) {
+			/* PCINT2, 3: the free wheels (encoders 0, 1); PCINT0, 1: the motors */
+			uint64_t *at = &h->edge_at[(v - m1284p.vec_pcint[0] + 2) & 3];
 
 			if (*at)
 				add_count(&h->st.edge_wait, avr->cycle - *at + ISR_RESPONSE);
@@ -1458,6 +1454,14 @@ int avrsim_encoders_turn(struct avrsim *h, const double counts_per_s[4])
 		h->synth_rate[e] = counts_per_s[e];
 	if (h->phys_next == UINT64_MAX)
 		h->phys_next = h->avr->cycle;
+	return 0;
+}
+
+int avrsim_sensors_set(struct avrsim *h, const struct sim_sensors *s)
+{
+	if (h->sim)
+		return -1;
+	schedule_sensors(h, s, h->avr->cycle);
 	return 0;
 }
 

@@ -130,6 +130,11 @@ int avrsim_master_hold(struct avrsim *h, int on);
  * now on, their edges evenly spaced. Returns 0, or -1 with physics attached. */
 int avrsim_encoders_turn(struct avrsim *h, const double counts_per_s[4]);
 
+/* Without physics: the shock switches, the basket contact, the line sensors and the motor
+ * currents of s (shock_mask, basket, line_mask, current_mA) on the pins and ADC inputs from
+ * now on. Returns 0, or -1 with physics attached. */
+int avrsim_sensors_set(struct avrsim *h, const struct sim_sensors *s);
+
 /* Encoder e (0 free left, 1 free right, 2 motor left, 3 motor right): the count its pins show
  * now, from the edges delivered so far (the physics' count at the edge). */
 int64_t avrsim_encoder_edges(const struct avrsim *h, int e);

@@ -6,7 +6,7 @@
  * whatever the tick costs, so that the tick's cycles are those of the real motion even when the
  * binary could not keep up in real time. Interrupts do not preempt the tick there; each is
  * measured on its own, and the load of a control period in real time is their sum:
- *     tick + (edges per period x encoder interrupt) + ADC (2) + timer (1) + TWI per period.
+ *     tick + (edges per period x encoder interrupt) + timer (1) + TWI per period.
  * With two rates (the binary's cfg.slow_shift > 0) the tick is the servo, and the slow steps
  * that run once every 2^slow_shift periods add their share:
  *     (servo + interrupts per period) / period + slow steps / slow period,
@@ -93,8 +93,8 @@ struct isr_load {
 
 static struct isr_load isr_load(const struct phase *p)
 {
-	const uint8_t vec[] = {m1284p.vec_pcint0, m1284p.vec_pcint2, m1284p.vec_pcint3,
-			       m1284p.vec_adc,    m1284p.vec_twi,    m1284p.vec_timer3_compa};
+	const uint8_t vec[] = {m1284p.vec_pcint[0], m1284p.vec_pcint[1], m1284p.vec_pcint[2],
+			       m1284p.vec_pcint[3], m1284p.vec_twi,      m1284p.vec_timer3_compa};
 	struct isr_load l = {0.0, 0.0, 0.0, 0.0};
 
 	for (size_t i = 0; i < sizeof(vec); i++) {
@@ -103,7 +103,7 @@ static struct isr_load isr_load(const struct phase *p)
 
 		l.mean += per * mean(c);
 		l.worst_all_twi += w;
-		if (i < 3)
+		if (i < 4)
 			l.worst_encoders += w;
 		if (vec[i] != m1284p.vec_twi) {
 			l.worst += w;
@@ -213,10 +213,10 @@ static void print_phase(const char *title, const struct phase *p, uint32_t tick_
 	const struct {
 		const char *name;
 		uint8_t vec;
-	} isr[] = {{"encoder, free wheel left (PCINT2)", m1284p.vec_pcint2},
-		   {"encoder, free wheel right (PCINT3)", m1284p.vec_pcint3},
-		   {"encoders, motors (PCINT0)", m1284p.vec_pcint0},
-		   {"current-sense ADC", m1284p.vec_adc},
+	} isr[] = {{"encoder, free wheel left (PCINT2)", m1284p.vec_pcint[2]},
+		   {"encoder, free wheel right (PCINT3)", m1284p.vec_pcint[3]},
+		   {"encoder, motor left (PCINT0)", m1284p.vec_pcint[0]},
+		   {"encoder, motor right (PCINT1)", m1284p.vec_pcint[1]},
 		   {"TWI", m1284p.vec_twi},
 		   {slow_shift ? "control timer, around the servo" : "control timer",
 		    m1284p.vec_timer3_compa}};

@@ -12,7 +12,7 @@ struct m1284p_regs {
 	uint8_t ocie3a;
 	uint16_t twcr, twsr, twdr, twar;
 	uint8_t twint, twea, twsta, twsto, twen, twie;
-	uint8_t vec_twi, vec_timer3_compa, vec_pcint0, vec_pcint2, vec_pcint3, vec_adc;
+	uint8_t vec_twi, vec_timer3_compa, vec_pcint[4]; /* vec_pcint[n]: PCINTn_vect */
 	uint16_t ramstart, ramend;
 	uint32_t flashend;
 };

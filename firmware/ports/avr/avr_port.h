@@ -22,14 +22,19 @@ void avr_sensors_init(void);
 void avr_encoder_init(void);
 void avr_motor_init(void);
 
+/* The control tick's current sense, first in each tick: the last conversion's reading filtered
+ * into its channel's sum, the other channel's conversion started (motor.c). */
+void avr_motor_sense(void);
+
 #if CONFIG_AVR_SLOW_SHIFT == 0
 /* One rate. Sleeps until the tick timer's next compare match (or returns at once if one is
  * due). Returns the number of periods that elapsed since the last call: more than 1 is an
  * overrun. Main loop only. */
 uint8_t avr_tick_wait(void);
 #else
-/* Two rates. The servo: TICK high, port_control_tick(), TICK low, avr_servo_alive set. Called
- * by the timer's interrupt (tick_isr.S) with interrupts enabled, never re-entered. */
+/* Two rates. The servo: TICK high, avr_motor_sense(), port_control_tick(), TICK low,
+ * avr_servo_alive set. Called by the timer's interrupt (tick_isr.S) with interrupts enabled, never
+ * re-entered. */
 void avr_servo_tick(void);
 /* Set by each servo tick, cleared by the main loop when it feeds the watchdog. */
 extern volatile uint8_t avr_servo_alive;

@@ -1,7 +1,7 @@
-/* Quadrature decoding of the four encoders by pin-change interrupts (encoder_isr.S): the free
- * wheels on PC2, PC3 (PCINT2) and PD6, PD7 (PCINT3), an interrupt each; the motor shafts on
- * PA2..PA5 (PCINT0), one interrupt for both. Each interrupt reads its port once and steps the
- * channels on it from the tables below. */
+/* Quadrature decoding of the four encoders by pin-change interrupts (encoder_isr.S), each alone
+ * on its port: the motor shafts on PA2, PA3 (PCINT0) and PB2, PB3 (PCINT1), the free wheels on
+ * PC2, PC3 (PCINT2) and PD6, PD7 (PCINT3). Each interrupt reads its port once and steps its
+ * counter from the tables below. */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/pgmspace.h>
@@ -21,12 +21,10 @@
 /* An interrupt's table index i is swap(previous levels) | current levels, the levels being its
  * port's encoder bits; the swap moves the previous ones beside the current ones. Each table is
  * aligned to 256 bytes, so that the interrupt puts the index in ZL and a constant in ZH.
- * quad_step[0]: a channel on bits 2, 3 (the left motor; the left free wheel, alone on its port),
- * previous levels in bits 6, 7. quad_step[1]: a channel on bits 4, 5 (the right motor), previous
- * levels in bits 0, 1. quad_step[2]: a channel on bits 6, 7 (the right free wheel, alone on its
- * port), previous levels in bits 2, 3. */
+ * quad_step[0]: a channel on bits 2, 3 (both motors, the left free wheel), previous levels in
+ * bits 6, 7. quad_step[1]: a channel on bits 6, 7 (the right free wheel), previous levels in
+ * bits 2, 3. */
 #define BITS23(i) STEP(3 & ((i) >> 6), 3 & ((i) >> 2))
-#define BITS45(i) STEP(3 & (i), 3 & ((i) >> 4))
 #define BITS67(i) STEP(3 & ((i) >> 2), 3 & ((i) >> 6))
 #define ROW(f, i) f(i), f((i) + 1), f((i) + 2), f((i) + 3)
 #define ROW16(f, i) ROW(f, i), ROW(f, (i) + 4), ROW(f, (i) + 8), ROW(f, (i) + 12)
@@ -36,8 +34,8 @@
 		ROW64(f, 0), ROW64(f, 64), ROW64(f, 128), ROW64(f, 192)                            \
 	}
 
-const int8_t quad_step[3][256] PROGMEM
-	__attribute__((aligned(256))) = {TABLE(BITS23), TABLE(BITS45), TABLE(BITS67)};
+const int8_t quad_step[2][256] PROGMEM
+	__attribute__((aligned(256))) = {TABLE(BITS23), TABLE(BITS67)};
 
 /* Written by encoder_isr.S. A counter is kept as count ^ 0x80: its low byte moves by the step
  * and its high byte by the same step when the low byte overflows as a signed byte (0x7F <-> 0x80,
@@ -46,9 +44,10 @@ const int8_t quad_step[3][256] PROGMEM
 volatile uint16_t avr_free_count[2];
 volatile uint16_t avr_motor_count[2];
 uint8_t avr_free_state[2];
-uint8_t avr_motor_state;
+uint8_t avr_motor_state[2];
 
-#if PIN_MOTOR_ENC_MASK != 0x3Cu || PIN_FREE_LEFT_MASK != 0x0Cu || PIN_FREE_RIGHT_MASK != 0xC0u
+#if PIN_MOTOR_LEFT_MASK != 0x0Cu || PIN_MOTOR_RIGHT_MASK != 0x0Cu ||                               \
+	PIN_FREE_LEFT_MASK != 0x0Cu || PIN_FREE_RIGHT_MASK != 0xC0u
 #error "encoder_isr.S and quad_step expect the encoder pins of pinmap.h"
 #endif
 
@@ -63,14 +62,16 @@ void avr_encoder_init(void)
 {
 	avr_free_state[0] = swapped_levels(PIN_FREE_LEFT_PORT, PIN_FREE_LEFT_MASK);
 	avr_free_state[1] = swapped_levels(PIN_FREE_RIGHT_PORT, PIN_FREE_RIGHT_MASK);
-	avr_motor_state = swapped_levels(PIN_MOTOR_ENC_PORT, PIN_MOTOR_ENC_MASK);
+	avr_motor_state[0] = swapped_levels(PIN_MOTOR_LEFT_PORT, PIN_MOTOR_LEFT_MASK);
+	avr_motor_state[1] = swapped_levels(PIN_MOTOR_RIGHT_PORT, PIN_MOTOR_RIGHT_MASK);
 	for (uint8_t s = 0; s < 2; s++)
 		avr_free_count[s] = avr_motor_count[s] = AVR_COUNT_BIAS;
+	PCMSK0 = PIN_MOTOR_LEFT_MASK;
+	PCMSK1 = PIN_MOTOR_RIGHT_MASK;
 	PCMSK2 = PIN_FREE_LEFT_MASK;
 	PCMSK3 = PIN_FREE_RIGHT_MASK;
-	PCMSK0 = PIN_MOTOR_ENC_MASK;
-	PCIFR = _BV(PCIF3) | _BV(PCIF2) | _BV(PCIF0);
-	PCICR = _BV(PCIE3) | _BV(PCIE2) | _BV(PCIE0);
+	PCIFR = _BV(PCIF3) | _BV(PCIF2) | _BV(PCIF1) | _BV(PCIF0);
+	PCICR = _BV(PCIE3) | _BV(PCIE2) | _BV(PCIE1) | _BV(PCIE0);
 }
 
 uint16_t hal_encoder_free(enum hal_side side)

@@ -1,68 +1,29 @@
 ; The pin-change interrupts of the four quadrature encoders (encoder.c explains the decoding and
-; the tables). In assembly because they run up to 35 000 times a second at 1 m/s: a free wheel's
-; edge costs 37 cycles with the interrupt's response, a motor's 51, where the C version took 140
-; (its prologue saves twelve registers).
+; the tables). In assembly because they run up to 35 000 times a second at 1 m/s: an edge costs
+; 37 cycles with the interrupt's response, where the C version took 140 (its prologue saves
+; twelve registers).
 ;
 ; Each interrupt reads its port once: the index into quad_step[] is the state (the previous
 ; levels, kept swapped) | the current levels, and the new state is the current levels swapped.
 ; Each channel's step (-1, 0, +1) is one lpm from its table and is added to its counter's low
 ; byte, with no branch on the step; the high byte follows only when the low byte overflows
-; (encoder.c: the counters are kept as count ^ 0x80), once in 256 counts. A free wheel is alone
-; on its port (one channel, one counter: Z is all it needs); the motors share one.
+; (encoder.c: the counters are kept as count ^ 0x80), once in 256 counts. Each encoder is alone
+; on its port (one channel, one counter: Z is all it needs).
 #include <avr/io.h>
 
 #include "avr_isr.inc"
 
-#define PINS_MASK 0x3C ; the motors: bits 2..5 of the port, left A, left B, right A, right B
-
-; STEP page, counter, high-byte label, return label: counter += quad_step[page][ZL].
-.macro step page, counter, carry, back
-	ldi	r31, hi8(quad_step + 256 * \page)
-	lpm	r24, Z
-	lds	r31, \counter
-	add	r31, r24
-	sts	\counter, r31
-	brvs	\carry
-\back:
-.endm
-
-; The rare half of a step: the high byte moves by the step (in reg) too.
-.macro carry counter, back, reg=r24
+; The rare half of a step: the high byte moves by the step (in r30) too.
+.macro carry counter, back
 	lds	r31, \counter + 1
-	add	r31, \reg
+	add	r31, r30
 	sts	\counter + 1, r31
 	rjmp	\back
 .endm
 
-; ISR vector, pin register, state byte, counters.
-.macro quad_isr vector, pins, state, counts
-	.section .text.\vector, "ax", @progbits
-	.global	\vector
-	.type	\vector, @function
-\vector:
-	isr_save_r24_sreg
-	out	_SFR_IO_ADDR(GPIOR2), r30
-	push	r31
-	in	r24, _SFR_IO_ADDR(\pins)
-	andi	r24, PINS_MASK
-	lds	r30, \state
-	or	r30, r24
-	swap	r24
-	sts	\state, r24
-	step	0, \counts, 2f, 1
-	step	1, \counts + 2, 4f, 3
-	pop	r31
-	in	r30, _SFR_IO_ADDR(GPIOR2)
-	isr_restore_r24_sreg
-	reti
-2:	carry	\counts, 1b
-4:	carry	\counts + 2, 3b
-	isr_end	\vector
-.endm
-
-; One channel alone on its port (pins at mask): ISR vector, pin register, mask, table page,
+; One channel on its port (pins at mask): ISR vector, pin register, mask, table page,
 ; state byte, counter. Only Z is used, kept in GPIOR0 and GPIOR2, SREG in GPIOR1.
-.macro quad1_isr vector, pins, mask, page, state, counter
+.macro quad_isr vector, pins, mask, page, state, counter
 	.section .text.\vector, "ax", @progbits
 	.global	\vector
 	.type	\vector, @function
@@ -88,10 +49,11 @@
 	out	_SFR_IO_ADDR(SREG), r30
 	in	r30, _SFR_IO_ADDR(GPIOR0)
 	reti
-2:	carry	\counter, 1b, r30
+2:	carry	\counter, 1b
 	isr_end	\vector
 .endm
 
-	quad1_isr PCINT2_vect, PINC, 0x0C, 0, avr_free_state, avr_free_count
-	quad1_isr PCINT3_vect, PIND, 0xC0, 2, avr_free_state + 1, avr_free_count + 2
-	quad_isr PCINT0_vect, PINA, avr_motor_state, avr_motor_count
+	quad_isr PCINT0_vect, PINA, 0x0C, 0, avr_motor_state, avr_motor_count
+	quad_isr PCINT1_vect, PINB, 0x0C, 0, avr_motor_state + 1, avr_motor_count + 2
+	quad_isr PCINT2_vect, PINC, 0x0C, 0, avr_free_state, avr_free_count
+	quad_isr PCINT3_vect, PIND, 0xC0, 1, avr_free_state + 1, avr_free_count + 2

@@ -37,6 +37,7 @@ int main(void)
 	avr_encoder_init();
 	avr_robot_config(&cfg);
 	port_sample(&in);
+	port_sample_period(&in);
 	if (cfg.slow_shift != CONFIG_AVR_SLOW_SHIFT || board_init(&asserv_board, &cfg, &in) != 0) {
 		/* A configuration the core refuses, or rates the execution model built in does not
 		 * run (tick.c): motors off, no bus, wait for a new binary. */
@@ -54,6 +55,7 @@ int main(void)
 		if (n > 1)
 			avr_tick_overruns += (uint16_t)(n - 1u);
 		PORTD |= _BV(PIN_TICK_BIT);
+		avr_motor_sense();
 		port_control_tick(&asserv_board);
 		PORTD &= (uint8_t)~_BV(PIN_TICK_BIT);
 		wdt_reset();

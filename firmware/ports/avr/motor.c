@@ -1,6 +1,6 @@
 /* The two drive motors: Timer1 phase-correct PWM at 20 kHz on OC1A (left) and OC1B (right), a
- * direction pin each, and the current-sense ADC, converted once per period and channel and filtered
- * by its interrupt (motor_isr.S). */
+ * direction pin each, and the current-sense ADC, a conversion each period, the channels in turn,
+ * read and filtered by the control tick (avr_motor_sense()). */
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <util/atomic.h>
@@ -10,13 +10,18 @@
 #include "hal.h"
 #include "pinmap.h"
 
+#if PIN_I_LEFT_ADC != 0 || PIN_I_RIGHT_ADC != 1
+#error "avr_motor_sense() tells the channels apart by ADMUX bit 0"
+#endif
+
 /* Each channel's readings, low-pass filtered: sum += reading - sum / 4, so that sum settles at 4
- * readings (avr_units.h) with a time constant of 4 control periods. The control timer's
- * interrupt starts a conversion of the left channel each period, the ADC interrupt
- * (motor_isr.S, which keeps these sums) then the right one: two conversions of 13 ADC clocks
- * (8 us each at prescaler 128) per period, two short interrupts, where converting all the time
- * would cost 6 % of the CPU. */
-volatile uint16_t avr_adc_sum[2];
+ * readings (avr_units.h), with a time constant of 4 readings, 8 control periods. The control
+ * tick takes a channel's reading and starts the other's conversion (13 ADC clocks, 104 us at
+ * prescaler 128, done long before the next tick): one conversion a period and no interrupt,
+ * where an interrupt per conversion cost 60 cycles each, and converting all the time 6 % of the
+ * CPU. Only the tick touches them (with two rates the servo, and the period's end samples of
+ * port_sample_period() in it), so they need no atomic access. */
+static uint16_t adc_sum[2];
 
 void avr_motor_init(void)
 {
@@ -31,10 +36,24 @@ void avr_motor_init(void)
 	TCCR1A = _BV(COM1A1) | _BV(COM1B1) | _BV(WGM11);
 	TCCR1B = _BV(WGM13) | _BV(CS10);
 
-	avr_adc_sum[0] = avr_adc_sum[1] = 512u * AVR_CURRENT_SAMPLES; /* 0 A */
+	adc_sum[0] = adc_sum[1] = 512u * AVR_CURRENT_SAMPLES; /* 0 A */
 	DIDR0 = _BV(PIN_I_LEFT_ADC) | _BV(PIN_I_RIGHT_ADC);
 	ADMUX = _BV(REFS0) | PIN_I_LEFT_ADC; /* AVCC reference */
-	ADCSRA = _BV(ADEN) | _BV(ADIE) | _BV(ADPS2) | _BV(ADPS1) | _BV(ADPS0);
+	/* The first conversion (25 ADC clocks) before the first tick reads it. */
+	ADCSRA = _BV(ADEN) | _BV(ADSC) | _BV(ADPS2) | _BV(ADPS1) | _BV(ADPS0);
+}
+
+/* The period's current sense: the last conversion's reading into its channel's sum, then the
+ * other channel's conversion. Inlined into the tick. */
+__attribute__((always_inline)) inline void avr_motor_sense(void)
+{
+	uint8_t mux = ADMUX;
+	uint16_t *sum = &adc_sum[mux & 1u];
+	uint16_t reading = ADC; /* ADCL first: reading it holds ADCH for this conversion */
+
+	ADMUX = mux ^ 1u;
+	ADCSRA |= _BV(ADSC);
+	*sum = (uint16_t)(*sum + reading - (*sum >> 2));
 }
 
 /* Inlined into the tick (link-time optimisation), where the side is a constant: the side's pins
@@ -60,14 +79,8 @@ __attribute__((always_inline)) inline void hal_motor_set(enum hal_side side, int
 	}
 }
 
-/* Inlined into port_sample() for the same reason (38 cycles a tick less). */
+/* Inlined into port_sample_period() for the same reason. */
 __attribute__((always_inline)) inline int16_t hal_motor_current_ma(enum hal_side side)
 {
-	uint16_t sum;
-
-	ATOMIC_BLOCK(ATOMIC_RESTORESTATE)
-	{
-		sum = avr_adc_sum[side];
-	}
-	return avr_current_ma(sum);
+	return avr_current_ma(adc_sum[side]);
 }

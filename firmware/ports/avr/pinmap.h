@@ -2,9 +2,11 @@
  *
  *   PORTA  PA0 ADC0 current sense left      PA1 ADC1 current sense right
  *          PA2 motor encoder left A         PA3 motor encoder left B      (PCINT2/3)
- *          PA4 motor encoder right A        PA5 motor encoder right B     (PCINT4/5)
+ *          PA4 shock switch CAPTEUR_2       PA5 shock switch CAPTEUR_3
  *          PA6 line sensor 0                PA7 line sensor 1
- *   PORTB  PB0..PB7 shock switches CAPTEUR_0..CAPTEUR_7 (PB5..PB7 are shared with the ISP header)
+ *   PORTB  PB0 shock switch CAPTEUR_0       PB1 shock switch CAPTEUR_1
+ *          PB2 motor encoder right A        PB3 motor encoder right B     (PCINT10/11)
+ *          PB4..PB7 shock switches CAPTEUR_4..CAPTEUR_7 (PB5..PB7 are shared with the ISP header)
  *   PORTC  PC0 SCL                          PC1 SDA                       (TWI, address 2)
  *          PC2 free encoder left A          PC3 free encoder left B       (PCINT18/19, JTAG off)
  *          PC4 direction left               PC5 direction right           (high = backward)
@@ -29,12 +31,14 @@
 #define PIN_I_LEFT_ADC 0 /* ADC channels */
 #define PIN_I_RIGHT_ADC 1
 
-/* The motor encoders on bits 2..5 of port A: left A, left B, right A, right B (one pin-change
- * interrupt for both). The free wheels' encoders on ports of their own, A then B: the left on
- * PC2, PC3, the right on PD6, PD7 (an interrupt each, so that an edge steps one counter).
- * encoder_isr.S and its tables rely on these bits. */
-#define PIN_MOTOR_ENC_PORT PINA
-#define PIN_MOTOR_ENC_MASK 0x3Cu
+/* Each encoder on a port of its own (the pin-change interrupts are per port), A then B, so that
+ * an edge's interrupt steps one counter: the motors on PA2, PA3 (left) and PB2, PB3 (right),
+ * the free wheels on PC2, PC3 (left) and PD6, PD7 (right). encoder_isr.S and its tables rely on
+ * these bits. */
+#define PIN_MOTOR_LEFT_PORT PINA
+#define PIN_MOTOR_LEFT_MASK 0x0Cu
+#define PIN_MOTOR_RIGHT_PORT PINB
+#define PIN_MOTOR_RIGHT_MASK 0x0Cu
 #define PIN_FREE_LEFT_PORT PINC
 #define PIN_FREE_LEFT_MASK 0x0Cu
 #define PIN_FREE_RIGHT_PORT PIND
@@ -43,7 +47,10 @@
 #define PIN_LINE_A_MASK 0xC0u /* PA6, PA7: line sensors 0, 1 */
 #define PIN_LINE_C_MASK 0xC0u /* PC6, PC7: line sensors 2, 3 */
 
-#define PIN_SHOCK_PORT PINB /* PB0..PB7: CAPTEUR_0..CAPTEUR_7 */
+/* The shock switches: CAPTEUR_n on PBn, but CAPTEUR_2 and CAPTEUR_3 on PA4 and PA5 (PB2 and PB3
+ * are the right motor's encoder): bits 4, 5 of port A shifted right by 2 are bits 2, 3. */
+#define PIN_SHOCK_B_MASK 0xF3u
+#define PIN_SHOCK_A_MASK 0x30u
 
 #define PIN_SLOW_BIT 1      /* PD1, two rates */
 #define PIN_BASKET_BIT 2    /* PD2 */

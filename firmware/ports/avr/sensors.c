@@ -30,7 +30,9 @@ void avr_sensors_init(void)
 
 uint8_t hal_shock_read(void)
 {
-	return (uint8_t)~PIN_SHOCK_PORT;
+	uint8_t a = (uint8_t)((PINA & PIN_SHOCK_A_MASK) >> 2);
+
+	return (uint8_t) ~((PINB & PIN_SHOCK_B_MASK) | a);
 }
 
 uint8_t hal_basket_contact(void)

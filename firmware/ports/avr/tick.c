@@ -68,6 +68,7 @@ volatile uint8_t avr_servo_alive;
 void avr_servo_tick(void)
 {
 	PORTD |= _BV(PIN_TICK_BIT);
+	avr_motor_sense();
 	port_control_tick(&asserv_board);
 	PORTD &= (uint8_t)~_BV(PIN_TICK_BIT);
 	avr_servo_alive = 1;

@@ -1,10 +1,9 @@
-; The control timer's interrupt (tick.c). It starts the period's current-sense conversions (the
-; left channel; the ADC's interrupt then starts the right one), then, by execution model
-; (CONFIG_AVR_SLOW_SHIFT, tick.c; undefined reads as 0, robot.c's default):
-;   one rate (0): counts the period for the main loop, at most 255. 28 cycles with the
+; The control timer's interrupt (tick.c), by execution model (CONFIG_AVR_SLOW_SHIFT, tick.c;
+; undefined reads as 0, robot.c's default):
+;   one rate (0): counts the period for the main loop, at most 255. 23 cycles with the
 ;     interrupt's response, against 44 in C.
 ;   two rates (> 0): runs the servo (avr_servo_tick) with interrupts enabled, so that the
-;     encoder, ADC and TWI interrupts nest in it; a compare match that finds the servo still
+;     encoder and TWI interrupts nest in it; a compare match that finds the servo still
 ;     running is counted in avr_tick_overruns and dropped.
 #include <avr/io.h>
 
@@ -15,9 +14,6 @@
 	.type	TIMER3_COMPA_vect, @function
 TIMER3_COMPA_vect:
 	isr_save_r24_sreg
-	lds	r24, ADCSRA
-	ori	r24, _BV(ADSC)
-	sts	ADCSRA, r24
 #if !defined(CONFIG_AVR_SLOW_SHIFT) || CONFIG_AVR_SLOW_SHIFT == 0
 	lds	r24, avr_tick_periods
 	inc	r24

@@ -5,9 +5,11 @@
 
 #include "board.h"
 
-/* Sample the HAL into in (hal_encoder_*, hal_motor_current_ma, hal_*_read). Interrupt-safe: it
- * runs in the control interrupt. */
+/* Sample the HAL into in: the inputs of every tick (the free wheels' counts, hal_*_read), then
+ * those of a period's end (the motors' counts, hal_motor_current_ma), which board_tick() reads
+ * only when board_period_ends(). Interrupt-safe: they run in the control interrupt. */
 void port_sample(struct board_inputs *in);
+void port_sample_period(struct board_inputs *in);
 
 /* Sample, board_tick(), hal_motor_set(). Must not be re-entered. */
 void port_control_tick(struct board *b);
