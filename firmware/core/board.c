@@ -787,19 +787,17 @@ void board_slow(struct board *b)
 }
 
 /* One axis's set point a tick further towards the handed-over one (reached at the period's
- * last tick). */
+ * last tick). Its acceleration is the handed-over one from the hand-over on (take_handover()). */
 static void sp_advance(struct orders_axis *sp, const struct orders_axis *step,
 		       const struct orders_axis *end, int last)
 {
 	if (last) { /* field by field: avr-gcc copies a whole struct byte by byte in a loop */
 		sp->pos_um = end->pos_um;
 		sp->vel_um_s = end->vel_um_s;
-		sp->acc_um_s2 = end->acc_um_s2;
 		return;
 	}
 	sp->pos_um += step->pos_um;
 	sp->vel_um_s += step->vel_um_s;
-	sp->acc_um_s2 = end->acc_um_s2;
 }
 
 /* The slow steps' results, taken by the servo; returns the heading's move. p: the period that
@@ -839,9 +837,13 @@ static uint32_t take_handover(struct board *b, struct board_snapshot *p)
 		proto_flip(&b->proto);
 		h->publish = 0;
 	}
-	/* The set points go from where they are to the new ones over the next period. */
+	/* The set points go from where they are to the new ones over the next period; the
+	 * acceleration is the new one at once (the control's feed-forward then computes its term
+	 * once a period). */
 	b->setpoints_index ^= 1u;
 	b->phase = 0;
+	b->sp_dist.acc_um_s2 = b->setpoints[b->setpoints_index].dist.acc_um_s2;
+	b->sp_angle.acc_um_s2 = b->setpoints[b->setpoints_index].angle.acc_um_s2;
 	if (h->jump) {
 		b->sp_dist = b->setpoints[b->setpoints_index].dist;
 		b->sp_angle = b->setpoints[b->setpoints_index].angle;

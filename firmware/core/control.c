@@ -40,6 +40,10 @@ int control_init(struct control *c, const struct control_config *cfg)
 	c->k_angle_accel_q20 = per_um_q20(cfg->ff_angle_accel_q15_per_m_s2);
 	c->ff_narrow = c->k_speed_q20 <= 0xffff && c->k_accel_q20 <= 0xffff &&
 		       c->k_angle_accel_q20 <= 0xffff;
+	for (int i = 0; i < 2; i++) { /* the term of no acceleration, for any coefficient */
+		c->ff_acc[i].acc_um_s2 = 0;
+		c->ff_acc[i].term_q15 = 0;
+	}
 	c->gains = cfg->presets[FILTRE_STD];
 	pc = pid_config_of(cfg, &c->gains);
 	if (pid_init(&c->dist, &pc) || pid_init(&c->angle, &pc))
@@ -96,13 +100,8 @@ FX_INLINE int16_t clip16(int32_t v, int16_t lim)
 	return (int16_t)v;
 }
 
-static int32_t feed_forward_c(int32_t k_speed, int32_t k_accel, const struct orders_axis *sp)
-{
-	return ff_term_c(sp->vel_um_s, k_speed) + ff_term_c(sp->acc_um_s2, k_accel);
-}
-
 #if FX_AVR_MUL
-/* One term of feed_forward_avr, round(v k / 2^20) into P2..P5 (r16 is zero): r18..r21 = v (read
+/* One term of the feed-forward, round(v k / 2^20) into P2..P5 (r16 is zero): r18..r21 = v (read
  * at Z + VOFF); 0 if v is; else v k in 48 bits (r26, r27, P2..P5) from eight MULs, v taken as
  * unsigned and then corrected by -k 2^32 when negative; + 2^19, less 1 below zero (ties away from
  * zero); >> 20, arithmetic. */
@@ -184,50 +183,55 @@ static int32_t feed_forward_c(int32_t k_speed, int32_t k_accel, const struct ord
 	"ror " P2 "\n"                                                                             \
 	"4:\n\t"
 
-/* r22..r25 += r12..r15. */
-#define FF_SUM "add r22,r12\n\tadc r23,r13\n\tadc r24,r14\n\tadc r25,r15\n\t"
-
-/* feed_forward for coefficients below 2^16, in AVR assembly: avr-gcc calls a library routine for
- * each of the C version's 16 x 16 products and keeps few of its 32-bit values in registers: about
- * 400 cycles an axis where this takes 150, and 80 at a constant speed (a zero term costs 10).
- * round(v k / 2^20) with ties away from zero is floor((v k + 2^19 - [v < 0]) / 2^20) on the
- * signed product, for any v. */
-FX_INLINE int32_t feed_forward_avr(uint16_t k_speed, uint16_t k_accel, const struct orders_axis *sp)
+/* round(*v k / 2^20) for a coefficient below 2^16, in AVR assembly: avr-gcc calls a library
+ * routine for each of the C version's 16 x 16 products and keeps few of its 32-bit values in
+ * registers: about 200 cycles a term where this takes 70, and 10 for a zero v. round(v k / 2^20)
+ * with ties away from zero is floor((v k + 2^19 - [v < 0]) / 2^20) on the signed product, for
+ * any v. */
+FX_INLINE int32_t ff_term_avr(const int32_t *v, uint16_t k)
 {
 	register int32_t r __asm__("r22");
 
-	__asm__("clr r16\n\t" FF_TERM("%[vel]", "%A[ks]", "%B[ks]", "r22", "r23", "r24", "r25")
-			FF_TERM("%[acc]", "%A[ka]", "%B[ka]", "r12", "r13", "r14", "r15") FF_SUM
-		"clr r1"
+	__asm__("clr r16\n\t" FF_TERM("0", "%A[k]", "%B[k]", "r22", "r23", "r24", "r25") "clr r1"
 		: "=&r"(r)
-		: "z"(sp), [ks] "r"(k_speed), [ka] "r"(k_accel),
-		  [vel] "n"(offsetof(struct orders_axis, vel_um_s)),
-		  [acc] "n"(offsetof(struct orders_axis, acc_um_s2))
-		: "r0", "r12", "r13", "r14", "r15", "r16", "r18", "r19", "r20", "r21", "r26",
-		  "r27");
+		: "z"(v), [k] "r"(k)
+		: "r0", "r16", "r18", "r19", "r20", "r21", "r26", "r27");
 	return r;
 }
 
 /* Out of line: its registers would burden the common case. */
-static FX_NOINLINE int32_t feed_forward_wide(int32_t k_speed, int32_t k_accel,
-					     const struct orders_axis *sp)
+static FX_NOINLINE int32_t ff_term_wide(int32_t v, int32_t k)
 {
-	return feed_forward_c(k_speed, k_accel, sp);
+	return ff_term_c(v, k);
 }
 #endif
 
-/* Feed-forward of one axis [duty_q15]: k_accel is that axis's coefficient. */
-FX_INLINE int32_t feed_forward(const struct control *c, const int32_t *k_accel,
-			       const struct orders_axis *sp)
+/* round(*v k / 2^20), by the build's fastest means for the coefficients configured. */
+FX_INLINE int32_t ff_term(const struct control *c, const int32_t *v, int32_t k)
 {
 #if FX_AVR_MUL
 	if (c->ff_narrow)
-		return feed_forward_avr(fx_lo16((uint32_t)c->k_speed_q20),
-					fx_lo16((uint32_t)*k_accel), sp);
-	return feed_forward_wide(c->k_speed_q20, *k_accel, sp);
+		return ff_term_avr(v, fx_lo16((uint32_t)k));
+	return ff_term_wide(*v, k);
 #else
-	return feed_forward_c(c->k_speed_q20, *k_accel, sp);
+	(void)c;
+	return ff_term_c(*v, k);
 #endif
+}
+
+/* Feed-forward of one axis [duty_q15]: the velocity's term, and the acceleration's (k_accel,
+ * that axis's coefficient) from m. The set points' acceleration holds over a slow period (the
+ * servo steps their position and velocity towards the slow steps' next ones, not their
+ * acceleration), so its term is computed once a period, when the acceleration changes: one
+ * product a tick where it took two, accelerating. */
+FX_INLINE int32_t feed_forward(const struct control *c, struct control_ff_memo *m, int32_t k_accel,
+			       const struct orders_axis *sp)
+{
+	if (sp->acc_um_s2 != m->acc_um_s2) {
+		m->acc_um_s2 = sp->acc_um_s2;
+		m->term_q15 = ff_term(c, &sp->acc_um_s2, k_accel);
+	}
+	return ff_term(c, &sp->vel_um_s, c->k_speed_q20) + m->term_q15;
 }
 
 void control_update(struct control *c, const struct orders_axis *sp_dist,
@@ -242,12 +246,12 @@ void control_update(struct control *c, const struct orders_axis *sp_dist,
 	 * so the robot keeps its heading (a saturated turn would otherwise curve the path). One
 	 * axis after the other, so that little is kept across the other's registers. */
 	u = pid_update(&c->angle, c->angle_err_um);
-	u += feed_forward(c, &c->k_angle_accel_q20, sp_angle);
+	u += feed_forward(c, &c->ff_acc[1], c->k_angle_accel_q20, sp_angle);
 	lim = c->cfg.duty_max_q15;
 	a = clip16(u, lim);
 	head = (int16_t)(lim - (a < 0 ? -a : a));
 	u = pid_update(&c->dist, c->dist_err_um);
-	u += feed_forward(c, &c->k_accel_q20, sp_dist);
+	u += feed_forward(c, &c->ff_acc[0], c->k_accel_q20, sp_dist);
 	d = clip16(u, head);
 	c->duty_q15[0] = (int16_t)(d - a); /* left */
 	c->duty_q15[1] = (int16_t)(d + a);

@@ -27,12 +27,20 @@ struct control_config {
 		presets[CONTROL_N_PRESETS]; /* FILTRE_STD, FILTRE_SOUPLE, FILTRE_RAIDE */
 };
 
+/* An axis's feed-forward term of the acceleration, with the acceleration it is of. */
+struct control_ff_memo {
+	int32_t acc_um_s2;
+	int32_t term_q15;
+};
+
 struct control {
 	struct control_config cfg;
 	int32_t k_speed_q20; /* [duty_q15 per um/s * 2^20] */
 	int32_t k_accel_q20; /* [duty_q15 per um/s^2 * 2^20] */
 	int32_t k_angle_accel_q20;
 	uint8_t ff_narrow; /* all three below 2^16 */
+	struct control_ff_memo
+		ff_acc[2]; /* distance, angle: computed when the acceleration changes */
 	struct pid dist;
 	struct pid angle;
 	struct control_gains gains; /* in effect */

@@ -204,15 +204,14 @@ void recal_sense_init(struct recal_sense *s, struct recal_edges *e, int32_t dist
 
 void recal_sense(struct recal_sense *s, struct recal_edges *e, uint8_t lines, int32_t dist_um)
 {
-	uint8_t changed = lines ^ s->on;
+	uint8_t changed = (uint8_t)((lines ^ s->on) & ((1u << RECAL_MAX_SENSORS) - 1u));
 	int32_t step = dist_um - s->prev_dist_um;
 
 	if (changed) {
 		int32_t edge_um = s->prev_dist_um + step / 2;
 
-		for (uint8_t i = 0; i < RECAL_MAX_SENSORS; i++) {
-			uint8_t bit = (uint8_t)(1u << i);
-
+		/* up to the highest sensor that changed */
+		for (uint8_t i = 0, bit = 1; changed >= bit; i++, bit = (uint8_t)(bit << 1)) {
 			if (!(changed & bit))
 				continue;
 			if (lines & bit) {

@@ -47,7 +47,7 @@ struct target {
 	struct cta_state host; /* the host's pid and control, in step with the AVR's */
 	uint64_t n[CTA_OPS], cycles[CTA_OPS], max[CTA_OPS];
 	/* pid_update calls that the fast path takes, and the others; control_update calls with
-	 * coefficients below 2^16 (feed_forward_avr) and the others */
+	 * coefficients below 2^16 (ff_term_avr) and the others */
 	uint64_t pid_fast, pid_general, ff_narrow, ff_wide;
 };
 
