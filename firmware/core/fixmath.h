@@ -269,6 +269,59 @@ FX_INLINE uint32_t fx_shl_u32(uint32_t x, uint8_t n)
 	return FX_NARROW && !FX_PLAIN_SHIFT(n) ? fx_shl_u32_n(x, n) : x << n;
 }
 
+/* x >> n and x << n for a count n in 0..31 known only at run time: avr-gcc shifts a uint32_t by
+ * a variable count one bit per turn of a loop, 8 cycles a bit; here 16 and 8 bits at once are
+ * byte moves, and only the last 0..7 bits take turns. */
+static inline uint32_t fx_shr_u32_var(uint32_t x, uint8_t n)
+{
+	if (n >= 16) {
+		x = fx_hi16(x);
+		n = (uint8_t)(n - 16u);
+	}
+	if (n >= 8) {
+		x >>= 8;
+		n = (uint8_t)(n - 8u);
+	}
+	while (n-- != 0)
+		x >>= 1;
+	return x;
+}
+
+static inline uint32_t fx_shl_u32_var(uint32_t x, uint8_t n)
+{
+	if (n >= 16) {
+		x = (uint32_t)fx_lo16(x) << 16;
+		n = (uint8_t)(n - 16u);
+	}
+	if (n >= 8) {
+		x <<= 8;
+		n = (uint8_t)(n - 8u);
+	}
+	while (n-- != 0)
+		x <<= 1;
+	return x;
+}
+
+/* The number of bits of v (0 for 0): the top non-zero byte found by comparisons, then at most 8
+ * turns of an 8-bit loop (a 32-bit one costs an AVR 12 cycles a turn). */
+static inline uint8_t fx_bit_length32(uint32_t v)
+{
+	uint8_t n, top;
+
+	if (fx_hi16(v) != 0) {
+		n = v >= ((uint32_t)1 << 24) ? 24 : 16;
+		top = (uint8_t)(n == 24 ? v >> 24 : v >> 16);
+	} else {
+		n = fx_lo16(v) >= 0x100u ? 8 : 0;
+		top = (uint8_t)(n == 8 ? fx_lo16(v) >> 8 : fx_lo16(v));
+	}
+	while (top != 0) {
+		top >>= 1;
+		n++;
+	}
+	return n;
+}
+
 /* a * b as two 32-bit words: returns the upper one, *lo the lower. Four 16 x 16 products. */
 static inline uint32_t fx_mul_u32_wide_n(uint32_t a, uint32_t b, uint32_t *lo)
 {

@@ -219,6 +219,15 @@ static void test_narrow_primitives_match(void **state)
 		assert_true(fx_mul_u32_wide(a, b, &lo) == hi_n && lo == lo_n);
 		assert_true(fx_shr_u32_n(a, n) == a >> n);
 		assert_true(fx_shl_u32_n(a, n) == (uint32_t)(a << n));
+		assert_true(fx_shr_u32_var(a, n) == a >> n);
+		assert_true(fx_shl_u32_var(a, n) == (uint32_t)(a << n));
+		{
+			uint8_t len = 0;
+
+			while (len < 32 && (a >> len) != 0)
+				len++;
+			assert_int_equal(fx_bit_length32(a), len);
+		}
 		{
 			/* fx_mul_q: |b| <= 65535, n in 8..47, the result fitting 32 bits. */
 			int32_t sa = (int32_t)(a >> 1) * (rng_next() & 1 ? 1 : -1);
