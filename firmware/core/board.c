@@ -587,11 +587,12 @@ static void update_status(struct board *b)
 
 /* floor(u / 1000) for u < 2^25: q = floor(u 33555 / 2^25) (33555 = ceil(2^25 / 1000)) is the
  * quotient or one more (the excess u 0.568 / 2^25 stays below 1), which the remainder settles.
- * Three 16 x 16-bit products: the replies' millimetres cost no division. */
+ * Three 16 x 16-bit products: the replies' millimetres cost no division. The shifts through
+ * fx_shr_u32 (here and below): avr-gcc shifts a uint32_t by 9 or 20 bits one bit a turn. */
 static uint16_t div1000(uint32_t u)
 {
-	uint32_t q =
-		(fx_mul_u16(fx_hi16(u), 33555u) + fx_hi16(fx_mul_u16(fx_lo16(u), 33555u))) >> 9;
+	uint32_t q = fx_shr_u32(
+		fx_mul_u16(fx_hi16(u), 33555u) + fx_hi16(fx_mul_u16(fx_lo16(u), 33555u)), 9);
 
 	if (fx_mul_u16((uint16_t)q, UM_PER_MM) > u)
 		q--;
@@ -615,7 +616,7 @@ static int16_t mm_of(int32_t um)
  * is exact there (the excess of 5243 over 2^20 / 200 adds under 0.003). */
 static int8_t angle_2deg_of(int32_t cdeg)
 {
-	uint8_t q = (uint8_t)(fx_mul_u16((uint16_t)(fx_mag32(cdeg) + 100u), 5243u) >> 20);
+	uint8_t q = (uint8_t)fx_shr_u32(fx_mul_u16((uint16_t)(fx_mag32(cdeg) + 100u), 5243u), 20);
 
 	return cdeg >= 0 ? (int8_t)q : (int8_t) - (int16_t)q;
 }
