@@ -236,18 +236,16 @@ static uint32_t heading_units(uint32_t bound_turn32)
 	return (uint32_t)(((uint64_t)bound_turn32 * TWO_PI_Q16 + 0xffffffffu) >> 32);
 }
 
-static void run_stage(struct uncertainty *u);
+static void run_stages(struct uncertainty *u, uint8_t n);
 
 /* After a reset the radius is refreshed at once: the batch in flight is finished, then the
  * last stages run, all in this call. A recalibration's tick pays for up to a whole batch (a few
  * per match), so that the master reading POSITION when the order ends sees the new radius. */
 static void request_radius(struct uncertainty *u)
 {
-	while (u->stage != STAGE_IDLE)
-		run_stage(u);
+	run_stages(u, UINT8_MAX); /* fewer than that: until idle */
 	u->stage = STAGE_EIGEN;
-	while (u->stage != STAGE_IDLE)
-		run_stage(u);
+	run_stages(u, UINT8_MAX);
 }
 
 int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg)
@@ -626,87 +624,97 @@ static void stage_radius(struct uncertainty *u)
 	u->radius_mm = r != 0 ? (uint8_t)(mm + 1) : mm;
 }
 
-FX_NOINLINE static void run_stage(struct uncertainty *u)
+/* Up to n stages, until idle. In one call: an AVR saves and restores 14 registers per call, which
+ * a call per stage paid up to 8 times in a slow run. */
+FX_NOINLINE static void run_stages(struct uncertainty *u, uint8_t n)
 {
-	switch (u->stage) {
-	case STAGE_DIRECTION:
-		stage_direction(u);
-		break;
-	case STAGE_DISPLACEMENT:
-		stage_displacement(u);
-		break;
-	case STAGE_NOISE:
-		stage_noise(u);
-		break;
-	case STAGE_W1:
-		stage_w1(u);
-		break;
-	case STAGE_W2:
-		stage_w2(u);
-		/* Past a cap the covariance is frozen (the radius reads 255): no more products. */
-		if (u->saturated)
-			u->stage = STAGE_RADIUS - 1;
-		break;
-	case STAGE_FP_XX:
-		stage_fp_xx(u);
-		break;
-	case STAGE_FP_XY:
-		stage_fp_xy(u);
-		break;
-	case STAGE_FP_YY:
-		stage_fp_yy(u);
-		break;
-	case STAGE_UV:
-		stage_uv(u);
-		break;
-	case STAGE_Q_XX:
-		stage_q_xx(u);
-		break;
-	case STAGE_Q_YY:
-		stage_q_yy(u);
-		break;
-	case STAGE_Q_XY:
-		stage_q_xy(u);
-		break;
-	case STAGE_Q_XT:
-		stage_q_xt(u);
-		break;
-	case STAGE_Q_YT:
-		stage_q_yt(u);
-		break;
-	case STAGE_Q_TT:
-		stage_q_tt(u);
-		break;
-	case STAGE_EIGEN:
-		stage_eigen(u);
-		break;
-	case STAGE_SIGMA:
-		stage_sigma(u);
-		break;
-	case STAGE_SYS_RATIO:
-		add_systematic(u, mag48(&u->w1[0]), mag48(&u->w1[1]), u->ratio_coef_q32);
-		break;
-	case STAGE_SYS_TRACK:
-		add_systematic(u, mag48(&u->w2[0]), mag48(&u->w2[1]), u->track_coef_q32);
-		break;
-	case STAGE_RADIUS:
-		stage_radius(u);
-		u->stage = STAGE_IDLE;
-		return;
-	default:
-		return;
+	for (; n != 0 && u->stage != STAGE_IDLE; n--) {
+		switch (u->stage) {
+		case STAGE_DIRECTION:
+			stage_direction(u);
+			break;
+		case STAGE_DISPLACEMENT:
+			stage_displacement(u);
+			break;
+		case STAGE_NOISE:
+			stage_noise(u);
+			break;
+		case STAGE_W1:
+			stage_w1(u);
+			break;
+		case STAGE_W2:
+			stage_w2(u);
+			/* Past a cap the covariance is frozen (the radius reads 255): no more
+			 * products. */
+			if (u->saturated)
+				u->stage = STAGE_RADIUS - 1;
+			break;
+		case STAGE_FP_XX:
+			stage_fp_xx(u);
+			break;
+		case STAGE_FP_XY:
+			stage_fp_xy(u);
+			break;
+		case STAGE_FP_YY:
+			stage_fp_yy(u);
+			break;
+		case STAGE_UV:
+			stage_uv(u);
+			break;
+		case STAGE_Q_XX:
+			stage_q_xx(u);
+			break;
+		case STAGE_Q_YY:
+			stage_q_yy(u);
+			break;
+		case STAGE_Q_XY:
+			stage_q_xy(u);
+			break;
+		case STAGE_Q_XT:
+			stage_q_xt(u);
+			break;
+		case STAGE_Q_YT:
+			stage_q_yt(u);
+			break;
+		case STAGE_Q_TT:
+			stage_q_tt(u);
+			break;
+		case STAGE_EIGEN:
+			stage_eigen(u);
+			break;
+		case STAGE_SIGMA:
+			stage_sigma(u);
+			break;
+		case STAGE_SYS_RATIO:
+			add_systematic(u, mag48(&u->w1[0]), mag48(&u->w1[1]), u->ratio_coef_q32);
+			break;
+		case STAGE_SYS_TRACK:
+			add_systematic(u, mag48(&u->w2[0]), mag48(&u->w2[1]), u->track_coef_q32);
+			break;
+		case STAGE_RADIUS:
+			stage_radius(u);
+			u->stage = STAGE_IDLE;
+			return;
+		default:
+			return;
+		}
+		u->stage++;
 	}
-	u->stage++;
 }
 
 /* Hands the accumulated batch to the stages (finishing the one in flight first if there is one).
  * A batch without travel propagates nothing: Fp is the identity, the noise is zero. */
 FX_NOINLINE static void start_batch(struct uncertainty *u)
 {
-	while (u->stage != STAGE_IDLE)
-		run_stage(u);
+	run_stages(u, UINT8_MAX);
 	if (u->acc.abs_left_q8 != 0 || u->acc.abs_right_q8 != 0) {
-		u->run = u->acc;
+		/* Field by field: avr-gcc copies a whole struct byte by byte in a loop. */
+		u->run.left_q8 = u->acc.left_q8;
+		u->run.right_q8 = u->acc.right_q8;
+		u->run.abs_left_q8 = u->acc.abs_left_q8;
+		u->run.abs_right_q8 = u->acc.abs_right_q8;
+		u->run.heading_turn32 = u->acc.heading_turn32;
+		u->run.ticks = u->acc.ticks;
 		u->stage = STAGE_DIRECTION;
 	}
 	clear_batch(&u->acc);
@@ -749,13 +757,13 @@ void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q
 		}
 	}
 	if (u->stage != STAGE_IDLE)
-		run_stage(u);
+		run_stages(u, 1);
 }
 
 void uncertainty_advance(struct uncertainty *u, uint8_t n)
 {
-	while (n-- != 0 && u->stage != STAGE_IDLE)
-		run_stage(u);
+	if (u->stage != STAGE_IDLE)
+		run_stages(u, n);
 }
 
 uint8_t uncertainty_get_radius_mm(const struct uncertainty *u)
