@@ -68,8 +68,9 @@ int64_t fx_div_round64(int64_t num, int64_t den)
 	return (int64_t)q;
 }
 
-/* floor(sqrt(v)) for a 32-bit v: digit-by-digit, shifts and adds only, one step per bit of the
- * root (no multiply, which is slow on the AVR). Each step's choice is applied through a mask
+/* floor(sqrt(v)) for a 32-bit v, and *rem = v less its square: digit-by-digit, shifts and adds
+ * only, one step per bit of the root (no multiply, which is slow on the AVR); what the steps
+ * leave of v is that remainder. Each step's choice is applied through a mask
  * (all ones when the bit belongs to the root) rather than a branch: the choices are as good as
  * random, and a mispredicted branch costs a PC more than the two extra operations.
  * On the AVR the same steps in assembly, 280 cycles where avr-gcc's 32-bit shifts and masks took
@@ -77,8 +78,9 @@ int64_t fx_div_round64(int64_t num, int64_t den)
  * below bit + 1 (it is (res >> 1) + bit after a step, and bit moves by two), so res + bit is
  * res | bit, and the bytes below bit's are zero in res + bit: the comparison, the subtraction
  * and res's shift only touch the bytes from bit's up. */
-uint32_t fx_isqrt32(uint32_t v)
+static inline uint32_t isqrt32_rem(uint32_t *rem)
 {
+	uint32_t v = *rem;
 #if FX_AVR_ASM
 	uint32_t res, t;
 	uint8_t bit;
@@ -163,6 +165,7 @@ uint32_t fx_isqrt32(uint32_t v)
 		"lsr  %3\n\t"
 		"brne 1b"
 		: "=&r"(res), "+r"(v), "=&r"(t), "=&d"(bit));
+	*rem = v;
 	return res;
 #else
 	uint32_t res = 0;
@@ -178,8 +181,21 @@ uint32_t fx_isqrt32(uint32_t v)
 		res = (res >> 1) + (bit & m);
 		bit >>= 2;
 	}
+	*rem = v;
 	return res;
 #endif
+}
+
+uint32_t fx_isqrt32(uint32_t v)
+{
+	return isqrt32_rem(&v);
+}
+
+uint32_t fx_isqrt32_up(uint32_t v)
+{
+	uint32_t r = isqrt32_rem(&v);
+
+	return v != 0 ? r + 1u : r;
 }
 
 uint32_t fx_isqrt64(uint64_t v)

@@ -953,6 +953,9 @@ int64_t fx_div_round64(int64_t num, int64_t den);
 uint32_t fx_isqrt64(uint64_t v);
 uint32_t fx_isqrt32(uint32_t v);
 
+/* ceil(sqrt(v)): the floor, one more unless v is a square (the root's remainder is not 0). */
+uint32_t fx_isqrt32_up(uint32_t v);
+
 /* sin and cos of a heading, [2^-30], absolute error at most 4 units (about 4e-9). */
 void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30);
 

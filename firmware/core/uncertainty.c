@@ -122,14 +122,6 @@ static uint32_t mag48(const struct uncertainty_sum48 *w)
 	return (uint32_t)w->hi + (w->lo != 0);
 }
 
-/* ceil(sqrt(v)): the floor of fx_isqrt32 (assembly on the AVR), one more unless v is a square. */
-static uint32_t isqrt_up(uint32_t v)
-{
-	uint32_t r = fx_isqrt32(v); /* below 2^16 */
-
-	return fx_mul_u16((uint16_t)r, (uint16_t)r) != v ? r + 1u : r;
-}
-
 /* An upper bound of |(x, y)| for magnitudes x, y: both halved (rounded up) until their squares
  * add up in 32 bits, which keeps the result within 2^-14 of the true length, above it.
  * The halvings are not made one by one (40 cycles each on an AVR, up to 18 of them): j of them
@@ -138,13 +130,16 @@ static uint32_t isqrt_up(uint32_t v)
  * below 16 bits), or one more, when the first leaves 2^15 itself. */
 static uint32_t hypot_up(uint32_t ux, uint32_t uy)
 {
-	uint8_t j = fx_bit_length32(ux > uy ? ux : uy);
+	uint8_t j = fx_bit_length32(ux | uy); /* the larger one's */
 
 	if (uy == 0)
 		return ux;
 	if (ux == 0)
 		return uy;
-	j = j > 15 ? (uint8_t)(j - 15u) : 0;
+	if (j <= 15)
+		return fx_isqrt32_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
+				     fx_mul_u16((uint16_t)uy, (uint16_t)uy));
+	j = (uint8_t)(j - 15u);
 	ux = fx_shr_u32_var(ux - 1u, j) + 1u; /* up to 2^15 */
 	uy = fx_shr_u32_var(uy - 1u, j) + 1u;
 	if (ux > 0x7fffu || uy > 0x7fffu) {
@@ -152,8 +147,8 @@ static uint32_t hypot_up(uint32_t ux, uint32_t uy)
 		uy = ((uy - 1u) >> 1) + 1u;
 		j++;
 	}
-	return fx_shl_u32_var(isqrt_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
-				       fx_mul_u16((uint16_t)uy, (uint16_t)uy)),
+	return fx_shl_u32_var(fx_isqrt32_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
+					    fx_mul_u16((uint16_t)uy, (uint16_t)uy)),
 			      j);
 }
 
@@ -392,7 +387,7 @@ uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u)
 {
 	/* sigma [2^-16 rad] = sqrt(tt); bound = k sigma, rounded up; turn32 = rad 2^32 / (2 pi):
 	 * 2^16 / (2 pi) = 10430.4 per unit, 10431 rounds up. */
-	uint32_t sigma = isqrt_up((uint32_t)(u->tt > 0 ? u->tt : 0));
+	uint32_t sigma = fx_isqrt32_up((uint32_t)(u->tt > 0 ? u->tt : 0));
 	uint32_t ks = sigma * u->cfg.k_q8; /* sigma <= 2^14 under the cap */
 	uint32_t bound = (ks + 255) >> 8;
 
@@ -578,12 +573,12 @@ static void stage_sigma(struct uncertainty *u)
 	/* k sigma [um], rounded up: sigma to 1/4 um while it is below 16 mm, where the mm of the
 	 * radius depends on it; to 4 um above. */
 	if (lambda < ((uint32_t)1 << 24)) {
-		sigma = isqrt_up(lambda << 8); /* [2^-2 um] */
+		sigma = fx_isqrt32_up(lambda << 8); /* [2^-2 um] */
 		ks = fx_mul_u16((uint16_t)sigma, u->cfg.k_q8);
 		u->radius_um = fx_shr_u32(ks, 10) + ((ks & 1023u) != 0);
 		return;
 	}
-	sigma = isqrt_up(lambda); /* [4 um] */
+	sigma = fx_isqrt32_up(lambda); /* [4 um] */
 	if (sigma >= 0x10000u) {
 		u->radius_um = 0xffffffffu;
 		return;

@@ -281,6 +281,21 @@ static void test_isqrt_edges(void **state)
 		assert_true(fx_isqrt32(k * k - 1) == k - 1);
 		assert_true(fx_isqrt32(k * k + 2 * k) == k);
 	}
+	/* Rounded up: the root of a square, one more for anything else. */
+	assert_int_equal(fx_isqrt32_up(0), 0);
+	assert_int_equal(fx_isqrt32_up(0xffffffffu), 0x10000u);
+	for (uint32_t k = 1; k < 0x10000u; k++) {
+		assert_true(fx_isqrt32_up(k * k) == k);
+		assert_true(k == 1 || fx_isqrt32_up(k * k - 1) == k);
+		assert_true(fx_isqrt32_up(k * k + 1) == k + 1);
+		assert_true(fx_isqrt32_up(k * k + 2 * k) == k + 1);
+	}
+	for (int i = 0; i < 100000; i++) {
+		uint32_t v = (uint32_t)rng_next() >> (rng_next() & 31);
+		uint64_t r = fx_isqrt32_up(v);
+
+		assert_true(r * r >= v && (r == 0 || (r - 1) * (r - 1) < v));
+	}
 }
 
 static int64_t sincos_max_error;
