@@ -923,6 +923,19 @@ static inline int32_t fx_shr_round(int32_t v, uint8_t n)
 	return -(int32_t)mag;
 }
 
+/* The same for a count known only at run time: (|v| + 2^(n-1)) / 2^n is (|v| / 2^(n-1) + 1) / 2
+ * (both floored), which spares the shift that makes 2^(n-1), and the shift by n - 1 moves whole
+ * bytes (fx_shr_u32_var). */
+static inline int32_t fx_shr_round_var(int32_t v, uint8_t n)
+{
+	uint32_t mag;
+
+	if (n == 0)
+		return v;
+	mag = (fx_shr_u32_var(fx_mag32(v), (uint8_t)(n - 1u)) + 1u) >> 1;
+	return v >= 0 ? (int32_t)mag : -(int32_t)mag;
+}
+
 /* a * b / 2^n rounded to nearest, computed in 64 bits, saturated to int32. */
 static inline int32_t fx_mul_shr(int32_t a, int32_t b, uint8_t n)
 {

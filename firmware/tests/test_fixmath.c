@@ -131,6 +131,14 @@ static void test_shr_round_ties_and_signs(void **state)
 			v = -v;
 		assert_true(fx_shr_round64(v, (uint8_t)n) == ref_shr_round(v, n));
 		assert_true(fx_shr_round(v32, (uint8_t)n32) == ref_shr_round(v32, n32));
+		assert_true(fx_shr_round_var(v32, (uint8_t)n32) == ref_shr_round(v32, n32));
+	}
+	for (uint8_t n = 0; n < 32; n++) {
+		static const int32_t edges[] = {INT32_MIN, INT32_MIN + 1, -3,       -2, -1, 0, 1, 2,
+						3,         INT32_MAX - 1, INT32_MAX};
+
+		for (size_t i = 0; i < N_OF(edges); i++)
+			assert_true(fx_shr_round_var(edges[i], n) == fx_shr_round(edges[i], n));
 	}
 }
 
