@@ -587,11 +587,12 @@ static void update_status(struct board *b)
 
 /* floor(u / 1000) for u < 2^25: q = floor(u 33555 / 2^25) (33555 = ceil(2^25 / 1000)) is the
  * quotient or one more (the excess u 0.568 / 2^25 stays below 1), which the remainder settles.
- * Three 16 x 16-bit products: the replies' millimetres cost no division. */
+ * Three 16 x 16-bit products: the replies' millimetres cost no division. The shifts through
+ * fx_shr_u32 (here and below): avr-gcc shifts a uint32_t by 9 or 20 bits one bit a turn. */
 static uint16_t div1000(uint32_t u)
 {
-	uint32_t q =
-		(fx_mul_u16(fx_hi16(u), 33555u) + fx_hi16(fx_mul_u16(fx_lo16(u), 33555u))) >> 9;
+	uint32_t q = fx_shr_u32(
+		fx_mul_u16(fx_hi16(u), 33555u) + fx_hi16(fx_mul_u16(fx_lo16(u), 33555u)), 9);
 
 	if (fx_mul_u16((uint16_t)q, UM_PER_MM) > u)
 		q--;
@@ -615,7 +616,7 @@ static int16_t mm_of(int32_t um)
  * is exact there (the excess of 5243 over 2^20 / 200 adds under 0.003). */
 static int8_t angle_2deg_of(int32_t cdeg)
 {
-	uint8_t q = (uint8_t)(fx_mul_u16((uint16_t)(fx_mag32(cdeg) + 100u), 5243u) >> 20);
+	uint8_t q = (uint8_t)fx_shr_u32(fx_mul_u16((uint16_t)(fx_mag32(cdeg) + 100u), 5243u), 20);
 
 	return cdeg >= 0 ? (int8_t)q : (int8_t) - (int16_t)q;
 }
@@ -650,13 +651,32 @@ static void publish(struct board *b)
 									 : b->orders.end_reason;
 }
 
+/* v / 2^shift rounded down, shift 0..3 (board_init()): by 2 and by 1 bit, which avr-gcc shifts
+ * in a few instructions, where a variable count takes a loop of 8 cycles a bit. */
+static int32_t floor_shr(int32_t v, uint8_t shift)
+{
+	if (shift & 2u)
+		v >>= 2;
+	if (shift & 1u)
+		v >>= 1;
+	return v;
+}
+
 /* (end - from) / 2^shift, rounded down: a tick's share of a period's change. */
 static void sp_step(struct orders_axis *step, const struct orders_axis *from,
 		    const struct orders_axis *end, uint8_t shift)
 {
-	step->pos_um = (end->pos_um - from->pos_um) >> shift;
-	step->vel_um_s = (end->vel_um_s - from->vel_um_s) >> shift;
+	step->pos_um = floor_shr(end->pos_um - from->pos_um, shift);
+	step->vel_um_s = floor_shr(end->vel_um_s - from->vel_um_s, shift);
 	step->acc_um_s2 = 0;
+}
+
+/* *to = *from field by field: avr-gcc copies a whole struct byte by byte in a loop. */
+static void axis_copy(struct orders_axis *to, const struct orders_axis *from)
+{
+	to->pos_um = from->pos_um;
+	to->vel_um_s = from->vel_um_s;
+	to->acc_um_s2 = from->acc_um_s2;
 }
 
 /* The slow steps but the reply snapshot, on the last period (b->period[period_index ^ 1]). */
@@ -757,8 +777,8 @@ static void slow_steps(struct board *b)
 		const struct board_setpoints *now = &b->setpoints[b->setpoints_index];
 		struct board_setpoints *next = &b->setpoints[b->setpoints_index ^ 1u];
 
-		next->dist = b->orders.sp_dist;
-		next->angle = b->orders.sp_angle;
+		axis_copy(&next->dist, &b->orders.sp_dist);
+		axis_copy(&next->angle, &b->orders.sp_angle);
 		/* From the last ones, where the servo is at the hand-over (it gets there at the
 		 * period's last tick, or at once by a jump). */
 		sp_step(&next->dist_step, &now->dist, &next->dist, b->cfg.slow_shift);

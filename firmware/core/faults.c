@@ -68,7 +68,7 @@ static int32_t motor_step_q16(struct faults *f, uint8_t side, uint16_t count)
 /* v / 2^n rounded (ties away from zero), n = slip_shift (0..12): a shift of the magnitude. */
 static int32_t shr_round(int32_t v, uint8_t n)
 {
-	return fx_shr_round(v, n);
+	return fx_shr_round_var(v, n);
 }
 
 static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)

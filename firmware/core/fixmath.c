@@ -68,8 +68,9 @@ int64_t fx_div_round64(int64_t num, int64_t den)
 	return (int64_t)q;
 }
 
-/* floor(sqrt(v)) for a 32-bit v: digit-by-digit, shifts and adds only, one step per bit of the
- * root (no multiply, which is slow on the AVR). Each step's choice is applied through a mask
+/* floor(sqrt(v)) for a 32-bit v, and *rem = v less its square: digit-by-digit, shifts and adds
+ * only, one step per bit of the root (no multiply, which is slow on the AVR); what the steps
+ * leave of v is that remainder. Each step's choice is applied through a mask
  * (all ones when the bit belongs to the root) rather than a branch: the choices are as good as
  * random, and a mispredicted branch costs a PC more than the two extra operations.
  * On the AVR the same steps in assembly, 280 cycles where avr-gcc's 32-bit shifts and masks took
@@ -77,8 +78,9 @@ int64_t fx_div_round64(int64_t num, int64_t den)
  * below bit + 1 (it is (res >> 1) + bit after a step, and bit moves by two), so res + bit is
  * res | bit, and the bytes below bit's are zero in res + bit: the comparison, the subtraction
  * and res's shift only touch the bytes from bit's up. */
-uint32_t fx_isqrt32(uint32_t v)
+static inline uint32_t isqrt32_rem(uint32_t *rem)
 {
+	uint32_t v = *rem;
 #if FX_AVR_ASM
 	uint32_t res, t;
 	uint8_t bit;
@@ -163,6 +165,7 @@ uint32_t fx_isqrt32(uint32_t v)
 		"lsr  %3\n\t"
 		"brne 1b"
 		: "=&r"(res), "+r"(v), "=&r"(t), "=&d"(bit));
+	*rem = v;
 	return res;
 #else
 	uint32_t res = 0;
@@ -178,8 +181,21 @@ uint32_t fx_isqrt32(uint32_t v)
 		res = (res >> 1) + (bit & m);
 		bit >>= 2;
 	}
+	*rem = v;
 	return res;
 #endif
+}
+
+uint32_t fx_isqrt32(uint32_t v)
+{
+	return isqrt32_rem(&v);
+}
+
+uint32_t fx_isqrt32_up(uint32_t v)
+{
+	uint32_t r = isqrt32_rem(&v);
+
+	return v != 0 ? r + 1u : r;
 }
 
 uint32_t fx_isqrt64(uint64_t v)
@@ -443,6 +459,44 @@ static const uint16_t atan_curve[33] = {
 	52904, 52150, 51267, 50277, 49198, 48047, 46842, 45594, 44318, 43024, 41722,
 };
 
+#if FX_AVR_ASM
+/* One step of frac20_avr(): the remainder doubled (its carry out says it passed 2^24, so den),
+ * compared with den and reduced, the quotient bit shifted into the byte qb. 10 to 13 cycles. */
+#define FRAC_STEP(qb)                                                                              \
+	"lsl  " qb "\n\t"                                                                          \
+	"lsl  %A1\n\t"                                                                             \
+	"rol  %B1\n\t"                                                                             \
+	"rol  %C1\n\t"                                                                             \
+	"brcs 1f\n\t"                                                                              \
+	"cp   %A1, %A2\n\t"                                                                        \
+	"cpc  %B1, %B2\n\t"                                                                        \
+	"cpc  %C1, %C2\n\t"                                                                        \
+	"brcs 2f\n"                                                                                \
+	"1:\n\t"                                                                                   \
+	"sub  %A1, %A2\n\t"                                                                        \
+	"sbc  %B1, %B2\n\t"                                                                        \
+	"sbc  %C1, %C2\n\t"                                                                        \
+	"inc  " qb "\n"                                                                            \
+	"2:\n\t"
+
+/* q 2^20 + floor(rem 2^20 / den) for rem < den < 2^24, q 0 or 1: fx_avr_div_steps()'s 20 steps
+ * with a remainder of three bytes, and the quotient's bits shifted into one byte at a time
+ * (4 into byte 2, above q, then 8 into byte 1 and 8 into byte 0), where the steps shift eight
+ * registers: 11 cycles a step for 20. */
+static inline uint32_t frac20_avr(uint32_t q, uint32_t rem, uint32_t den)
+{
+	q <<= 16;
+	__asm__(".rept 4\n\t" FRAC_STEP("%C0") ".endr\n\t"
+					       ".rept 8\n\t" FRAC_STEP(
+						       "%B0") ".endr\n\t"
+							      ".rept 8\n\t" FRAC_STEP("%A0") ".endr"
+		: "+r"(q), "+r"(rem)
+		: "r"(den));
+	return q;
+}
+#undef FRAC_STEP
+#endif
+
 /* The angle of (x, y) with x >= y >= 0, x > 0, in 0..1/8 turn [turn * 2^32]: t = y / x to 20
  * bits by long division (20 steps of compare and subtract), then atan from the nearest of 33
  * entries with a second-order correction, d = t - t_k <= 2^-6:
@@ -464,7 +518,10 @@ static uint32_t atan_octant(uint32_t x, uint32_t y)
 		q = 1;
 	}
 #if FX_AVR_ASM
-	q = fx_avr_div_steps(&rem, q, x, 0, 20); /* q's upper bits are zero */
+	if (x < ((uint32_t)1 << 24)) /* a field's lengths [um]: the steps on three bytes */
+		q = frac20_avr(q, rem, x);
+	else
+		q = fx_avr_div_steps(&rem, q, x, 0, 20); /* q's upper bits are zero */
 #else
 	for (uint8_t i = 0; i < 20; i++) {
 		rem <<= 1; /* rem < x <= 2^31: no overflow */

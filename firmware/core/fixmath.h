@@ -269,6 +269,59 @@ FX_INLINE uint32_t fx_shl_u32(uint32_t x, uint8_t n)
 	return FX_NARROW && !FX_PLAIN_SHIFT(n) ? fx_shl_u32_n(x, n) : x << n;
 }
 
+/* x >> n and x << n for a count n in 0..31 known only at run time: avr-gcc shifts a uint32_t by
+ * a variable count one bit per turn of a loop, 8 cycles a bit; here 16 and 8 bits at once are
+ * byte moves, and only the last 0..7 bits take turns. */
+static inline uint32_t fx_shr_u32_var(uint32_t x, uint8_t n)
+{
+	if (n >= 16) {
+		x = fx_hi16(x);
+		n = (uint8_t)(n - 16u);
+	}
+	if (n >= 8) {
+		x >>= 8;
+		n = (uint8_t)(n - 8u);
+	}
+	while (n-- != 0)
+		x >>= 1;
+	return x;
+}
+
+static inline uint32_t fx_shl_u32_var(uint32_t x, uint8_t n)
+{
+	if (n >= 16) {
+		x = (uint32_t)fx_lo16(x) << 16;
+		n = (uint8_t)(n - 16u);
+	}
+	if (n >= 8) {
+		x <<= 8;
+		n = (uint8_t)(n - 8u);
+	}
+	while (n-- != 0)
+		x <<= 1;
+	return x;
+}
+
+/* The number of bits of v (0 for 0): the top non-zero byte found by comparisons, then at most 8
+ * turns of an 8-bit loop (a 32-bit one costs an AVR 12 cycles a turn). */
+static inline uint8_t fx_bit_length32(uint32_t v)
+{
+	uint8_t n, top;
+
+	if (fx_hi16(v) != 0) {
+		n = v >= ((uint32_t)1 << 24) ? 24 : 16;
+		top = (uint8_t)(n == 24 ? v >> 24 : v >> 16);
+	} else {
+		n = fx_lo16(v) >= 0x100u ? 8 : 0;
+		top = (uint8_t)(n == 8 ? fx_lo16(v) >> 8 : fx_lo16(v));
+	}
+	while (top != 0) {
+		top >>= 1;
+		n++;
+	}
+	return n;
+}
+
 /* a * b as two 32-bit words: returns the upper one, *lo the lower. Four 16 x 16 products. */
 static inline uint32_t fx_mul_u32_wide_n(uint32_t a, uint32_t b, uint32_t *lo)
 {
@@ -654,11 +707,66 @@ FX_INLINE uint32_t fx_avr_div_steps(uint32_t *rem, uint32_t num, uint32_t den, u
 	*rem = r;
 	return num;
 }
+
+/* The same division for a divisor of 16 bits, in AVR assembly: the remainder, below den, stays
+ * a 16-bit word (17 bits after the shift, whose carry says it is above den), and the dividend is
+ * taken a byte at a time: its top byte shifts out into the remainder and takes the quotient bits
+ * in, one register where the steps above shift all four. 8 to 10 cycles a step, over the
+ * quotient's whole bytes (ceil(qbits / 8)): the dividend's bytes above them first go to the
+ * remainder whole (they are below den, as the quotient is below 2^qbits), and each byte done
+ * rotates to the bottom, so that the last leaves the quotient in place. */
+FX_INLINE uint32_t fx_avr_div_u16(uint32_t num, uint16_t den, uint8_t qbits)
+{
+	uint16_t rem = 0;
+	uint8_t bytes = (uint8_t)((qbits + 7u) >> 3); /* 1..4 */
+	uint8_t skip = (uint8_t)(4u - bytes);
+
+	__asm__("tst  %[skip]\n\t"
+		"breq 2f\n"
+		"1:\n\t"
+		"mov  %B[rem], %A[rem]\n\t"
+		"mov  %A[rem], %D[num]\n\t"
+		"mov  %D[num], %C[num]\n\t"
+		"mov  %C[num], %B[num]\n\t"
+		"mov  %B[num], %A[num]\n\t"
+		"clr  %A[num]\n\t"
+		"dec  %[skip]\n\t"
+		"brne 1b\n"
+		"2:\n\t"
+		".rept 8\n\t"
+		"lsl  %D[num]\n\t"
+		"rol  %A[rem]\n\t"
+		"rol  %B[rem]\n\t"
+		"brcs 3f\n\t"
+		"cp   %A[rem], %A[den]\n\t"
+		"cpc  %B[rem], %B[den]\n\t"
+		"brcs 4f\n"
+		"3:\n\t"
+		"sub  %A[rem], %A[den]\n\t"
+		"sbc  %B[rem], %B[den]\n\t"
+		"inc  %D[num]\n"
+		"4:\n\t"
+		".endr\n\t"
+		"mov  __tmp_reg__, %D[num]\n\t"
+		"mov  %D[num], %C[num]\n\t"
+		"mov  %C[num], %B[num]\n\t"
+		"mov  %B[num], %A[num]\n\t"
+		"mov  %A[num], __tmp_reg__\n\t"
+		"dec  %[bytes]\n\t"
+		"breq 5f\n\t"
+		"rjmp 2b\n" /* beyond a branch's reach */
+		"5:"
+		: [num] "+r"(num), [rem] "+r"(rem), [skip] "+r"(skip), [bytes] "+r"(bytes)
+		: [den] "r"(den));
+	return num;
+}
 #endif
 
 static inline uint32_t fx_udiv_small(uint32_t num, uint32_t den, uint8_t qbits)
 {
 #if FX_AVR_ASM
+	if ((uint8_t)(qbits - 1u) < 32u && den <= 0xffffu)
+		return fx_avr_div_u16(num, (uint16_t)den, qbits);
 	if ((uint8_t)(qbits - 1u) < 32u) {
 		uint32_t rem = 0;
 
@@ -815,6 +923,19 @@ static inline int32_t fx_shr_round(int32_t v, uint8_t n)
 	return -(int32_t)mag;
 }
 
+/* The same for a count known only at run time: (|v| + 2^(n-1)) / 2^n is (|v| / 2^(n-1) + 1) / 2
+ * (both floored), which spares the shift that makes 2^(n-1), and the shift by n - 1 moves whole
+ * bytes (fx_shr_u32_var). */
+static inline int32_t fx_shr_round_var(int32_t v, uint8_t n)
+{
+	uint32_t mag;
+
+	if (n == 0)
+		return v;
+	mag = (fx_shr_u32_var(fx_mag32(v), (uint8_t)(n - 1u)) + 1u) >> 1;
+	return v >= 0 ? (int32_t)mag : -(int32_t)mag;
+}
+
 /* a * b / 2^n rounded to nearest, computed in 64 bits, saturated to int32. */
 static inline int32_t fx_mul_shr(int32_t a, int32_t b, uint8_t n)
 {
@@ -844,6 +965,9 @@ int64_t fx_div_round64(int64_t num, int64_t den);
 /* floor(sqrt(v)), of a 64-bit and of a 32-bit value. */
 uint32_t fx_isqrt64(uint64_t v);
 uint32_t fx_isqrt32(uint32_t v);
+
+/* ceil(sqrt(v)): the floor, one more unless v is a square (the root's remainder is not 0). */
+uint32_t fx_isqrt32_up(uint32_t v);
 
 /* sin and cos of a heading, [2^-30], absolute error at most 4 units (about 4e-9). */
 void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30);

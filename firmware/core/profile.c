@@ -67,22 +67,6 @@ static int limits_valid(const struct profile_limits *lim)
 	return 1;
 }
 
-/* Bits of v (0 for 0). */
-static uint8_t bit_length(uint32_t v)
-{
-	uint8_t n = 0;
-
-	if (v >> 16) {
-		v >>= 16;
-		n = 16;
-	}
-	while (v != 0) {
-		v >>= 1;
-		n++;
-	}
-	return n;
-}
-
 /* a b [unit of a * unit of b] as a 48-bit value, "far" from 2^47 on: four 16 x 16 products. */
 static struct fx48 fx48_mul(uint32_t a, uint32_t b)
 {
@@ -151,7 +135,7 @@ static void hint_seed(const struct profile_params *prm, struct fx48 r, uint16_t 
 
 	if (r.hi >= 0 && r.hi <= 0x7fff) {
 		uint32_t rr = (uint32_t)fx48_to32(r);
-		uint8_t rb = bit_length(rr), ab = bit_length(a);
+		uint8_t rb = fx_bit_length32(rr), ab = fx_bit_length32(a);
 		/* a >= 16 (1 mm/s^2 at 2 kHz): q < 2^27, k^2 + 8 q < 2^31. */
 		uint32_t q = rb >= ab ? fx_udiv_small(rr, a, (uint8_t)(rb - ab + 1)) : 0;
 
@@ -232,7 +216,7 @@ static int32_t max_velocity(struct profile *p, struct fx48 r, uint16_t h)
 	den = n + h + 1;
 	if (den <= 0xffffu && rem48.hi >= 0 && rem48.hi <= 0x7fff)
 		return hint->an_q16 + (int32_t)fx_udiv_small((uint32_t)fx48_to32(rem48), den,
-							     bit_length((uint32_t)prm->a_q16));
+							     fx_bit_length32((uint32_t)prm->a_q16));
 	return (int32_t)min64((int64_t)hint->an_q16 + int64_of_fx48(rem48) / den, INT32_MAX);
 }
 
@@ -245,7 +229,7 @@ static void params_update_far(struct profile *p)
 	struct profile_params *prm = &p->prm;
 	uint32_t a = (uint32_t)prm->a_q16;
 	uint32_t v = (uint32_t)prm->v_max_q16 + a; /* below 2^31 */
-	uint8_t vb = bit_length(v - 1), ab = bit_length(a);
+	uint8_t vb = fx_bit_length32(v - 1), ab = fx_bit_length32(a);
 	uint32_t n = vb >= ab ? fx_udiv_small(v - 1, a, (uint8_t)(vb - ab + 1)) : 0;
 	uint32_t f = v - n * a;
 	uint16_t hz = prm->tick_hz;
@@ -425,7 +409,7 @@ int32_t profile_stop(struct profile *p)
 	struct fx48 stop;
 
 	if (vm > 0) {
-		uint8_t vb = bit_length(vm - 1), ab = bit_length(a);
+		uint8_t vb = fx_bit_length32(vm - 1), ab = fx_bit_length32(a);
 		uint32_t n = vb >= ab ? fx_udiv_small(vm - 1, a, (uint8_t)(vb - ab + 1)) : 0;
 		uint32_t f = vm - n * a;
 

@@ -122,32 +122,34 @@ static uint32_t mag48(const struct uncertainty_sum48 *w)
 	return (uint32_t)w->hi + (w->lo != 0);
 }
 
-/* ceil(sqrt(v)): the floor of fx_isqrt32 (assembly on the AVR), one more unless v is a square. */
-static uint32_t isqrt_up(uint32_t v)
-{
-	uint32_t r = fx_isqrt32(v); /* below 2^16 */
-
-	return fx_mul_u16((uint16_t)r, (uint16_t)r) != v ? r + 1u : r;
-}
-
 /* An upper bound of |(x, y)| for magnitudes x, y: both halved (rounded up) until their squares
- * add up in 32 bits, which keeps the result within 2^-14 of the true length, above it. */
+ * add up in 32 bits, which keeps the result within 2^-14 of the true length, above it.
+ * The halvings are not made one by one (40 cycles each on an AVR, up to 18 of them): j of them
+ * round x up to ceil(x / 2^j) (nested ceilings are one), (x - 1) / 2^j + 1 for x >= 1. The
+ * loop stops at the first j with both below 2^15: for a larger one of L bits, L - 15 (none
+ * below 16 bits), or one more, when the first leaves 2^15 itself. */
 static uint32_t hypot_up(uint32_t ux, uint32_t uy)
 {
-	uint8_t j = 0;
+	uint8_t j = fx_bit_length32(ux | uy); /* the larger one's */
 
 	if (uy == 0)
 		return ux;
 	if (ux == 0)
 		return uy;
-	while (ux >= 0x8000u || uy >= 0x8000u) {
-		ux = (ux >> 1) + (ux & 1u);
-		uy = (uy >> 1) + (uy & 1u);
+	if (j <= 15)
+		return fx_isqrt32_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
+				     fx_mul_u16((uint16_t)uy, (uint16_t)uy));
+	j = (uint8_t)(j - 15u);
+	ux = fx_shr_u32_var(ux - 1u, j) + 1u; /* up to 2^15 */
+	uy = fx_shr_u32_var(uy - 1u, j) + 1u;
+	if (ux > 0x7fffu || uy > 0x7fffu) {
+		ux = ((ux - 1u) >> 1) + 1u;
+		uy = ((uy - 1u) >> 1) + 1u;
 		j++;
 	}
-	return isqrt_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
-			fx_mul_u16((uint16_t)uy, (uint16_t)uy))
-	       << j;
+	return fx_shl_u32_var(fx_isqrt32_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
+					    fx_mul_u16((uint16_t)uy, (uint16_t)uy)),
+			      j);
 }
 
 /* ceil(v * c / 2^32). */
@@ -229,18 +231,16 @@ static uint32_t heading_units(uint32_t bound_turn32)
 	return (uint32_t)(((uint64_t)bound_turn32 * TWO_PI_Q16 + 0xffffffffu) >> 32);
 }
 
-static void run_stage(struct uncertainty *u);
+static void run_stages(struct uncertainty *u, uint8_t n);
 
 /* After a reset the radius is refreshed at once: the batch in flight is finished, then the
  * last stages run, all in this call. A recalibration's tick pays for up to a whole batch (a few
  * per match), so that the master reading POSITION when the order ends sees the new radius. */
 static void request_radius(struct uncertainty *u)
 {
-	while (u->stage != STAGE_IDLE)
-		run_stage(u);
+	run_stages(u, UINT8_MAX); /* fewer than that: until idle */
 	u->stage = STAGE_EIGEN;
-	while (u->stage != STAGE_IDLE)
-		run_stage(u);
+	run_stages(u, UINT8_MAX);
 }
 
 int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg)
@@ -387,7 +387,7 @@ uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u)
 {
 	/* sigma [2^-16 rad] = sqrt(tt); bound = k sigma, rounded up; turn32 = rad 2^32 / (2 pi):
 	 * 2^16 / (2 pi) = 10430.4 per unit, 10431 rounds up. */
-	uint32_t sigma = isqrt_up((uint32_t)(u->tt > 0 ? u->tt : 0));
+	uint32_t sigma = fx_isqrt32_up((uint32_t)(u->tt > 0 ? u->tt : 0));
 	uint32_t ks = sigma * u->cfg.k_q8; /* sigma <= 2^14 under the cap */
 	uint32_t bound = (ks + 255) >> 8;
 
@@ -573,12 +573,12 @@ static void stage_sigma(struct uncertainty *u)
 	/* k sigma [um], rounded up: sigma to 1/4 um while it is below 16 mm, where the mm of the
 	 * radius depends on it; to 4 um above. */
 	if (lambda < ((uint32_t)1 << 24)) {
-		sigma = isqrt_up(lambda << 8); /* [2^-2 um] */
+		sigma = fx_isqrt32_up(lambda << 8); /* [2^-2 um] */
 		ks = fx_mul_u16((uint16_t)sigma, u->cfg.k_q8);
 		u->radius_um = fx_shr_u32(ks, 10) + ((ks & 1023u) != 0);
 		return;
 	}
-	sigma = isqrt_up(lambda); /* [4 um] */
+	sigma = fx_isqrt32_up(lambda); /* [4 um] */
 	if (sigma >= 0x10000u) {
 		u->radius_um = 0xffffffffu;
 		return;
@@ -619,87 +619,97 @@ static void stage_radius(struct uncertainty *u)
 	u->radius_mm = r != 0 ? (uint8_t)(mm + 1) : mm;
 }
 
-FX_NOINLINE static void run_stage(struct uncertainty *u)
+/* Up to n stages, until idle. In one call: an AVR saves and restores 14 registers per call, which
+ * a call per stage paid up to 8 times in a slow run. */
+FX_NOINLINE static void run_stages(struct uncertainty *u, uint8_t n)
 {
-	switch (u->stage) {
-	case STAGE_DIRECTION:
-		stage_direction(u);
-		break;
-	case STAGE_DISPLACEMENT:
-		stage_displacement(u);
-		break;
-	case STAGE_NOISE:
-		stage_noise(u);
-		break;
-	case STAGE_W1:
-		stage_w1(u);
-		break;
-	case STAGE_W2:
-		stage_w2(u);
-		/* Past a cap the covariance is frozen (the radius reads 255): no more products. */
-		if (u->saturated)
-			u->stage = STAGE_RADIUS - 1;
-		break;
-	case STAGE_FP_XX:
-		stage_fp_xx(u);
-		break;
-	case STAGE_FP_XY:
-		stage_fp_xy(u);
-		break;
-	case STAGE_FP_YY:
-		stage_fp_yy(u);
-		break;
-	case STAGE_UV:
-		stage_uv(u);
-		break;
-	case STAGE_Q_XX:
-		stage_q_xx(u);
-		break;
-	case STAGE_Q_YY:
-		stage_q_yy(u);
-		break;
-	case STAGE_Q_XY:
-		stage_q_xy(u);
-		break;
-	case STAGE_Q_XT:
-		stage_q_xt(u);
-		break;
-	case STAGE_Q_YT:
-		stage_q_yt(u);
-		break;
-	case STAGE_Q_TT:
-		stage_q_tt(u);
-		break;
-	case STAGE_EIGEN:
-		stage_eigen(u);
-		break;
-	case STAGE_SIGMA:
-		stage_sigma(u);
-		break;
-	case STAGE_SYS_RATIO:
-		add_systematic(u, mag48(&u->w1[0]), mag48(&u->w1[1]), u->ratio_coef_q32);
-		break;
-	case STAGE_SYS_TRACK:
-		add_systematic(u, mag48(&u->w2[0]), mag48(&u->w2[1]), u->track_coef_q32);
-		break;
-	case STAGE_RADIUS:
-		stage_radius(u);
-		u->stage = STAGE_IDLE;
-		return;
-	default:
-		return;
+	for (; n != 0 && u->stage != STAGE_IDLE; n--) {
+		switch (u->stage) {
+		case STAGE_DIRECTION:
+			stage_direction(u);
+			break;
+		case STAGE_DISPLACEMENT:
+			stage_displacement(u);
+			break;
+		case STAGE_NOISE:
+			stage_noise(u);
+			break;
+		case STAGE_W1:
+			stage_w1(u);
+			break;
+		case STAGE_W2:
+			stage_w2(u);
+			/* Past a cap the covariance is frozen (the radius reads 255): no more
+			 * products. */
+			if (u->saturated)
+				u->stage = STAGE_RADIUS - 1;
+			break;
+		case STAGE_FP_XX:
+			stage_fp_xx(u);
+			break;
+		case STAGE_FP_XY:
+			stage_fp_xy(u);
+			break;
+		case STAGE_FP_YY:
+			stage_fp_yy(u);
+			break;
+		case STAGE_UV:
+			stage_uv(u);
+			break;
+		case STAGE_Q_XX:
+			stage_q_xx(u);
+			break;
+		case STAGE_Q_YY:
+			stage_q_yy(u);
+			break;
+		case STAGE_Q_XY:
+			stage_q_xy(u);
+			break;
+		case STAGE_Q_XT:
+			stage_q_xt(u);
+			break;
+		case STAGE_Q_YT:
+			stage_q_yt(u);
+			break;
+		case STAGE_Q_TT:
+			stage_q_tt(u);
+			break;
+		case STAGE_EIGEN:
+			stage_eigen(u);
+			break;
+		case STAGE_SIGMA:
+			stage_sigma(u);
+			break;
+		case STAGE_SYS_RATIO:
+			add_systematic(u, mag48(&u->w1[0]), mag48(&u->w1[1]), u->ratio_coef_q32);
+			break;
+		case STAGE_SYS_TRACK:
+			add_systematic(u, mag48(&u->w2[0]), mag48(&u->w2[1]), u->track_coef_q32);
+			break;
+		case STAGE_RADIUS:
+			stage_radius(u);
+			u->stage = STAGE_IDLE;
+			return;
+		default:
+			return;
+		}
+		u->stage++;
 	}
-	u->stage++;
 }
 
 /* Hands the accumulated batch to the stages (finishing the one in flight first if there is one).
  * A batch without travel propagates nothing: Fp is the identity, the noise is zero. */
 FX_NOINLINE static void start_batch(struct uncertainty *u)
 {
-	while (u->stage != STAGE_IDLE)
-		run_stage(u);
+	run_stages(u, UINT8_MAX);
 	if (u->acc.abs_left_q8 != 0 || u->acc.abs_right_q8 != 0) {
-		u->run = u->acc;
+		/* Field by field: avr-gcc copies a whole struct byte by byte in a loop. */
+		u->run.left_q8 = u->acc.left_q8;
+		u->run.right_q8 = u->acc.right_q8;
+		u->run.abs_left_q8 = u->acc.abs_left_q8;
+		u->run.abs_right_q8 = u->acc.abs_right_q8;
+		u->run.heading_turn32 = u->acc.heading_turn32;
+		u->run.ticks = u->acc.ticks;
 		u->stage = STAGE_DIRECTION;
 	}
 	clear_batch(&u->acc);
@@ -742,13 +752,13 @@ void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q
 		}
 	}
 	if (u->stage != STAGE_IDLE)
-		run_stage(u);
+		run_stages(u, 1);
 }
 
 void uncertainty_advance(struct uncertainty *u, uint8_t n)
 {
-	while (n-- != 0 && u->stage != STAGE_IDLE)
-		run_stage(u);
+	if (u->stage != STAGE_IDLE)
+		run_stages(u, n);
 }
 
 uint8_t uncertainty_get_radius_mm(const struct uncertainty *u)

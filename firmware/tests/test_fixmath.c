@@ -131,6 +131,14 @@ static void test_shr_round_ties_and_signs(void **state)
 			v = -v;
 		assert_true(fx_shr_round64(v, (uint8_t)n) == ref_shr_round(v, n));
 		assert_true(fx_shr_round(v32, (uint8_t)n32) == ref_shr_round(v32, n32));
+		assert_true(fx_shr_round_var(v32, (uint8_t)n32) == ref_shr_round(v32, n32));
+	}
+	for (uint8_t n = 0; n < 32; n++) {
+		static const int32_t edges[] = {INT32_MIN, INT32_MIN + 1, -3,       -2, -1, 0, 1, 2,
+						3,         INT32_MAX - 1, INT32_MAX};
+
+		for (size_t i = 0; i < N_OF(edges); i++)
+			assert_true(fx_shr_round_var(edges[i], n) == fx_shr_round(edges[i], n));
 	}
 }
 
@@ -219,6 +227,15 @@ static void test_narrow_primitives_match(void **state)
 		assert_true(fx_mul_u32_wide(a, b, &lo) == hi_n && lo == lo_n);
 		assert_true(fx_shr_u32_n(a, n) == a >> n);
 		assert_true(fx_shl_u32_n(a, n) == (uint32_t)(a << n));
+		assert_true(fx_shr_u32_var(a, n) == a >> n);
+		assert_true(fx_shl_u32_var(a, n) == (uint32_t)(a << n));
+		{
+			uint8_t len = 0;
+
+			while (len < 32 && (a >> len) != 0)
+				len++;
+			assert_int_equal(fx_bit_length32(a), len);
+		}
 		{
 			/* fx_mul_q: |b| <= 65535, n in 8..47, the result fitting 32 bits. */
 			int32_t sa = (int32_t)(a >> 1) * (rng_next() & 1 ? 1 : -1);
@@ -271,6 +288,21 @@ static void test_isqrt_edges(void **state)
 		assert_true(fx_isqrt32(k * k) == k);
 		assert_true(fx_isqrt32(k * k - 1) == k - 1);
 		assert_true(fx_isqrt32(k * k + 2 * k) == k);
+	}
+	/* Rounded up: the root of a square, one more for anything else. */
+	assert_int_equal(fx_isqrt32_up(0), 0);
+	assert_int_equal(fx_isqrt32_up(0xffffffffu), 0x10000u);
+	for (uint32_t k = 1; k < 0x10000u; k++) {
+		assert_true(fx_isqrt32_up(k * k) == k);
+		assert_true(k == 1 || fx_isqrt32_up(k * k - 1) == k);
+		assert_true(fx_isqrt32_up(k * k + 1) == k + 1);
+		assert_true(fx_isqrt32_up(k * k + 2 * k) == k + 1);
+	}
+	for (int i = 0; i < 100000; i++) {
+		uint32_t v = (uint32_t)rng_next() >> (rng_next() & 31);
+		uint64_t r = fx_isqrt32_up(v);
+
+		assert_true(r * r >= v && (r == 0 || (r - 1) * (r - 1) < v));
 	}
 }
 
