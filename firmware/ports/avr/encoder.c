@@ -40,10 +40,12 @@ const int8_t quad_step[2][256] PROGMEM
 /* Written by encoder_isr.S. A counter is kept as count ^ 0x80: its low byte moves by the step
  * and its high byte by the same step when the low byte overflows as a signed byte (0x7F <-> 0x80,
  * which is count's 0xFF <-> 0x00), so the interrupt needs no 16-bit addition. A state is its
- * port's last levels of the encoder pins, swapped (see quad_step). */
+ * port's last levels of the encoder pins, swapped (see quad_step): the motors' in RAM, the free
+ * wheels' (the most frequent edges) in the EEPROM's address and data registers, EEARL the left,
+ * EEDR the right, which in and out reach in a cycle where lds and sts take two (the firmware
+ * keeps nothing in EEPROM; a port that does must move these states back to RAM). */
 volatile uint16_t avr_free_count[2];
 volatile uint16_t avr_motor_count[2];
-uint8_t avr_free_state[2];
 uint8_t avr_motor_state[2];
 
 #if PIN_MOTOR_LEFT_MASK != 0x0Cu || PIN_MOTOR_RIGHT_MASK != 0x0Cu ||                               \
@@ -60,8 +62,8 @@ static uint8_t swapped_levels(uint8_t pins, uint8_t mask)
 
 void avr_encoder_init(void)
 {
-	avr_free_state[0] = swapped_levels(PIN_FREE_LEFT_PORT, PIN_FREE_LEFT_MASK);
-	avr_free_state[1] = swapped_levels(PIN_FREE_RIGHT_PORT, PIN_FREE_RIGHT_MASK);
+	EEARL = swapped_levels(PIN_FREE_LEFT_PORT, PIN_FREE_LEFT_MASK);
+	EEDR = swapped_levels(PIN_FREE_RIGHT_PORT, PIN_FREE_RIGHT_MASK);
 	avr_motor_state[0] = swapped_levels(PIN_MOTOR_LEFT_PORT, PIN_MOTOR_LEFT_MASK);
 	avr_motor_state[1] = swapped_levels(PIN_MOTOR_RIGHT_PORT, PIN_MOTOR_RIGHT_MASK);
 	for (uint8_t s = 0; s < 2; s++)

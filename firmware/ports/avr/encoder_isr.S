@@ -1,7 +1,7 @@
 ; The pin-change interrupts of the four quadrature encoders (encoder.c explains the decoding and
 ; the tables). In assembly because they run up to 35 000 times a second at 1 m/s: an edge costs
-; 37 cycles with the interrupt's response, where the C version took 140 (its prologue saves
-; twelve registers).
+; 35 cycles with the interrupt's response (a free wheel's, its state in an I/O register) or 37 (a
+; motor's), where the C version took 140 (its prologue saves twelve registers).
 ;
 ; Each interrupt reads its port once: the index into quad_step[] is the state (the previous
 ; levels, kept swapped) | the current levels, and the new state is the current levels swapped.
@@ -21,9 +21,11 @@
 	rjmp	\back
 .endm
 
-; One channel on its port (pins at mask): ISR vector, pin register, mask, table page,
-; state byte, counter. Only Z is used, kept in GPIOR0 and GPIOR2, SREG in GPIOR1.
-.macro quad_isr vector, pins, mask, page, state, counter
+; One channel on its port (pins at mask): ISR vector, pin register, mask, table page, state
+; byte, counter, and io: 0 for a state in RAM (lds, sts), 1 for one in an I/O register (in, out:
+; a cycle each where lds and sts take two), the free wheels', whose edges are the most frequent
+; (encoder.c). Only Z is used, kept in GPIOR0 and GPIOR2, SREG in GPIOR1.
+.macro quad_isr vector, pins, mask, page, state, counter, io
 	.section .text.\vector, "ax", @progbits
 	.global	\vector
 	.type	\vector, @function
@@ -34,10 +36,18 @@
 	out	_SFR_IO_ADDR(GPIOR2), r31
 	in	r31, _SFR_IO_ADDR(\pins)
 	andi	r31, \mask
+	.if \io
+	in	r30, _SFR_IO_ADDR(\state)
+	.else
 	lds	r30, \state
+	.endif
 	or	r30, r31
 	swap	r31
+	.if \io
+	out	_SFR_IO_ADDR(\state), r31
+	.else
 	sts	\state, r31
+	.endif
 	ldi	r31, hi8(quad_step + 256 * \page)
 	lpm	r30, Z
 	lds	r31, \counter
@@ -53,7 +63,7 @@
 	isr_end	\vector
 .endm
 
-	quad_isr PCINT0_vect, PINA, 0x0C, 0, avr_motor_state, avr_motor_count
-	quad_isr PCINT1_vect, PINB, 0x0C, 0, avr_motor_state + 1, avr_motor_count + 2
-	quad_isr PCINT2_vect, PINC, 0x0C, 0, avr_free_state, avr_free_count
-	quad_isr PCINT3_vect, PIND, 0xC0, 1, avr_free_state + 1, avr_free_count + 2
+	quad_isr PCINT0_vect, PINA, 0x0C, 0, avr_motor_state, avr_motor_count, 0
+	quad_isr PCINT1_vect, PINB, 0x0C, 0, avr_motor_state + 1, avr_motor_count + 2, 0
+	quad_isr PCINT2_vect, PINC, 0x0C, 0, EEARL, avr_free_count, 1
+	quad_isr PCINT3_vect, PIND, 0xC0, 1, EEDR, avr_free_count + 2, 1
