@@ -440,6 +440,12 @@ void profile_reset(struct profile *p, int32_t pos_um)
 	p->out.done = 1;
 }
 
+/* s v for a sign s of +-1: a negation where avr-gcc multiplied (__mulsi3, some 60 cycles). */
+static int32_t signed_by(int s, int32_t v)
+{
+	return s > 0 ? v : -v;
+}
+
 /* The trapezoid's velocity for this tick [um/tick * 2^16]. Worked in the frame where the target
  * is ahead (r >= 0), so that braking, reversing and cruising are the same code in both
  * directions. In S-curve mode, after an acceleration of one sign none of the other sign is
@@ -476,20 +482,20 @@ static int32_t next_velocity(struct profile *p)
 			if (v1 == 0 && vm == 0 && (rm.hi | rm.lo) != 0)
 				v1 = max_velocity(p, rm, 0);
 			if (v1 > vm)
-				return s * min32(up, v1);
+				return signed_by(s, min32(up, v1));
 		}
 	}
 	/* Moving away without leave to turn yet, or not allowed to brake yet: keep going. */
 	if (vm <= 0 || hs > 0)
-		return s * vm;
+		return signed_by(s, vm);
 	if (vb < 0)
 		vb = max_velocity(p, rm, 0);
 	if (vm <= prm->v_max_q16 && vb >= vm)
-		return s * vm;
+		return signed_by(s, vm);
 	/* Brake: the largest feasible velocity, not below what a allows. Below lo only when the
 	 * target cannot be reached without passing it: then brake fully, pass, and come back. */
 	vn = max32(lo, min32(cap, vb));
-	return s * vn;
+	return signed_by(s, vn);
 }
 
 /* round(v hz / 2^16) [um/s] for |v| < 2^31 [um/tick * 2^16], hz <= 2000: two 16 x 16 products. */
