@@ -77,26 +77,6 @@ static struct fx48 fx48_mul(uint32_t a, uint32_t b)
 	return fx48_make((int32_t)((hi << 16) | fx_hi16(lo)), fx_lo16(lo));
 }
 
-/* floor(v 2^16 / den), den >= 1, for a quotient below 2^32 (plan time: new limits): v / den,
- * then the 16 bits below it one step each, the remainder kept below den (2 r >= den is tested
- * as r >= den - r, so that no den overflows it). A 32-bit division and 16 steps, where a
- * restoring division of the 48-bit numerator cost an AVR 3 700 cycles. */
-static uint32_t div_shl16(uint32_t v, uint32_t den)
-{
-	uint32_t q = v / den, r = v - q * den;
-
-	for (uint8_t i = 0; i < 16; i++) {
-		q <<= 1;
-		if (r >= den - r) {
-			r -= den - r;
-			q |= 1u;
-		} else {
-			r <<= 1;
-		}
-	}
-	return q;
-}
-
 /* Distance covered from velocity n*a (included) with h ticks of cruise, then braking by a per
  * tick: g_h(n a) = a n (n + 2h + 1) / 2, exact (n (n + 2h + 1) is always even); saturated to
  * "far". While n (n + 2h + 1) fits 32 bits (n below 2^15, as for any limits in use), 32-bit
@@ -268,8 +248,8 @@ static void params_set_limits(struct profile_params *prm, const struct profile_l
 	prm->lim = *lim;
 	/* Rounded down, so that the limits are never exceeded: v 2^16 / hz (below 2^31 for the
 	 * accepted limits) and a 2^16 / hz^2 (below 2^27). */
-	prm->v_max_q16 = (int32_t)div_shl16(v, hz);
-	prm->a_full_q16 = (int32_t)div_shl16(a, fx_mul_u16(hz, hz));
+	prm->v_max_q16 = (int32_t)fx_udiv_shl16(v, hz);
+	prm->a_full_q16 = (int32_t)fx_udiv_shl16(a, fx_mul_u16(hz, hz));
 }
 
 /* |target - position| [um * 2^16], for the S-curve's window (64-bit: at rest, S-curve only). */
