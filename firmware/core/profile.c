@@ -115,7 +115,7 @@ static void hint_seed(const struct profile_params *prm, struct fx48 r, uint16_t 
 
 	if (r.hi >= 0 && r.hi <= 0x7fff) {
 		uint32_t rr = (uint32_t)fx48_to32(r);
-		uint8_t rb = fx_bit_length32(rr), ab = fx_bit_length32(a);
+		uint8_t rb = fx_bit_length32(rr), ab = prm->a_bits;
 		/* a >= 16 (1 mm/s^2 at 2 kHz): q < 2^27, k^2 + 8 q < 2^31. */
 		uint32_t q = rb >= ab ? fx_udiv_small(rr, a, (uint8_t)(rb - ab + 1)) : 0;
 
@@ -195,8 +195,8 @@ static int32_t max_velocity(struct profile *p, struct fx48 r, uint16_t h)
 	rem48 = fx48_sub(r, hint->g_q16);
 	den = n + h + 1;
 	if (den <= 0xffffu && rem48.hi >= 0 && rem48.hi <= 0x7fff)
-		return hint->an_q16 + (int32_t)fx_udiv_small((uint32_t)fx48_to32(rem48), den,
-							     fx_bit_length32((uint32_t)prm->a_q16));
+		return hint->an_q16 +
+		       (int32_t)fx_udiv_small((uint32_t)fx48_to32(rem48), den, prm->a_bits);
 	return (int32_t)min64((int64_t)hint->an_q16 + int64_of_fx48(rem48) / den, INT32_MAX);
 }
 
@@ -214,6 +214,7 @@ static void params_update_far(struct profile *p)
 	uint32_t f = v - n * a;
 	uint16_t hz = prm->tick_hz;
 
+	prm->a_bits = ab; /* a changes only before this call */
 	prm->r_far_q16 = fx48_add(g_at_step(prm->a_q16, n, prm->hold_len),
 				  fx48_mul(n + prm->hold_len + 1u, f));
 	prm->a_hold_q16 = fx48_mul(a, (uint32_t)prm->hold_len + 1u);
@@ -389,7 +390,7 @@ int32_t profile_stop(struct profile *p)
 	struct fx48 stop;
 
 	if (vm > 0) {
-		uint8_t vb = fx_bit_length32(vm - 1), ab = fx_bit_length32(a);
+		uint8_t vb = fx_bit_length32(vm - 1), ab = p->prm.a_bits;
 		uint32_t n = vb >= ab ? fx_udiv_small(vm - 1, a, (uint8_t)(vb - ab + 1)) : 0;
 		uint32_t f = vm - n * a;
 
