@@ -591,12 +591,17 @@ static void update_status(struct board *b)
  * fx_shr_u32 (here and below): avr-gcc shifts a uint32_t by 9 or 20 bits one bit a turn. */
 static uint16_t div1000(uint32_t u)
 {
-	uint32_t q = fx_shr_u32(
-		fx_mul_u16(fx_hi16(u), 33555u) + fx_hi16(fx_mul_u16(fx_lo16(u), 33555u)), 9);
+	/* x = u 33555 / 2^16 is below 2^25, q = x / 2^9 below 2^16: a byte move, then one bit
+	 * (hidden from avr-gcc, which would shift by 9 in a loop of 9 turns). */
+	uint32_t x =
+		(fx_mul_u16(fx_hi16(u), 33555u) + fx_hi16(fx_mul_u16(fx_lo16(u), 33555u))) >> 8;
+	uint16_t q;
 
-	if (fx_mul_u16((uint16_t)q, UM_PER_MM) > u)
+	FX_HIDE(x);
+	q = (uint16_t)(x >> 1);
+	if (fx_mul_u16(q, UM_PER_MM) > u)
 		q--;
-	return (uint16_t)q;
+	return q;
 }
 
 /* round(um / 1000) saturated to 16 bits (ties away from zero). */

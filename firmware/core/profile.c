@@ -77,26 +77,6 @@ static struct fx48 fx48_mul(uint32_t a, uint32_t b)
 	return fx48_make((int32_t)((hi << 16) | fx_hi16(lo)), fx_lo16(lo));
 }
 
-/* floor(v 2^16 / den), den >= 1, for a quotient below 2^32 (plan time: new limits): v / den,
- * then the 16 bits below it one step each, the remainder kept below den (2 r >= den is tested
- * as r >= den - r, so that no den overflows it). A 32-bit division and 16 steps, where a
- * restoring division of the 48-bit numerator cost an AVR 3 700 cycles. */
-static uint32_t div_shl16(uint32_t v, uint32_t den)
-{
-	uint32_t q = v / den, r = v - q * den;
-
-	for (uint8_t i = 0; i < 16; i++) {
-		q <<= 1;
-		if (r >= den - r) {
-			r -= den - r;
-			q |= 1u;
-		} else {
-			r <<= 1;
-		}
-	}
-	return q;
-}
-
 /* Distance covered from velocity n*a (included) with h ticks of cruise, then braking by a per
  * tick: g_h(n a) = a n (n + 2h + 1) / 2, exact (n (n + 2h + 1) is always even); saturated to
  * "far". While n (n + 2h + 1) fits 32 bits (n below 2^15, as for any limits in use), 32-bit
@@ -135,7 +115,7 @@ static void hint_seed(const struct profile_params *prm, struct fx48 r, uint16_t 
 
 	if (r.hi >= 0 && r.hi <= 0x7fff) {
 		uint32_t rr = (uint32_t)fx48_to32(r);
-		uint8_t rb = fx_bit_length32(rr), ab = fx_bit_length32(a);
+		uint8_t rb = fx_bit_length32(rr), ab = prm->a_bits;
 		/* a >= 16 (1 mm/s^2 at 2 kHz): q < 2^27, k^2 + 8 q < 2^31. */
 		uint32_t q = rb >= ab ? fx_udiv_small(rr, a, (uint8_t)(rb - ab + 1)) : 0;
 
@@ -215,8 +195,8 @@ static int32_t max_velocity(struct profile *p, struct fx48 r, uint16_t h)
 	rem48 = fx48_sub(r, hint->g_q16);
 	den = n + h + 1;
 	if (den <= 0xffffu && rem48.hi >= 0 && rem48.hi <= 0x7fff)
-		return hint->an_q16 + (int32_t)fx_udiv_small((uint32_t)fx48_to32(rem48), den,
-							     fx_bit_length32((uint32_t)prm->a_q16));
+		return hint->an_q16 +
+		       (int32_t)fx_udiv_small((uint32_t)fx48_to32(rem48), den, prm->a_bits);
 	return (int32_t)min64((int64_t)hint->an_q16 + int64_of_fx48(rem48) / den, INT32_MAX);
 }
 
@@ -234,6 +214,7 @@ static void params_update_far(struct profile *p)
 	uint32_t f = v - n * a;
 	uint16_t hz = prm->tick_hz;
 
+	prm->a_bits = ab; /* a changes only before this call */
 	prm->r_far_q16 = fx48_add(g_at_step(prm->a_q16, n, prm->hold_len),
 				  fx48_mul(n + prm->hold_len + 1u, f));
 	prm->a_hold_q16 = fx48_mul(a, (uint32_t)prm->hold_len + 1u);
@@ -268,8 +249,8 @@ static void params_set_limits(struct profile_params *prm, const struct profile_l
 	prm->lim = *lim;
 	/* Rounded down, so that the limits are never exceeded: v 2^16 / hz (below 2^31 for the
 	 * accepted limits) and a 2^16 / hz^2 (below 2^27). */
-	prm->v_max_q16 = (int32_t)div_shl16(v, hz);
-	prm->a_full_q16 = (int32_t)div_shl16(a, fx_mul_u16(hz, hz));
+	prm->v_max_q16 = (int32_t)fx_udiv_shl16(v, hz);
+	prm->a_full_q16 = (int32_t)fx_udiv_shl16(a, fx_mul_u16(hz, hz));
 }
 
 /* |target - position| [um * 2^16], for the S-curve's window (64-bit: at rest, S-curve only). */
@@ -409,7 +390,7 @@ int32_t profile_stop(struct profile *p)
 	struct fx48 stop;
 
 	if (vm > 0) {
-		uint8_t vb = fx_bit_length32(vm - 1), ab = fx_bit_length32(a);
+		uint8_t vb = fx_bit_length32(vm - 1), ab = p->prm.a_bits;
 		uint32_t n = vb >= ab ? fx_udiv_small(vm - 1, a, (uint8_t)(vb - ab + 1)) : 0;
 		uint32_t f = vm - n * a;
 
@@ -438,6 +419,12 @@ void profile_reset(struct profile *p, int32_t pos_um)
 	p->out.vel_um_s = 0;
 	p->out.acc_um_s2 = 0;
 	p->out.done = 1;
+}
+
+/* s v for a sign s of +-1: a negation where avr-gcc multiplied (__mulsi3, some 60 cycles). */
+static int32_t signed_by(int s, int32_t v)
+{
+	return s > 0 ? v : -v;
 }
 
 /* The trapezoid's velocity for this tick [um/tick * 2^16]. Worked in the frame where the target
@@ -476,20 +463,20 @@ static int32_t next_velocity(struct profile *p)
 			if (v1 == 0 && vm == 0 && (rm.hi | rm.lo) != 0)
 				v1 = max_velocity(p, rm, 0);
 			if (v1 > vm)
-				return s * min32(up, v1);
+				return signed_by(s, min32(up, v1));
 		}
 	}
 	/* Moving away without leave to turn yet, or not allowed to brake yet: keep going. */
 	if (vm <= 0 || hs > 0)
-		return s * vm;
+		return signed_by(s, vm);
 	if (vb < 0)
 		vb = max_velocity(p, rm, 0);
 	if (vm <= prm->v_max_q16 && vb >= vm)
-		return s * vm;
+		return signed_by(s, vm);
 	/* Brake: the largest feasible velocity, not below what a allows. Below lo only when the
 	 * target cannot be reached without passing it: then brake fully, pass, and come back. */
 	vn = max32(lo, min32(cap, vb));
-	return s * vn;
+	return signed_by(s, vn);
 }
 
 /* round(v hz / 2^16) [um/s] for |v| < 2^31 [um/tick * 2^16], hz <= 2000: two 16 x 16 products. */

@@ -63,6 +63,7 @@ struct profile_params {
 	int32_t v_max_q16;         /* [um/tick * 2^16] */
 	int32_t a_full_q16;        /* [um/tick^2 * 2^16] a_max */
 	int32_t a_q16;             /* [um/tick^2 * 2^16] in effect: a_max, or lower (S-curve) */
+	uint8_t a_bits;            /* fx_bit_length32(a_q16), for the divisions by a */
 	int32_t j_um_s3;           /* [um/s^3] jerk limit in effect for this motion */
 	uint16_t n_filt;           /* [tick] smoothing window, 1 for a trapezoid */
 	uint16_t hold_len;         /* [tick] n_filt for an S-curve, 0 for a trapezoid */

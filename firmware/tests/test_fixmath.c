@@ -261,6 +261,29 @@ static void test_narrow_primitives_match(void **state)
 	}
 }
 
+/* floor(v 2^16 / den) for den below 2^31 and a quotient below 2^32: the 16-bit steps and the
+ * build's own version against the 64-bit division. */
+static void test_udiv_shl16(void **state)
+{
+	static const uint32_t edges[] = {1,         2,          3,          999,       1000,
+					 65535,     65536,      65537,      4000000,   0xffffff,
+					 0x1000000, 0x7ffffffe, 0x7fffffff, 0xffffffff};
+
+	(void)state;
+	for (int i = 0; i < 400000; i++) {
+		uint32_t v = i < 196 ? edges[i / 14] : (uint32_t)rng_next() >> (rng_next() & 31);
+		uint32_t den =
+			i < 196 ? edges[i % 14] : (uint32_t)rng_next() >> (1 + rng_next() % 31);
+		uint64_t want;
+
+		if (den == 0 || den > 0x7fffffffu || (v >> 16) >= den)
+			continue; /* outside the domain: den 1..2^31 - 1, v / den below 2^16 */
+		want = ((uint64_t)v << 16) / den;
+		assert_true(fx_udiv_shl16_n(v, den) == want);
+		assert_true(fx_udiv_shl16(v, den) == want);
+	}
+}
+
 static void test_isqrt_edges(void **state)
 {
 	(void)state;
@@ -502,6 +525,7 @@ int main(void)
 		cmocka_unit_test(test_mul_shr_rounds_and_saturates),
 		cmocka_unit_test(test_div_round),
 		cmocka_unit_test(test_narrow_primitives_match),
+		cmocka_unit_test(test_udiv_shl16),
 		cmocka_unit_test(test_isqrt_edges),
 		cmocka_unit_test(test_sincos_against_reference),
 		cmocka_unit_test(test_atan2_octants_and_edges),

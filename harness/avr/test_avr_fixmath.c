@@ -42,6 +42,7 @@ static const char *const op_name[FXA_OPS] = {
 	[FXA_MUL_Q30] = "fx_mul_q30",
 	[FXA_UDIV_SMALL] = "fx_udiv_small",
 	[FXA_DIV_ROUND_SMALL] = "fx_div_round_small",
+	[FXA_UDIV_SHL16] = "fx_udiv_shl16",
 	[FXA_SINCOS] = "fx_sincos",
 	[FXA_SINCOS_Q14] = "fx_sincos_q14",
 	[FXA_ATAN2] = "fx_atan2",
@@ -149,6 +150,9 @@ static void on_host(uint8_t op, uint8_t n, const uint32_t in[3], uint32_t r[2])
 		break;
 	case FXA_DIV_ROUND_SMALL:
 		r[0] = (uint32_t)fx_div_round_small((int32_t)a, b, n);
+		break;
+	case FXA_UDIV_SHL16:
+		r[0] = fx_udiv_shl16(a, b);
 		break;
 	case FXA_SINCOS:
 		fx_sincos(a, &s0, &s1);
@@ -331,8 +335,20 @@ static void test_divisions(void **state)
 			check(t, FXA_DIV_ROUND_SMALL, bits,
 			      rnd64() & 1 ? (uint32_t)0 - (uint32_t)num : (uint32_t)num,
 			      (uint32_t)den, 0);
+		/* floor(v 2^16 / d): d 1..2^31 - 1, v / d below 2^16 */
+		{
+			uint32_t v = (uint32_t)rnd_bits(32), d = (uint32_t)rnd_bits(31);
+
+			if (d != 0 && (v >> 16) < d)
+				check(t, FXA_UDIV_SHL16, 0, v, d, 0);
+		}
 		k++;
 	}
+	for (size_t i = 0; i < N_EDGES; i++)
+		for (size_t j = 0; j < N_EDGES; j++)
+			if (edges32[j] != 0 && edges32[j] <= INT32_MAX &&
+			    (edges32[i] >> 16) < edges32[j])
+				check(t, FXA_UDIV_SHL16, 0, edges32[i], edges32[j], 0);
 }
 
 static void test_angles(void **state)

@@ -43,6 +43,7 @@ enum fxa_op {
 	FXA_MUL_Q30,         /* r0 = fx_mul_q30(a, b) */
 	FXA_UDIV_SMALL,      /* r0 = fx_udiv_small(a, b, n) */
 	FXA_DIV_ROUND_SMALL, /* r0 = fx_div_round_small(a, b, n) */
+	FXA_UDIV_SHL16,      /* r0 = fx_udiv_shl16(a, b) */
 	FXA_SINCOS,          /* fx_sincos(a, &r0, &r1) */
 	FXA_SINCOS_Q14,      /* fx_sincos_q14(a, &r0, &r1) (16-bit results) */
 	FXA_ATAN2,           /* r0 = fx_atan2(a, b) */
