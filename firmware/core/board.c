@@ -587,8 +587,9 @@ static void update_status(struct board *b)
 
 /* floor(u / 1000) for u < 2^25: q = floor(u 33555 / 2^25) (33555 = ceil(2^25 / 1000)) is the
  * quotient or one more (the excess u 0.568 / 2^25 stays below 1), which the remainder settles.
- * Three 16 x 16-bit products: the replies' millimetres cost no division. The shifts through
- * fx_shr_u32 (here and below): avr-gcc shifts a uint32_t by 9 or 20 bits one bit a turn. */
+ * Three 16 x 16-bit products: the replies' millimetres cost no division. avr-gcc shifts a
+ * uint32_t by 9 or 20 bits one bit a turn: here a byte move and a bit, in angle_2deg_of()
+ * fx_shr_u32. */
 static uint16_t div1000(uint32_t u)
 {
 	/* x = u 33555 / 2^16 is below 2^25, q = x / 2^9 below 2^16: a byte move, then one bit

@@ -18,7 +18,7 @@
  * readings (avr_units.h), with a time constant of 4 readings, 8 control periods. The control
  * tick takes a channel's reading and starts the other's conversion (13 ADC clocks, 104 us at
  * prescaler 128, done long before the next tick): one conversion a period and no interrupt,
- * where an interrupt per conversion cost 60 cycles each, and converting all the time 6 % of the
+ * where an interrupt per conversion cost about 60 cycles, and converting all the time 6 % of the
  * CPU. Only the tick touches them (with two rates the servo, and the period's end samples of
  * port_sample_period() in it), so they need no atomic access. */
 static uint16_t adc_sum[2];
@@ -44,12 +44,18 @@ void avr_motor_init(void)
 }
 
 /* The period's current sense: the last conversion's reading into its channel's sum, then the
- * other channel's conversion. Inlined into the tick. */
+ * other channel's conversion. Inlined into the tick. A tick that comes while the conversion
+ * still runs (one rate, right after an overrun) leaves it be: it would read the last channel's
+ * reading again, and the channel change would wait for the conversion's end. */
 __attribute__((always_inline)) inline void avr_motor_sense(void)
 {
 	uint8_t mux = ADMUX;
 	uint16_t *sum = &adc_sum[mux & 1u];
-	uint16_t reading = ADC; /* ADCL first: reading it holds ADCH for this conversion */
+	uint16_t reading;
+
+	if (ADCSRA & _BV(ADSC))
+		return;
+	reading = ADC; /* ADCL first: reading it holds ADCH for this conversion */
 
 	ADMUX = mux ^ 1u;
 	ADCSRA |= _BV(ADSC);
