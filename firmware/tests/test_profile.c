@@ -520,7 +520,7 @@ static void test_reset_hold_here(void **state)
 /* Out-of-range settings are refused. */
 /* The limits in per-tick units are floor(v 2^16 / hz) and floor(a 2^16 / hz^2), to the bit, over
  * the accepted ranges (their bounds, and a pseudo-random sweep): what the AVR computes with a
- * 32-bit division and 16 restoring steps (div_shl16), the host's 64-bit division says. */
+ * division steps of fx_udiv_shl16(), the host's 64-bit division says. */
 static void test_limits_in_tick_units(void **state)
 {
 	struct profile p;
