@@ -114,6 +114,7 @@ void board_default_config(struct board_config *c)
 	c->recal.pair_window_um = 200000;
 	c->recal.bound_um = 1000;
 	c->recal.pair_bound_um = 300;
+	c->recal.straight_turn32 = fx_deg_to_turn32(1) / 4; /* 0.25 degree */
 
 	/* The specification's initial position "0, bout du terrain", angle 0: x 0 on the field's
 	 * centre line, at the end of the field (its border at y -1050 mm, 2100 mm wide), the robot
@@ -129,6 +130,13 @@ void board_default_config(struct board_config *c)
 	 * covers the placement too). */
 	c->start_radius_um = 0;
 	c->start_heading_bound_turn32 = 0;
+	/* Uncalibrated: wheel diameters within 0.3 % of the drawings each, the encoder track within
+	 * 1 mm (sim/config.c's randomized robots; physics.md): a ratio within 0.6 %, a common scale
+	 * within 0.3 %, and a track error with the scale's effect on turns (0.3 % of 280 mm) of
+	 * 1.84 mm; with a margin. */
+	c->uncalibrated.ratio_error_ppm = 7000;
+	c->uncalibrated.track_error_um = 2000;
+	c->uncalibrated.scale_error_ppm = 3500;
 }
 
 /* The angle axis [um of drive-wheel arc]: the exact sum of the heading steps times pi * drive
@@ -232,6 +240,9 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->slow_mask = (uint8_t)((1u << shift) - 1u);
 	/* The slow modules' durations in their own ticks; the slip window the same length. */
 	uc.batch_ticks = (uint8_t)slow_ticks(uc.batch_ticks, shift);
+	uc.ratio_error_ppm = cfg->uncalibrated.ratio_error_ppm; /* until a calibration */
+	uc.track_error_um = cfg->uncalibrated.track_error_um;
+	uc.scale_error_ppm = cfg->uncalibrated.scale_error_ppm;
 	fc.following_ticks = slow_ticks(fc.following_ticks, shift);
 	fc.current_ticks = slow_ticks(fc.current_ticks, shift);
 	fc.repeat_window_ticks = slow_ticks(fc.repeat_window_ticks, shift);
@@ -266,6 +277,8 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->silent_ticks = 0;
 	b->transactions_seen = b->proto.transactions;
 	b->timed_out = 0;
+	b->calibrated = 0;
+	b->calibration = (struct board_calibration){0, 0, 0};
 	b->last_out.duty_q15[0] = 0;
 	b->last_out.duty_q15[1] = 0;
 	/* The servo: holding where the orders start, nothing handed over, no period begun. */
@@ -346,30 +359,35 @@ static int64_t scaled_factor(int64_t factor_q16, int32_t a, int32_t den)
 
 /* SET_ODOMETRIE: the calibrated wheel factors and encoder track, from the build's nominal
  * factors (cfg), so that the same message always gives the same configuration. The pose, the
- * error radius and the axes are kept; the next tick measures with the new values. A result
- * outside the odometry's ranges leaves the configuration as it was (-EDOM). */
-static int set_odometrie(struct board *b, const struct proto_msg *msg)
+ * error radius and the axes are kept; the next tick measures with the new values, and the error
+ * radius uses the calibrated residual bounds. A result outside the odometry's ranges leaves the
+ * configuration as it was (-EDOM). */
+int board_set_calibration(struct board *b, const struct board_calibration *cal)
 {
 	const int32_t ppm = 1000000;
-	int32_t ratio = msg->arg[ARG_SET_ODOMETRIE_RATIO_PPM];
-	int32_t scale = msg->arg[ARG_SET_ODOMETRIE_SCALE_PPM];
 	struct odometry_config oc;
 	struct uncertainty_config uc = b->uncertainty.cfg;
 	int64_t left, right;
 	int err;
 
-	left = scaled_factor(b->cfg.odometry.left_um_per_count_q16, scale, ppm);
-	right = scaled_factor(b->cfg.odometry.right_um_per_count_q16, scale, ppm);
+	if (cal->ratio_ppm < -30000 || cal->ratio_ppm > 30000 || cal->scale_ppm < -30000 ||
+	    cal->scale_ppm > 30000)
+		return -EDOM;
+	left = scaled_factor(b->cfg.odometry.left_um_per_count_q16, cal->scale_ppm, ppm);
+	right = scaled_factor(b->cfg.odometry.right_um_per_count_q16, cal->scale_ppm, ppm);
 	/* right * (1 + r/2), left * (1 - r/2): a right/left ratio of 1 + r + r^2/2 + ... */
-	left = scaled_factor(left, -ratio, 2 * ppm);
-	right = scaled_factor(right, ratio, 2 * ppm);
+	left = scaled_factor(left, -cal->ratio_ppm, 2 * ppm);
+	right = scaled_factor(right, cal->ratio_ppm, 2 * ppm);
 	if (left < 1 || right < 1 || left > ODOMETRY_UM_PER_COUNT_Q16_MAX ||
 	    right > ODOMETRY_UM_PER_COUNT_Q16_MAX)
 		return -EDOM;
 	oc.left_um_per_count_q16 = (uint32_t)left;
 	oc.right_um_per_count_q16 = (uint32_t)right;
-	oc.track_um = (uint32_t)msg->arg[ARG_SET_ODOMETRIE_TRACK_10UM] * 10u;
+	oc.track_um = (uint32_t)cal->track_10um * 10u;
 	uc.track_um = oc.track_um;
+	uc.ratio_error_ppm = b->cfg.uncertainty.ratio_error_ppm;
+	uc.track_error_um = b->cfg.uncertainty.track_error_um;
+	uc.scale_error_ppm = b->cfg.uncertainty.scale_error_ppm;
 	err = odometry_check_config(&oc);
 	if (err)
 		return err;
@@ -380,7 +398,19 @@ static int set_odometrie(struct board *b, const struct proto_msg *msg)
 	b->handover.odometry_cfg = oc;
 	b->handover.set_odometry = 1;
 	b->free_ratio_q16 = free_ratio_q16(&b->cfg, oc.track_um);
+	b->calibrated = 1;
+	b->calibration = *cal;
 	return 0;
+}
+
+static int set_odometrie(struct board *b, const struct proto_msg *msg)
+{
+	struct board_calibration cal;
+
+	cal.ratio_ppm = msg->arg[ARG_SET_ODOMETRIE_RATIO_PPM];
+	cal.scale_ppm = msg->arg[ARG_SET_ODOMETRIE_SCALE_PPM];
+	cal.track_10um = (uint16_t)msg->arg[ARG_SET_ODOMETRIE_TRACK_10UM];
+	return board_set_calibration(b, &cal);
 }
 
 /* New gains for the servo's PIDs (their integrals kept). */
@@ -618,13 +648,15 @@ static int16_t mm_of(int32_t um)
 	return um >= 0 ? (int16_t)q : (int16_t) - (int32_t)q;
 }
 
-/* round(cdeg / 200) (ties away from zero) for |cdeg| <= 18000: floor((|cdeg| + 100) 5243 / 2^20)
- * is exact there (the excess of 5243 over 2^20 / 200 adds under 0.003). */
-static int8_t angle_2deg_of(int32_t cdeg)
+/* The heading in POSITION's 2-degree steps, rounded once from the heading itself (ties away
+ * from zero): round(h 180 / 2^32) for h in [-2^31, 2^31), -90..90. */
+static int8_t angle_2deg_of(uint32_t heading_turn32)
 {
-	uint8_t q = (uint8_t)fx_shr_u32(fx_mul_u16((uint16_t)(fx_mag32(cdeg) + 100u), 5243u), 20);
+	int32_t h = (int32_t)heading_turn32;
+	uint32_t lo, hi = fx_mul_u32_wide(fx_mag32(h), 180u, &lo);
+	uint8_t q = (uint8_t)(hi + (lo >= 0x80000000u));
 
-	return cdeg >= 0 ? (int8_t)q : (int8_t) - (int16_t)q;
+	return h >= 0 ? (int8_t)q : (int8_t) - (int16_t)q;
 }
 
 /* The reply snapshot of the last period, drafted (proto_draft()): the caller flips it public. */
@@ -637,7 +669,7 @@ static void publish(struct board *b)
 
 	s->x_mm = mm_of(m->pose.x_um);
 	s->y_mm = mm_of(m->pose.y_um);
-	s->angle_2deg = angle_2deg_of(cdeg); /* -90..90 */
+	s->angle_2deg = angle_2deg_of(m->pose.heading_turn32); /* -90..90 */
 	s->radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
 	s->status = b->status;
 	s->sensors = p->in.shocks;
@@ -683,6 +715,36 @@ static void axis_copy(struct orders_axis *to, const struct orders_axis *from)
 	to->pos_um = from->pos_um;
 	to->vel_um_s = from->vel_um_s;
 	to->acc_um_s2 = from->acc_um_s2;
+}
+
+/* A free wheel suspected lost (faults.h) may travel without counting: up to what its motor's
+ * wheel travelled, scaled to the encoder track for a turn, and before the verdict the motor
+ * travel it took (lost_min_um). That travel widens the error radius (uncertainty_widen()), as it
+ * happens: a wheel that counts again (a wire repaired) leaves the radius as wide. */
+static void unseen_travel(struct board *b, uint8_t suspect_before, const uint16_t motor_base[2],
+			  const uint16_t motor_count[2])
+{
+	const struct board_config *c = &b->cfg;
+	uint32_t track_um = b->uncertainty.cfg.track_um;
+	uint32_t drive_um = c->orders.drive_track_um;
+
+	for (uint8_t s = 0; s < 2; s++) {
+		uint8_t bit = (uint8_t)(1u << s);
+		int16_t counts = (int16_t)(uint16_t)(motor_count[s] - motor_base[s]);
+		uint64_t um =
+			((uint64_t)fx_mag32(counts) * c->faults.motor_um_per_count_q16 + 0xffffu) >>
+			16;
+
+		if (!(b->faults.lost_suspect & bit))
+			continue;
+		if (!(suspect_before & bit))
+			um += (uint64_t)(c->faults.lost_min_um > 0 ? c->faults.lost_min_um : 0);
+		if (track_um > drive_um)
+			um = (um * track_um + drive_um - 1) / drive_um;
+		if (um > 0xffffffffu)
+			um = 0xffffffffu;
+		uncertainty_widen(&b->uncertainty, (uint32_t)um);
+	}
 }
 
 /* The slow steps but the reply snapshot, on the last period (b->period[period_index ^ 1]). */
@@ -761,7 +823,16 @@ static void slow_steps(struct board *b)
 	fi.angle_err_um = sub_sat(p->sp_angle_um, m->angle_um);
 	fi.moving = (uint8_t)orders_busy(&b->orders);
 	fi.pushing = b->orders.state == ORDER_STATE_PUSH || b->orders.state == ORDER_STATE_SQUARE;
-	event = faults_check(&b->faults, &fi);
+	{
+		uint8_t suspect = b->faults.lost_suspect;
+		uint16_t motor_base[2];
+
+		motor_base[0] = b->faults.last_motor[0];
+		motor_base[1] = b->faults.last_motor[1];
+		event = faults_check(&b->faults, &fi);
+		if (b->faults.lost_suspect != 0)
+			unseen_travel(b, suspect, motor_base, p->in.motor_count);
+	}
 	react(b, p->encoder_fault ? FAULTS_GRAVE : event, m);
 
 	/* 5. Orders -> profiles -> set points of both axes; the contact recalibrations. */

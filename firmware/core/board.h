@@ -37,6 +37,21 @@ struct board_outputs {
 	int16_t duty_q15[2];
 };
 
+/* The bounds of the odometry's calibration residuals, as uncertainty_config states them. */
+struct board_residuals {
+	uint32_t ratio_error_ppm; /* right/left wheel factor ratio [1e-6] */
+	uint32_t track_error_um;  /* encoder track, including the common scale's effect [um] */
+	uint32_t scale_error_ppm; /* common wheel factor [1e-6] */
+};
+
+/* An odometry calibration (SET_ODOMETRIE's arguments, docs/calibration.md): what a port stores
+ * to install it again at the next power-on. */
+struct board_calibration {
+	int32_t ratio_ppm; /* -30000..30000 */
+	int32_t scale_ppm; /* -30000..30000 */
+	uint16_t track_10um;
+};
+
 struct board_config {
 	uint16_t tick_hz;   /* control rate, 100..2000 */
 	uint8_t slow_shift; /* the slow steps every 2^slow_shift ticks, 0..3, at 100 Hz or more */
@@ -51,6 +66,10 @@ struct board_config {
 	 * the error radius starts from them. 0 and 0: the start pose is the reference. */
 	uint32_t start_radius_um;
 	uint32_t start_heading_bound_turn32;
+	/* The residual bounds of a robot whose odometry is not calibrated (the build's nominal
+	 * wheel factors and track against the real wheels): the error radius uses them until a
+	 * calibration is installed, then uncertainty's (those of a calibrated robot). */
+	struct board_residuals uncalibrated;
 };
 
 /* What the servo hands the slow steps at a slow tick: the measure of that tick and the sums of
@@ -163,6 +182,8 @@ struct board {
 	uint32_t silent_ticks;     /* [slow ticks] since a transaction last addressed the board */
 	uint8_t transactions_seen; /* proto.transactions at the last slow tick */
 	uint8_t timed_out;         /* the last order was stopped by the timeout */
+	uint8_t calibrated;        /* a calibration is installed: calibration holds it */
+	struct board_calibration calibration;
 	struct board_outputs last_out;
 };
 
@@ -174,6 +195,13 @@ void board_default_config(struct board_config *cfg);
  * FILTRE_STD, no order; in gives the encoder counts to start from (no jump at the first tick).
  * Returns 0, or -1 when the configuration is out of range. Interrupt-safe: no. */
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
+
+/* Install an odometry calibration, as SET_ODOMETRIE does (a port calls it after board_init()
+ * with the one it stored). The pose is kept; the error radius keeps what it has accumulated and
+ * uses the calibrated residual bounds from then on. Returns 0, or -EDOM when the factors fall
+ * outside the odometry's ranges (nothing changes). Interrupt-safe: no (from the slow steps'
+ * context, or before the first tick). */
+int board_set_calibration(struct board *b, const struct board_calibration *cal);
 
 /* One control period, the servo: encoders -> odometry -> (slow tick: the hand-over) -> set
  * points -> control -> outputs -> (slow tick: the snapshot). With slow_shift 0 the slow steps

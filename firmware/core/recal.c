@@ -24,7 +24,7 @@ int recal_init(struct recal *r, const struct recal_config *cfg)
 	if (cfg->n_sensors > RECAL_MAX_SENSORS || cfg->n_lines > RECAL_MAX_LINES ||
 	    cfg->max_angle_turn32 >= QUARTER_TURN32 || cfg->width_tol_um < 0 ||
 	    cfg->margin_um < 0 || cfg->pair_window_um <= 0 || cfg->bound_um > 100000u ||
-	    cfg->pair_bound_um > 100000u)
+	    cfg->pair_bound_um > 100000u || cfg->straight_turn32 >= QUARTER_TURN32)
 		return -1;
 	for (uint8_t i = 0; i < cfg->n_sensors; i++)
 		if (fx_abs32(cfg->sensors[i].x_um) > 1000000 ||
@@ -130,7 +130,7 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 	int32_t sn, cs, x, y, crossed, off;
 	uint8_t n = 0, best = 0;
 	const struct recal_line *l;
-	uint32_t heading, hb;
+	uint32_t heading, hb, turned;
 	int near;
 
 	if (travel <= 0) {
@@ -166,7 +166,11 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 	/* A pair with the other sensor's crossing of the same line gives the heading: applied
 	 * when it is known better than the estimate's, before the position. */
 	hb = 0;
+	turned = fx_angle_dist(pose->heading_turn32, r->last_entry_heading_turn32);
+	if (fx_angle_dist(pose->heading_turn32, r->entry_heading_turn32[i]) > turned)
+		turned = fx_angle_dist(pose->heading_turn32, r->entry_heading_turn32[i]);
 	if (r->last_valid && r->last_line == best && r->last_sensor != i &&
+	    turned <= r->cfg.straight_turn32 &&
 	    fx_abs32(s_mid - r->last_mid_um) <= r->cfg.pair_window_um &&
 	    pair_heading(r, l, i, r->last_sensor, s_mid, r->last_mid_um, sn, cs, &heading) == 0 &&
 	    fx_angle_dist(heading, pose->heading_turn32) <= r->cfg.max_angle_turn32) {
@@ -174,7 +178,9 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 			fx_abs32(r->cfg.sensors[i].y_um - r->cfg.sensors[r->last_sensor].y_um);
 		int64_t err_um = (int64_t)fx_abs32(step_um) + r->cfg.pair_bound_um;
 
-		hb = (uint32_t)((err_um * TURN32_PER_RAD + base - 1) / base);
+		/* The pair assumes a straight path between the crossings: what the heading turned
+		 * meanwhile is added to the bound. */
+		hb = (uint32_t)((err_um * TURN32_PER_RAD + base - 1) / base) + turned;
 		if (hb < uncertainty_get_heading_bound_turn32(u)) {
 			pose->heading_turn32 = heading;
 			fix->what |= RECAL_FIX_HEADING;
@@ -191,6 +197,7 @@ static void crossing(struct recal *r, uint8_t i, int32_t s_in, int32_t s_out, in
 	r->last_sensor = i;
 	r->last_line = best;
 	r->last_mid_um = s_mid;
+	r->last_entry_heading_turn32 = r->entry_heading_turn32[i];
 }
 
 void recal_sense_init(struct recal_sense *s, struct recal_edges *e, int32_t dist_um)
@@ -230,9 +237,10 @@ void recal_sense(struct recal_sense *s, struct recal_edges *e, uint8_t lines, in
 }
 
 /* Sensor i entered a line at rise_um. */
-static void entry(struct recal *r, uint8_t i, int32_t rise_um)
+static void entry(struct recal *r, uint8_t i, int32_t rise_um, uint32_t heading_turn32)
 {
 	r->entry_um[i] = rise_um;
+	r->entry_heading_turn32[i] = heading_turn32;
 	r->armed |= (uint8_t)(1u << i);
 }
 
@@ -264,12 +272,12 @@ void recal_take(struct recal *r, struct recal_edges *e, int enabled,
 			/* Both in one period: the sensor's state at its end gives their order. */
 			if ((e->rose & e->fell & bit) && (e->on & bit)) {
 				exit_line(r, i, e, dist_um, u, fix);
-				entry(r, i, e->rise_um[i]);
+				entry(r, i, e->rise_um[i], pose->heading_turn32);
 			} else if (e->rose & e->fell & bit) {
-				entry(r, i, e->rise_um[i]);
+				entry(r, i, e->rise_um[i], pose->heading_turn32);
 				exit_line(r, i, e, dist_um, u, fix);
 			} else if (e->rose & bit) {
-				entry(r, i, e->rise_um[i]);
+				entry(r, i, e->rise_um[i], pose->heading_turn32);
 			} else if (e->fell & bit) {
 				exit_line(r, i, e, dist_um, u, fix);
 			}

@@ -46,6 +46,9 @@ struct recal_config {
 	int32_t pair_window_um;    /* two sensors' crossings within this travel make a pair */
 	uint32_t bound_um;         /* residual across the line, before the tick's quantisation */
 	uint32_t pair_bound_um;    /* residual of the difference of two sensors' crossings [um] */
+	/* A pair gives the heading only when the heading moved at most this from the first
+	 * sensor's entry to the second's exit: the robot drove straight (< 1/4 turn). */
+	uint32_t straight_turn32;
 };
 
 /* What a crossing gives: the corrected pose, and which parts of it are new. */
@@ -83,14 +86,16 @@ struct recal {
 	struct recal_config cfg;
 	int32_t sin_max_q30; /* sin(max_angle) [2^-30] */
 	uint8_t armed;       /* bit n: its entry was seen while enabled (a crossing in progress) */
-	int32_t entry_um[RECAL_MAX_SENSORS]; /* distance axis at the entry [um] */
+	int32_t entry_um[RECAL_MAX_SENSORS];              /* distance axis at the entry [um] */
+	uint32_t entry_heading_turn32[RECAL_MAX_SENSORS]; /* the estimate's heading then */
 	/* The last crossing applied, to pair it with another sensor's crossing of the same line. */
 	uint8_t last_valid;
 	uint8_t last_sensor;
 	uint8_t last_line;
-	int32_t last_mid_um; /* distance axis at its centre */
-	uint16_t crossings;  /* crossings applied since init, wrapping (telemetry, tests) */
-	uint16_t ignored;    /* crossings seen but refused by the rules, wrapping */
+	int32_t last_mid_um;                /* distance axis at its centre */
+	uint32_t last_entry_heading_turn32; /* the heading at its entry */
+	uint16_t crossings; /* crossings applied since init, wrapping (telemetry, tests) */
+	uint16_t ignored;   /* crossings seen but refused by the rules, wrapping */
 };
 
 /* Returns 0, or -1 when the configuration is out of range. interrupt-safe: no. */

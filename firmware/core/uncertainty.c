@@ -253,10 +253,76 @@ int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg
 	return 0;
 }
 
+static void start_batch(struct uncertainty *u);
+
+/* a + b, saturating. */
+static uint32_t add_sat_u32(uint32_t a, uint32_t b)
+{
+	return a + b < a ? 0xffffffffu : a + b;
+}
+
+/* The systematic heading drift's bound [2^-16 rad], rounded up: ratio S / b + track R / b^2
+ * (docs/odometry.md), S = travel2 / 2. In 64 bits: it runs at a recalibration or a change of
+ * configuration, not every tick. */
+static uint64_t sys_heading_units(const struct uncertainty *u)
+{
+	uint64_t b = u->cfg.track_um;
+	uint64_t s = fx_mag32(u->travel2_um), r = fx_mag32(u->turn_um);
+	/* ratio [1e-6] * S [um] / b [um] * 2^16, with S = travel2 / 2 */
+	uint64_t h1 = div_up(u->cfg.ratio_error_ppm * s << 15, 1000000u * b);
+	uint64_t h2 = div_up(div_up(u->cfg.track_error_um * r << 16, b), b);
+
+	return h1 + h2;
+}
+
+/* sqrt(var) + add, squared, capped (a bound added to a sigma: var in the covariance's unit). */
+static int32_t var_plus_sigma(struct uncertainty *u, int32_t var, uint64_t add, int32_t cap)
+{
+	uint64_t sigma = fx_isqrt32_up((uint32_t)(var > 0 ? var : 0)) + add;
+
+	if (sigma * sigma > (uint64_t)cap) {
+		u->saturated = 1;
+		return cap;
+	}
+	return (int32_t)(sigma * sigma);
+}
+
+/* A bound [unit] as a sigma [unit], rounded up: bound / k. */
+static uint64_t sigma_of_bound(const struct uncertainty *u, uint64_t bound)
+{
+	return div_up(bound << 8, u->cfg.k_q8);
+}
+
+/* What the current residual bounds accumulated, made independent of them: the systematic
+ * position terms into fixed errors per coordinate, the heading drift into the heading variance,
+ * the integrals from zero. */
+static void fold_systematic(struct uncertainty *u)
+{
+	start_batch(u); /* the travel so far, propagated under the bounds that measured it */
+	run_stages(u, UINT8_MAX);
+	for (int i = 0; i < 2; i++) {
+		uint32_t e = mul_coef_up(mag48(&u->w1[i]), u->ratio_coef_q32);
+
+		e = add_sat_u32(e, mul_coef_up(mag48(&u->w2[i]), u->track_coef_q32));
+		e = add_sat_u32(e, mul_coef_up(fx_mag32(u->d[i]), u->scale_coef_q32));
+		u->fixed_um[i] = add_sat_u32(u->fixed_um[i], e);
+		u->w1[i].hi = 0;
+		u->w1[i].lo = 0;
+		u->w2[i].hi = 0;
+		u->w2[i].lo = 0;
+		u->d[i] = 0;
+	}
+	if (!u->saturated)
+		u->tt = var_plus_sigma(u, u->tt, sigma_of_bound(u, sys_heading_units(u)), TT_CAP);
+	u->travel2_um = 0;
+	u->turn_um = 0;
+}
+
 int uncertainty_set_config(struct uncertainty *u, const struct uncertainty_config *cfg)
 {
 	if (!config_valid(cfg))
 		return -EDOM;
+	fold_systematic(u);
 	u->cfg = *cfg;
 	derive(u);
 	request_radius(u);
@@ -280,6 +346,7 @@ void uncertainty_reset(struct uncertainty *u, uint32_t radius_um, uint32_t headi
 		u->w2[i].hi = 0;
 		u->w2[i].lo = 0;
 		u->d[i] = 0;
+		u->fixed_um[i] = 0;
 	}
 	clear_batch(&u->acc);
 	u->stage = STAGE_IDLE;
@@ -310,6 +377,7 @@ void uncertainty_reset_axis(struct uncertainty *u, enum uncertainty_axis axis, u
 	u->w2[i].hi = 0;
 	u->w2[i].lo = 0;
 	u->d[i] = 0;
+	u->fixed_um[i] = 0;
 	request_radius(u);
 }
 
@@ -369,6 +437,14 @@ static int set_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t 
 	}
 	lateral48(u->w1, s, c);
 	lateral48(u->w2, s, c);
+	/* The fixed errors, a box: its lateral extent, as a box along the lateral direction. */
+	if ((u->fixed_um[0] | u->fixed_um[1]) != 0) {
+		uint64_t as = (uint64_t)fx_mag32(s), ac = (uint64_t)fx_mag32(c);
+		uint64_t l = div_up(as * u->fixed_um[0] + ac * u->fixed_um[1], (uint64_t)1 << 30);
+
+		u->fixed_um[0] = (uint32_t)div_up(l * as, (uint64_t)1 << 30);
+		u->fixed_um[1] = (uint32_t)div_up(l * ac, (uint64_t)1 << 30);
+	}
 	request_radius(u);
 	return 1;
 }
@@ -383,17 +459,34 @@ int uncertainty_cap_along(struct uncertainty *u, uint32_t direction_turn32, uint
 	return set_along(u, direction_turn32, bound_um, 1);
 }
 
+void uncertainty_widen(struct uncertainty *u, uint32_t wheel_um)
+{
+	uint64_t pos = sigma_of_bound(u, ((uint64_t)wheel_um + 2 * UNCERTAINTY_POS_UM - 1) /
+						 (2 * UNCERTAINTY_POS_UM));
+	/* wheel / track [rad] in 2^-16 rad */
+	uint64_t heading = sigma_of_bound(u, div_up((uint64_t)wheel_um << 16, u->cfg.track_um));
+
+	if (wheel_um == 0 || u->saturated)
+		return;
+	run_stages(u, UINT8_MAX); /* a batch in flight propagates what it started with */
+	u->xx = var_plus_sigma(u, u->xx, pos, VAR_CAP);
+	u->yy = var_plus_sigma(u, u->yy, pos, VAR_CAP);
+	u->tt = var_plus_sigma(u, u->tt, heading, TT_CAP);
+	if (u->stage == STAGE_IDLE)
+		u->stage = STAGE_EIGEN; /* the radius follows */
+}
+
 uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u)
 {
 	/* sigma [2^-16 rad] = sqrt(tt); bound = k sigma, rounded up; turn32 = rad 2^32 / (2 pi):
 	 * 2^16 / (2 pi) = 10430.4 per unit, 10431 rounds up. */
 	uint32_t sigma = fx_isqrt32_up((uint32_t)(u->tt > 0 ? u->tt : 0));
 	uint32_t ks = sigma * u->cfg.k_q8; /* sigma <= 2^14 under the cap */
-	uint32_t bound = (ks + 255) >> 8;
+	uint64_t bound = ((ks + 255) >> 8) + sys_heading_units(u);
 
 	if (u->saturated || bound >= 205887u) /* beyond half a turn */
 		return (uint32_t)1 << 31;
-	return bound * 10431u;
+	return (uint32_t)bound * 10431u;
 }
 
 /* Travel [um * 2^8] rounded to um, and clamped to 16 bits (32 mm: a batch is shorter). */
@@ -603,6 +696,8 @@ static void stage_radius(struct uncertainty *u)
 	uint8_t mm = 0, bit = 128;
 
 	add_systematic(u, fx_mag32(u->d[0]), fx_mag32(u->d[1]), u->scale_coef_q32);
+	if ((u->fixed_um[0] | u->fixed_um[1]) != 0)
+		add_systematic(u, u->fixed_um[0], u->fixed_um[1], 0xffffffffu);
 	r = u->radius_um;
 	if (u->saturated || r >= (uint32_t)UNCERTAINTY_RADIUS_MAX_MM * 1000) {
 		u->radius_mm = UNCERTAINTY_RADIUS_MAX_MM;

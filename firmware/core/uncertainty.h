@@ -73,6 +73,9 @@ struct uncertainty {
 		uint16_t lo;
 	} w1[2], w2[2];
 	int32_t d[2];
+	/* Position errors that no longer cancel [um], per coordinate (a box): the systematic terms
+	 * of bounds that were replaced (uncertainty_set_config()), added to the radius. */
+	uint32_t fixed_um[2];
 
 	struct uncertainty_batch acc; /* accumulating */
 	struct uncertainty_batch run; /* being propagated */
@@ -96,8 +99,11 @@ struct uncertainty {
  * Returns 0, or -EDOM if cfg is out of range (u is then unusable). interrupt-safe: no. */
 int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg);
 
-/* Change the configuration keeping the accumulated uncertainty. Returns 0, or -EDOM (the old
- * config is kept). interrupt-safe: no (between two ticks). */
+/* Change the configuration keeping the accumulated uncertainty. What the old residual bounds
+ * accumulated is kept as it is: the systematic position terms become fixed errors (they no
+ * longer cancel on the way back) and the systematic heading drift joins the heading variance;
+ * the new bounds apply from here on. Returns 0, or -EDOM (the old config is kept).
+ * interrupt-safe: no (between two ticks). */
 int uncertainty_set_config(struct uncertainty *u, const struct uncertainty_config *cfg);
 
 /* One tick, after odometry_update: the wheel travels of the tick (odometry_step.left_q16,
@@ -146,6 +152,12 @@ void uncertainty_reset_heading(struct uncertainty *u, uint32_t bound_turn32);
  * lateral part. direction_turn32 is the direction's angle [turn * 2^32]; the sign does not
  * matter. interrupt-safe: no (between two ticks). */
 void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um);
+
+/* One wheel may have travelled up to wheel_um that the odometry did not see (an encoder wire
+ * cut, a wheel lifted): the position bound grows by wheel_um / 2 and the heading bound by
+ * wheel_um / track, each added to the bound (sigma + bound / k). The radius follows within
+ * UNCERTAINTY_STAGES ticks. interrupt-safe: no (between two ticks). */
+void uncertainty_widen(struct uncertainty *u, uint32_t wheel_um);
 
 /* The heading's bound at the configured probability [turn * 2^32], rounded up, saturating at
  * 2^31 (half a turn): how well the heading is known, to decide whether a measurement improves

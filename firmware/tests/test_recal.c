@@ -31,6 +31,7 @@ static void base_config(struct recal_config *c)
 	c->pair_window_um = 200000;
 	c->bound_um = 1000;
 	c->pair_bound_um = 300;
+	c->straight_turn32 = fx_deg_to_turn32(1) / 4;
 }
 
 /* The result of driving the true robot straight from (x0, y0) at heading_deg, step_um per tick,
