@@ -137,6 +137,11 @@ void board_default_config(struct board_config *c)
 	c->uncalibrated.ratio_error_ppm = 7000;
 	c->uncalibrated.track_error_um = 2000;
 	c->uncalibrated.scale_error_ppm = 3500;
+	/* A collision shoves the robot sideways while its wheels slide: friction decelerates that
+	 * at mu g, 7.8 m/s^2 at mu 0.8 (sim/config.c); with a margin. The outline's farthest
+	 * point, a corner of the 250 x 300 mm box, is 195 mm from the axis. */
+	c->contact.slide_decel_mm_s2 = 6000;
+	c->contact.reach_um = 195000;
 }
 
 /* The angle axis [um of drive-wheel arc]: the exact sum of the heading steps times pi * drive
@@ -484,6 +489,38 @@ static void apply(struct board *b, const struct proto_msg *msg, struct orders_me
 	}
 }
 
+/* The larger magnitude. */
+static int32_t max_mag(int32_t a, int32_t b)
+{
+	return (int32_t)(fx_mag32(a) > fx_mag32(b) ? fx_mag32(a) : fx_mag32(b));
+}
+
+/* A collision or a blocked robot (a shock, a motor problem): the robot may be shoved sideways,
+ * which the free wheels do not measure, by up to what sliding from its speed takes,
+ * v^2 / (2 slide_decel), v the speed of its farthest point (measured or commanded, the larger:
+ * a blocked robot's set point still runs). The error radius widens by that. */
+static void contact_slide(struct board *b, const struct orders_measure *m)
+{
+	const struct board_config *c = &b->cfg;
+	uint64_t v = (uint64_t)max_mag(m->dist_speed_um_s, b->orders.sp_dist.vel_um_s);
+	uint64_t w = (uint64_t)max_mag(m->angle_speed_um_s, b->orders.sp_angle.vel_um_s);
+	uint64_t slide;
+
+	if (c->contact.slide_decel_mm_s2 == 0)
+		return;
+	/* the angle axis moves at the drive wheels' speed: a point reach_um from the axis moves
+	 * reach / (drive track / 2) times as fast */
+	v += (w * c->contact.reach_um * 2 + c->orders.drive_track_um - 1) /
+	     c->orders.drive_track_um;
+	if (v > 10000000u)
+		v = 10000000u; /* 10 m/s */
+	/* [um]: v^2 [um^2/s^2] / (2 a [mm/s^2] 1000) */
+	slide = (v * v + 2000u * c->contact.slide_decel_mm_s2 - 1) /
+		(2000u * c->contact.slide_decel_mm_s2);
+	uncertainty_widen(&b->uncertainty, (uint32_t)(slide > 0xffffffffu ? 0xffffffffu : slide),
+			  0);
+}
+
 /* Stop the running order at once; the status says why. */
 static void react(struct board *b, uint8_t event, const struct orders_measure *m)
 {
@@ -509,6 +546,7 @@ static void react(struct board *b, uint8_t event, const struct orders_measure *m
 		b->handover.jump = 1;
 		return;
 	}
+	contact_slide(b, m);
 	orders_abort(&b->orders, m, reasons[event]);
 	b->handover.reset = 1;
 	b->handover.jump = 1;
@@ -743,7 +781,7 @@ static void unseen_travel(struct board *b, uint8_t suspect_before, const uint16_
 			um = (um * track_um + drive_um - 1) / drive_um;
 		if (um > 0xffffffffu)
 			um = 0xffffffffu;
-		uncertainty_widen(&b->uncertainty, (uint32_t)um);
+		uncertainty_widen(&b->uncertainty, 0, (uint32_t)um);
 	}
 }
 

@@ -70,6 +70,12 @@ struct board_config {
 	 * wheel factors and track against the real wheels): the error radius uses them until a
 	 * calibration is installed, then uncertainty's (those of a calibrated robot). */
 	struct board_residuals uncalibrated;
+	/* What a collision may do that the odometry does not see (the error radius widens by it):
+	 * a slide sideways, decelerated by the wheels' friction. */
+	struct board_contact {
+		uint32_t slide_decel_mm_s2; /* 0: no widening */
+		uint32_t reach_um; /* the outline's farthest point from the encoder axis midpoint */
+	} contact;
 };
 
 /* What the servo hands the slow steps at a slow tick: the measure of that tick and the sums of

@@ -459,14 +459,16 @@ int uncertainty_cap_along(struct uncertainty *u, uint32_t direction_turn32, uint
 	return set_along(u, direction_turn32, bound_um, 1);
 }
 
-void uncertainty_widen(struct uncertainty *u, uint32_t wheel_um)
+void uncertainty_widen(struct uncertainty *u, uint32_t position_um, uint32_t wheel_um)
 {
-	uint64_t pos = sigma_of_bound(u, ((uint64_t)wheel_um + 2 * UNCERTAINTY_POS_UM - 1) /
-						 (2 * UNCERTAINTY_POS_UM));
+	/* [4 um], rounded up */
+	uint64_t pos =
+		sigma_of_bound(u, ((uint64_t)position_um * 2 + wheel_um + 2 * UNCERTAINTY_POS_UM -
+				   1) / (2 * UNCERTAINTY_POS_UM));
 	/* wheel / track [rad] in 2^-16 rad */
 	uint64_t heading = sigma_of_bound(u, div_up((uint64_t)wheel_um << 16, u->cfg.track_um));
 
-	if (wheel_um == 0 || u->saturated)
+	if ((position_um | wheel_um) == 0 || u->saturated)
 		return;
 	run_stages(u, UINT8_MAX); /* a batch in flight propagates what it started with */
 	u->xx = var_plus_sigma(u, u->xx, pos, VAR_CAP);

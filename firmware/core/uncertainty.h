@@ -153,11 +153,12 @@ void uncertainty_reset_heading(struct uncertainty *u, uint32_t bound_turn32);
  * matter. interrupt-safe: no (between two ticks). */
 void uncertainty_reset_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um);
 
-/* One wheel may have travelled up to wheel_um that the odometry did not see (an encoder wire
- * cut, a wheel lifted): the position bound grows by wheel_um / 2 and the heading bound by
- * wheel_um / track, each added to the bound (sigma + bound / k). The radius follows within
- * UNCERTAINTY_STAGES ticks. interrupt-safe: no (between two ticks). */
-void uncertainty_widen(struct uncertainty *u, uint32_t wheel_um);
+/* The robot may have moved in ways the odometry did not see: its position by up to position_um
+ * (slid sideways in a collision, which the free wheels do not measure), and one wheel by up to
+ * wheel_um (an encoder wire cut, a wheel lifted), which moves the position by wheel_um / 2 and
+ * the heading by wheel_um / track. Each is added to its bound (sigma + bound / k). The radius
+ * follows within UNCERTAINTY_STAGES ticks. interrupt-safe: no (between two ticks). */
+void uncertainty_widen(struct uncertainty *u, uint32_t position_um, uint32_t wheel_um);
 
 /* The heading's bound at the configured probability [turn * 2^32], rounded up, saturating at
  * 2^31 (half a turn): how well the heading is known, to decide whether a measurement improves
