@@ -89,6 +89,10 @@ static void recal_tick(struct recal *r, uint8_t lines, int enabled,
 	recal_take(r, &edges, enabled, pose, dist_um, u, fix);
 }
 
+/* The estimate's heading turns by this much per step while the truth drives straight (a robot
+ * re-aiming while it crosses, as the estimate sees it). */
+static double est_turn_deg_per_step;
+
 static struct run drive(const struct recal_config *c, double x0, double y0, double heading_deg,
 			double step_um, int n, double ex, double ey, double eh_deg,
 			uint8_t radius_mm, uint32_t heading_bound, int enabled)
@@ -120,6 +124,8 @@ static struct run drive(const struct recal_config *c, double x0, double y0, doub
 		}
 		est_x += step_um * cos(he);
 		est_y += step_um * sin(he);
+		he += est_turn_deg_per_step * PI / 180;
+		p.heading_turn32 = (uint32_t)(int64_t)llround(he / (2 * PI) * 4294967296.0);
 		p.x_um = (int32_t)lround(est_x);
 		p.y_um = (int32_t)lround(est_y);
 		recal_tick(&r, lines, enabled, &p, (int32_t)lround(s), &u, &fix);
@@ -186,6 +192,29 @@ static void test_pair_gives_heading(void **state)
 	assert_true(fabs(deg_of(r.last.pose.heading_turn32) - 20) < 0.15);
 	assert_true(r.last.heading_bound_turn32 < fx_deg_to_turn32(1));
 	assert_true(fabs(r.est_x_um - r.true_x_um) <= 500);
+}
+
+/* A pair assumes a straight path between its crossings: with the heading turning 0.6 degree
+ * between them, the pair gives no heading (the position is still fixed); with 0.1 degree it
+ * does, and its bound counts the turn. */
+static void test_pair_needs_a_straight_path(void **state)
+{
+	struct recal_config c;
+	struct run straight, turning, slight;
+
+	(void)state;
+	base_config(&c);
+	straight = drive(&c, -300000, 0, 20, 300, 2000, 4000, 0, 0.8, 10, fx_deg_to_turn32(2), 1);
+	est_turn_deg_per_step = 0.6 / 97; /* the sensors cross 29 mm apart: 97 steps */
+	turning = drive(&c, -300000, 0, 20, 300, 2000, 4000, 0, 0.8, 10, fx_deg_to_turn32(2), 1);
+	est_turn_deg_per_step = 0.1 / 97;
+	slight = drive(&c, -300000, 0, 20, 300, 2000, 4000, 0, 0.8, 10, fx_deg_to_turn32(2), 1);
+	est_turn_deg_per_step = 0;
+	assert_int_equal(turning.heading_fixes, 0);
+	assert_true(turning.what & RECAL_FIX_POSITION);
+	assert_int_equal(slight.heading_fixes, 1);
+	assert_true(slight.last.heading_bound_turn32 >
+		    straight.last.heading_bound_turn32 + fx_deg_to_turn32(1) / 20);
 }
 
 /* Beyond 30 degrees from the normal: ignored, nothing applied. */
@@ -306,6 +335,7 @@ int main(void)
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_perpendicular_crossing_fixes_x),
 		cmocka_unit_test(test_pair_gives_heading),
+		cmocka_unit_test(test_pair_needs_a_straight_path),
 		cmocka_unit_test(test_oblique_crossing_ignored),
 		cmocka_unit_test(test_wrong_width_ignored),
 		cmocka_unit_test(test_no_line_or_two_lines_ignored),

@@ -67,7 +67,7 @@ class MatchResult:
     calibrated: bool
     settled_ticks: int = 0
     settled_covered: int = 0
-    worst_settled_ratio: float = 0.0  # the largest error / radius at a settled tick
+    worst_settled_ratio: float = 0.0  # the largest error / radius at a settled tick, radius < 255
     order_ends: int = 0
     ends_covered: int = 0
     worst_end: tuple[float, int] = (0.0, 0)  # (error mm, radius mm) of the worst end
@@ -256,9 +256,9 @@ def _check(sim: Simulator, ends: list[tuple[int, int, int]], r: MatchResult) -> 
     # 255 reads "255 mm or more": it bounds any error.
     covered = (err <= radius) | (radius >= 255)
     r.settled_covered = int(np.count_nonzero(settled & covered))
-    if r.settled_ticks:
-        ratio = err[settled] / np.maximum(radius[settled], 1e-9)
-        r.worst_settled_ratio = float(ratio.max())
+    known = settled & (radius < 255)
+    if np.any(known):
+        r.worst_settled_ratio = float((err[known] / np.maximum(radius[known], 1e-9)).max())
     first_tick = int(tr["t_s"][0] * 1000 + 0.5) if len(tr) else 0
     for tick, bits, reason in ends:
         row = min(max(tick - first_tick, 0), len(tr) - 1)
