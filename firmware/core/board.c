@@ -283,6 +283,12 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->transactions_seen = b->proto.transactions;
 	b->timed_out = 0;
 	b->calibrated = 0;
+	b->motor_base[0] = in->motor_count[0];
+	b->motor_base[1] = in->motor_count[1];
+	b->silent_counts[0] = 0;
+	b->silent_counts[1] = 0;
+	b->silent_widened_um[0] = 0;
+	b->silent_widened_um[1] = 0;
 	b->calibration = (struct board_calibration){0, 0, 0};
 	b->last_out.duty_q15[0] = 0;
 	b->last_out.duty_q15[1] = 0;
@@ -755,33 +761,45 @@ static void axis_copy(struct orders_axis *to, const struct orders_axis *from)
 	to->acc_um_s2 = from->acc_um_s2;
 }
 
-/* A free wheel suspected lost (faults.h) may travel without counting: up to what its motor's
- * wheel travelled, scaled to the encoder track for a turn, and before the verdict the motor
- * travel it took (lost_min_um). That travel widens the error radius (uncertainty_widen()), as it
- * happens: a wheel that counts again (a wire repaired) leaves the radius as wide. */
-static void unseen_travel(struct board *b, uint8_t suspect_before, const uint16_t motor_base[2],
+/* A free wheel that does not count while its motor turns (a wire cut, a wheel lifted, whether an
+ * order runs or not) may be travelling unseen. Once its motor's net travel since the wheel last
+ * counted passes lost_min_um (the encoder-lost check's threshold, faults.h), that travel, scaled
+ * to the encoder track for a turn, widens the error radius as the wheel's unseen travel
+ * (uncertainty_widen()), and so does its growth until the wheel counts again. Net: the holding
+ * loop's twitches cancel out. A drive wheel spinning on its side of a blocked robot widens it
+ * too, which is only conservative. */
+static void silent_wheels(struct board *b, const int32_t travel_q16[2],
 			  const uint16_t motor_count[2])
 {
 	const struct board_config *c = &b->cfg;
-	uint32_t track_um = b->uncertainty.cfg.track_um;
-	uint32_t drive_um = c->orders.drive_track_um;
+	uint32_t track_um = b->uncertainty.cfg.track_um, drive_um = c->orders.drive_track_um;
+	uint32_t lost_um = c->faults.lost_min_um > 0 ? (uint32_t)c->faults.lost_min_um : 0;
 
 	for (uint8_t s = 0; s < 2; s++) {
-		uint8_t bit = (uint8_t)(1u << s);
-		int16_t counts = (int16_t)(uint16_t)(motor_count[s] - motor_base[s]);
-		uint64_t um =
-			((uint64_t)fx_mag32(counts) * c->faults.motor_um_per_count_q16 + 0xffffu) >>
-			16;
+		int16_t counts = (int16_t)(uint16_t)(motor_count[s] - b->motor_base[s]);
+		uint64_t um;
 
-		if (!(b->faults.lost_suspect & bit))
+		b->motor_base[s] = motor_count[s];
+		if (travel_q16[s] != 0) {
+			b->silent_counts[s] = 0;
+			b->silent_widened_um[s] = 0;
 			continue;
-		if (!(suspect_before & bit))
-			um += (uint64_t)(c->faults.lost_min_um > 0 ? c->faults.lost_min_um : 0);
+		}
+		if (counts == 0)
+			continue;
+		b->silent_counts[s] = fx_add_sat32(b->silent_counts[s], counts);
+		um = ((uint64_t)fx_mag32(b->silent_counts[s]) * c->faults.motor_um_per_count_q16 +
+		      0xffffu) >>
+		     16;
 		if (track_um > drive_um)
 			um = (um * track_um + drive_um - 1) / drive_um;
-		if (um > 0xffffffffu)
-			um = 0xffffffffu;
-		uncertainty_widen(&b->uncertainty, 0, (uint32_t)um);
+		if (um > UINT32_MAX)
+			um = UINT32_MAX;
+		if (um > lost_um && um > b->silent_widened_um[s]) {
+			uncertainty_widen(&b->uncertainty, 0,
+					  (uint32_t)um - b->silent_widened_um[s]);
+			b->silent_widened_um[s] = (uint32_t)um;
+		}
 	}
 }
 
@@ -818,8 +836,15 @@ static void slow_steps(struct board *b)
 		measure(b, p, m);
 	}
 
-	/* 1. Error radius, from the period's travel. */
+	/* 1. Error radius, from the period's travel, and what the free wheels may not have seen. */
 	uncertainty_update(&b->uncertainty, left_q16, right_q16, p->heading_turn32);
+	{
+		int32_t travel_q16[2];
+
+		travel_q16[0] = left_q16;
+		travel_q16[1] = right_q16;
+		silent_wheels(b, travel_q16, p->in.motor_count);
+	}
 	uncertainty_advance(&b->uncertainty, b->slow_mask); /* its stages as fast in time */
 
 	/* 2. The switches; line crossings. */
@@ -861,16 +886,7 @@ static void slow_steps(struct board *b)
 	fi.angle_err_um = sub_sat(p->sp_angle_um, m->angle_um);
 	fi.moving = (uint8_t)orders_busy(&b->orders);
 	fi.pushing = b->orders.state == ORDER_STATE_PUSH || b->orders.state == ORDER_STATE_SQUARE;
-	{
-		uint8_t suspect = b->faults.lost_suspect;
-		uint16_t motor_base[2];
-
-		motor_base[0] = b->faults.last_motor[0];
-		motor_base[1] = b->faults.last_motor[1];
-		event = faults_check(&b->faults, &fi);
-		if (b->faults.lost_suspect != 0)
-			unseen_travel(b, suspect, motor_base, p->in.motor_count);
-	}
+	event = faults_check(&b->faults, &fi);
 	react(b, p->encoder_fault ? FAULTS_GRAVE : event, m);
 
 	/* 5. Orders -> profiles -> set points of both axes; the contact recalibrations. */

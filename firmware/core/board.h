@@ -190,6 +190,11 @@ struct board {
 	uint8_t timed_out;         /* the last order was stopped by the timeout */
 	uint8_t calibrated;        /* a calibration is installed: calibration holds it */
 	struct board_calibration calibration;
+	uint16_t motor_base[2]; /* the motors' counts at the last period's end */
+	/* Since each free wheel last counted: its motor's net travel [counts], and what of it
+	 * has widened the error radius [um of free-wheel travel]. */
+	int32_t silent_counts[2];
+	uint32_t silent_widened_um[2];
 	struct board_outputs last_out;
 };
 

@@ -141,6 +141,7 @@ int host_init(struct host *h, const struct board_config *bc, const struct sim_co
 	h->now_ns = 0;
 	read_sensors(h);
 	port_sample(&in);
+	port_sample_period(&in); /* the motor counts and currents to start from, as the AVR's */
 	return board_init(&h->board, bc, &in);
 }
 
