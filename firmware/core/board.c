@@ -140,8 +140,11 @@ void board_default_config(struct board_config *c)
 	/* A collision shoves the robot sideways while its wheels slide: friction decelerates that
 	 * at mu g, 7.8 m/s^2 at mu 0.8 (sim/config.c); with a margin. The outline's farthest
 	 * point, a corner of the 250 x 300 mm box, is 195 mm from the axis. */
-	c->contact.slide_decel_mm_s2 = 6000;
-	c->contact.reach_um = 195000;
+	c->unseen.slide_decel_mm_s2 = 6000;
+	c->unseen.reach_um = 195000;
+	/* A free wheel counts every 78.5 um: silent over 1 mm of its motor's travel, it slips,
+	 * is lifted or is cut. */
+	c->unseen.silent_min_um = 1000;
 }
 
 /* The angle axis [um of drive-wheel arc]: the exact sum of the heading steps times pi * drive
@@ -204,6 +207,15 @@ static void measure(const struct board *b, const struct board_snapshot *p, struc
 	m->basket_contact = p->in.basket;
 	m->basket_shock = (p->in.shocks & b->cfg.faults.shock_basket_mask) != 0;
 	m->shocks = p->in.shocks;
+}
+
+/* max(1, encoder track / drive track) [2^-16], rounded up: a free wheel travels that much more
+ * than its drive wheel in a turn in place. */
+static uint32_t turn_q16_of(const struct board_config *cfg, uint32_t track_um)
+{
+	uint32_t q = (uint32_t)(((uint64_t)track_um << 16) / cfg->orders.drive_track_um + 1);
+
+	return q < 0x10000u ? 0x10000u : q;
 }
 
 /* A new period: its sums and switches from zero. */
@@ -287,8 +299,21 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->motor_base[1] = in->motor_count[1];
 	b->silent_counts[0] = 0;
 	b->silent_counts[1] = 0;
-	b->silent_widened_um[0] = 0;
-	b->silent_widened_um[1] = 0;
+	b->silent_widened[0] = 0;
+	b->silent_widened[1] = 0;
+	/* lost_min_um in motor counts, rounded down; encoder track / drive track, rounded up */
+	b->silent_min_counts = cfg->faults.motor_um_per_count_q16 == 0
+				       ? UINT32_MAX
+				       : (uint32_t)(((uint64_t)(cfg->faults.lost_min_um > 0
+									? cfg->faults.lost_min_um
+									: 0)
+						     << 16) /
+						    cfg->faults.motor_um_per_count_q16);
+	b->silent_turn_q16 =
+		(uint32_t)(((uint64_t)cfg->odometry.track_um << 16) / cfg->orders.drive_track_um +
+			   1);
+	if (b->silent_turn_q16 < 0x10000u)
+		b->silent_turn_q16 = 0x10000u;
 	b->calibration = (struct board_calibration){0, 0, 0};
 	b->last_out.duty_q15[0] = 0;
 	b->last_out.duty_q15[1] = 0;
@@ -409,6 +434,7 @@ int board_set_calibration(struct board *b, const struct board_calibration *cal)
 	b->handover.odometry_cfg = oc;
 	b->handover.set_odometry = 1;
 	b->free_ratio_q16 = free_ratio_q16(&b->cfg, oc.track_um);
+	b->silent_turn_q16 = turn_q16_of(&b->cfg, oc.track_um);
 	b->calibrated = 1;
 	b->calibration = *cal;
 	return 0;
@@ -512,17 +538,16 @@ static void contact_slide(struct board *b, const struct orders_measure *m)
 	uint64_t w = (uint64_t)max_mag(m->angle_speed_um_s, b->orders.sp_angle.vel_um_s);
 	uint64_t slide;
 
-	if (c->contact.slide_decel_mm_s2 == 0)
+	if (c->unseen.slide_decel_mm_s2 == 0)
 		return;
 	/* the angle axis moves at the drive wheels' speed: a point reach_um from the axis moves
 	 * reach / (drive track / 2) times as fast */
-	v += (w * c->contact.reach_um * 2 + c->orders.drive_track_um - 1) /
-	     c->orders.drive_track_um;
+	v += (w * c->unseen.reach_um * 2 + c->orders.drive_track_um - 1) / c->orders.drive_track_um;
 	if (v > 10000000u)
 		v = 10000000u; /* 10 m/s */
 	/* [um]: v^2 [um^2/s^2] / (2 a [mm/s^2] 1000) */
-	slide = (v * v + 2000u * c->contact.slide_decel_mm_s2 - 1) /
-		(2000u * c->contact.slide_decel_mm_s2);
+	slide = (v * v + 2000u * c->unseen.slide_decel_mm_s2 - 1) /
+		(2000u * c->unseen.slide_decel_mm_s2);
 	uncertainty_widen(&b->uncertainty, (uint32_t)(slide > 0xffffffffu ? 0xffffffffu : slide),
 			  0);
 }
@@ -763,42 +788,43 @@ static void axis_copy(struct orders_axis *to, const struct orders_axis *from)
 
 /* A free wheel that does not count while its motor turns (a wire cut, a wheel lifted, whether an
  * order runs or not) may be travelling unseen. Once its motor's net travel since the wheel last
- * counted passes lost_min_um (the encoder-lost check's threshold, faults.h), that travel, scaled
- * to the encoder track for a turn, widens the error radius as the wheel's unseen travel
- * (uncertainty_widen()), and so does its growth until the wheel counts again. Net: the holding
- * loop's twitches cancel out. A drive wheel spinning on its side of a blocked robot widens it
- * too, which is only conservative. */
+ * counted passes unseen.silent_min_um, that travel, scaled to the encoder track for a turn,
+ * widens the error radius as the wheel's unseen travel (uncertainty_widen()), and so does its
+ * growth until the wheel counts again. Net: the holding loop's twitches cancel out. A drive
+ * wheel slipping or spinning on its side of a blocked robot widens it too, which is only
+ * conservative. */
 static void silent_wheels(struct board *b, const int32_t travel_q16[2],
 			  const uint16_t motor_count[2])
 {
 	const struct board_config *c = &b->cfg;
-	uint32_t track_um = b->uncertainty.cfg.track_um, drive_um = c->orders.drive_track_um;
-	uint32_t lost_um = c->faults.lost_min_um > 0 ? (uint32_t)c->faults.lost_min_um : 0;
 
 	for (uint8_t s = 0; s < 2; s++) {
 		int16_t counts = (int16_t)(uint16_t)(motor_count[s] - b->motor_base[s]);
-		uint64_t um;
+		uint32_t mag;
 
 		b->motor_base[s] = motor_count[s];
 		if (travel_q16[s] != 0) {
 			b->silent_counts[s] = 0;
-			b->silent_widened_um[s] = 0;
+			b->silent_widened[s] = 0;
 			continue;
 		}
 		if (counts == 0)
 			continue;
 		b->silent_counts[s] = fx_add_sat32(b->silent_counts[s], counts);
-		um = ((uint64_t)fx_mag32(b->silent_counts[s]) * c->faults.motor_um_per_count_q16 +
-		      0xffffu) >>
-		     16;
-		if (track_um > drive_um)
-			um = (um * track_um + drive_um - 1) / drive_um;
-		if (um > UINT32_MAX)
-			um = UINT32_MAX;
-		if (um > lost_um && um > b->silent_widened_um[s]) {
+		mag = fx_mag32(b->silent_counts[s]);
+		if (mag > b->silent_min_counts && mag > b->silent_widened[s]) {
+			/* motor counts to um of free-wheel travel, scaled for a turn: a fault's
+			 * path */
+			uint64_t um = (((uint64_t)(mag - b->silent_widened[s]) *
+						c->faults.motor_um_per_count_q16 +
+					0xffffu) >>
+				       16) * b->silent_turn_q16 +
+				      0xffffu;
+
+			um >>= 16;
 			uncertainty_widen(&b->uncertainty, 0,
-					  (uint32_t)um - b->silent_widened_um[s]);
-			b->silent_widened_um[s] = (uint32_t)um;
+					  um > UINT32_MAX ? UINT32_MAX : (uint32_t)um);
+			b->silent_widened[s] = mag;
 		}
 	}
 }

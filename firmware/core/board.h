@@ -70,12 +70,14 @@ struct board_config {
 	 * wheel factors and track against the real wheels): the error radius uses them until a
 	 * calibration is installed, then uncertainty's (those of a calibrated robot). */
 	struct board_residuals uncalibrated;
-	/* What a collision may do that the odometry does not see (the error radius widens by it):
-	 * a slide sideways, decelerated by the wheels' friction. */
-	struct board_contact {
-		uint32_t slide_decel_mm_s2; /* 0: no widening */
+	/* What the odometry may not see, by which the error radius widens: a slide sideways in a
+	 * collision, decelerated by the wheels' friction; a free wheel that does not count. */
+	struct board_unseen {
+		uint32_t slide_decel_mm_s2; /* 0: no widening at a collision */
 		uint32_t reach_um; /* the outline's farthest point from the encoder axis midpoint */
-	} contact;
+		/* a free wheel silent while its motor travels this much net travels unseen */
+		uint32_t silent_min_um;
+	} unseen;
 };
 
 /* What the servo hands the slow steps at a slow tick: the measure of that tick and the sums of
@@ -191,10 +193,12 @@ struct board {
 	uint8_t calibrated;        /* a calibration is installed: calibration holds it */
 	struct board_calibration calibration;
 	uint16_t motor_base[2]; /* the motors' counts at the last period's end */
-	/* Since each free wheel last counted: its motor's net travel [counts], and what of it
-	 * has widened the error radius [um of free-wheel travel]. */
+	/* Since each free wheel last counted: its motor's net travel, and how much of it has
+	 * widened the error radius [motor counts] (silent_wheels()). */
 	int32_t silent_counts[2];
-	uint32_t silent_widened_um[2];
+	uint32_t silent_widened[2];
+	uint32_t silent_min_counts; /* faults.lost_min_um in motor counts */
+	uint32_t silent_turn_q16;   /* max(1, encoder track / drive track) [2^-16] */
 	struct board_outputs last_out;
 };
 
