@@ -18,6 +18,7 @@ bit for bit. Both classes are I2C devices and clocks for ``asserv.bus.VirtualBus
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +67,8 @@ class _Lockstep:
         self.ticks = 0
         self.bus = VirtualBus({2: self}, clock=self)
         self.sensors = ffi.new("struct sim_sensors *")
+        self.trace: list[bytes] | None = None  # per tick: a digest of struct board (record())
+        self.replies: list[bytes] = []  # every read transaction's bytes
 
     def read_sensors(self) -> Any:
         lib.sim_read_sensors(self.sim, self.sensors)
@@ -80,6 +83,8 @@ class _Lockstep:
             if self.now_ns == self.ticks * TICK_NS:
                 self.control_tick()
                 self.ticks += 1
+                if self.trace is not None:
+                    self.trace.append(hashlib.blake2b(self.board_state(), digest_size=16).digest())
             nxt = min(self.ticks * TICK_NS, end)
             lib.sim_advance_ns(self.sim, nxt - self.now_ns)
             self.now_ns = nxt
@@ -109,6 +114,7 @@ class _Lockstep:
             out.append(self.ev_read())
             self.advance_ns(self.byte_ns)
             self.ev_read_end(i + 1 < n)
+        self.replies.append(bytes(out))
         return bytes(out)
 
     def ev_start(self, read: bool) -> None:
@@ -391,9 +397,15 @@ def robot(
     """(board config, sim config, field) of a robot as asserv.sim.Simulator makes them."""
     from asserv.sim import Simulator
 
-    s = Simulator(
-        config, seed, field=field, randomize=randomize, start_uncertainty=start_uncertainty
+    return of_simulator(
+        Simulator(
+            config, seed, field=field, randomize=randomize, start_uncertainty=start_uncertainty
+        )
     )
+
+
+def of_simulator(s: Any) -> tuple[Any, Any, Any]:
+    """(board config, sim config, field) copied from an asserv.sim.Simulator (a scenario's)."""
     bc = ffi.new("struct board_config *")
     ffi.memmove(bc, ffi.addressof(s._h.board, "cfg"), ffi.sizeof("struct board_config"))
     sc = ffi.new("struct sim_config *")
