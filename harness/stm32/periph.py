@@ -281,12 +281,13 @@ class Timer(Regs):
         return sms if sms in (1, 2, 3) else 0
 
     # Inputs: the quadrature position the harness drives on TI1 (A) and TI2 (B).
-    def _edge(self, on_ti1: bool, rising: bool, other: int) -> None:
+    def _edge(self, on_ti1: bool, rising: bool, other: int) -> int:
+        """One input edge; returns the count step it made (+1, -1 or 0)."""
         sms = self.encoder_mode()
         if not sms or not self.mem[self.CR1] & 1:
-            return
+            return 0
         if (sms == 1 and on_ti1) or (sms == 2 and not on_ti1):
-            return  # SMS 1 counts TI2 edges only, SMS 2 TI1 edges only
+            return 0  # SMS 1 counts TI2 edges only, SMS 2 TI1 edges only
         ccer = self.mem.get(self.CCER, 0)
         p1, p2 = (ccer >> 1) & 1, (ccer >> 5) & 1
         # TI1FP1 = TI1 xor CC1P, TI2FP2 = TI2 xor CC2P.
@@ -304,38 +305,31 @@ class Timer(Regs):
         else:
             self.cnt = top if self.cnt == 0 else self.cnt - 1
             self.mem[self.CR1] |= 0x10
+        return step
 
-    def quadrature_step(self, direction: int) -> None:
-        """One edge: the inputs move one quadrature phase up (+1) or down (-1)."""
+    def quadrature_step(self, direction: int) -> int:
+        """One edge: the inputs move one quadrature phase up (+1) or down (-1). Returns the
+        count step."""
         a0, b0 = _PHASES[self.phase]
         self.phase = (self.phase + direction) % 4
         a1, b1 = _PHASES[self.phase]
         if a0 != a1:
-            self._edge(True, a1 == 1, b1)
-        else:
-            self._edge(False, b1 == 1, a1)
+            return self._edge(True, a1 == 1, b1)
+        return self._edge(False, b1 == 1, a1)
 
     def quadrature_move(self, n: int) -> None:
-        """|n| edges in one direction, as ``quadrature_step`` would count them one by one: in
-        a run of edges the direction of each is the same (Table 79), so the counter moves by
-        that many steps modulo ARR + 1."""
-        if n == 0:
-            return
+        """|n| edges in one direction, as ``quadrature_step`` would count them one by one: the
+        remainder modulo 4 edge by edge, then one whole cycle of 4 edges (which brings the
+        inputs back to their phase), whose count change every further cycle repeats."""
         direction = 1 if n > 0 else -1
-        count = abs(n)
-        if count <= 4:
-            for _ in range(count):
-                self.quadrature_step(direction)
-            return
-        before = self.cnt
-        self.quadrature_step(direction)
-        step = (self.cnt - before) % (self.arr_active + 1)
-        if step == 0:  # not counting
-            self.phase = (self.phase + direction * (count - 1)) % 4
-            return
-        sign = 1 if step == 1 else -1
-        self.phase = (self.phase + direction * (count - 1)) % 4
-        self.cnt = (self.cnt + sign * (count - 1)) % (self.arr_active + 1)
+        cycles, rest = divmod(abs(n), 4)
+        for _ in range(rest):
+            self.quadrature_step(direction)
+        if cycles:
+            per_cycle = sum(self.quadrature_step(direction) for _ in range(4))
+            if per_cycle and cycles > 1:
+                self.cnt = (self.cnt + per_cycle * (cycles - 1)) % (self.arr_active + 1)
+                self.mem[self.CR1] = (self.mem[self.CR1] & ~0x10) | (0x10 if per_cycle < 0 else 0)
 
     def pwm_fraction(self, ch: int) -> tuple[int, int]:
         """(high counts, period counts) of channel ch's PWM output (mode 1, upcounting)."""
