@@ -23,10 +23,10 @@ from pathlib import Path
 from typing import Any
 
 from asserv._core import ffi, lib
-from asserv.bus import VirtualBus
-
 from emu import IRQ0, SYSTICK, Cpu, EmuError, struct_padding
 from periph import Adc, Flash, Gpio, I2c, Pwr, Rcc, Scs, Timer
+
+from asserv.bus import VirtualBus
 
 IRQ_I2C1_EV, IRQ_I2C1_ER = 31, 32
 PWM_PERIOD = 9000  # TIM1 ARR + 1 at 180 MHz, 20 kHz (stm32_clock.h)
@@ -69,6 +69,7 @@ class _Lockstep:
         self.sensors = ffi.new("struct sim_sensors *")
         self.trace: list[bytes] | None = None  # per tick: a digest of struct board (record())
         self.replies: list[bytes] = []  # every read transaction's bytes
+        self.padding: list[int] = []  # struct board's padding bytes (Stm32Board sets them)
 
     def read_sensors(self) -> Any:
         lib.sim_read_sensors(self.sim, self.sensors)
@@ -134,8 +135,6 @@ class _Lockstep:
 
     def board_bytes(self) -> bytes:
         raise NotImplementedError
-
-    padding: list[int] = []
 
     def board_state(self, padding: list[int] | None = None) -> bytes:
         """struct board's bytes, its padding zeroed (see emu.struct_padding)."""

@@ -310,7 +310,7 @@ class Timer(Regs):
     def quadrature_step(self, direction: int) -> int:
         """One edge: the inputs move one quadrature phase up (+1) or down (-1). Returns the
         count step."""
-        a0, b0 = _PHASES[self.phase]
+        a0, _ = _PHASES[self.phase]
         self.phase = (self.phase + direction) % 4
         a1, b1 = _PHASES[self.phase]
         if a0 != a1:
@@ -488,9 +488,10 @@ class I2c(Regs):
     # Bus side (the master). Each returns whether the slave acknowledged.
     def _own(self, address: int) -> bool:
         cr1 = self.mem.get(self.CR1, 0)
-        return bool(cr1 & self.PE and cr1 & self.ACK) and (
-            (self.mem.get(self.OAR1, 0) >> 1) & 0x7F
-        ) == address
+        return (
+            bool(cr1 & self.PE and cr1 & self.ACK)
+            and ((self.mem.get(self.OAR1, 0) >> 1) & 0x7F) == address
+        )
 
     def _pec_byte(self, byte: int) -> None:
         self.pec = crc8(self.pec, byte)

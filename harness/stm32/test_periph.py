@@ -4,11 +4,12 @@ firmware drives them (read/write at offsets), and from the outside as the board'
 
 from typing import Any
 
-from asserv import codec
 from board import PWM_PERIOD, adc_code, current_ma, duty_of, pwm_counts
 from hypothesis import given
 from hypothesis import strategies as st
 from periph import Adc, Gpio, I2c, Pwr, Rcc, Scs, Timer
+
+from asserv import codec
 
 
 # ---- RCC and PWR (RM0390 6.3.1, 6.3.2, 6.3.3, 5.1.4) -----------------------------------

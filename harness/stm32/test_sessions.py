@@ -6,12 +6,12 @@ board, padding aside) after every tick and every byte the master reads are bit-i
 
 from typing import Any
 
-from asserv import Board
 from asserv._core import lib
-from asserv.scenario import BUS_COMMANDS, load
 from board import Reference, Stm32Board, of_simulator
-
 from conftest import ROOT
+
+from asserv import Board
+from asserv.scenario import BUS_COMMANDS, load
 
 FAULT_ENCODER_LOST = 4  # FAULTS_CAUSE_ENCODER_LOST, firmware/core/faults.h
 
