@@ -186,7 +186,8 @@ def main() -> int:
             f"bench/stm32.py: {args.elf}: no such file (build it: docs/stm32.md)", file=sys.stderr
         )
         return 2
-    bc, sc, f = robot()
+    # The robot at (-1300, 0), heading 0, and the board told so: 2.4 m straight to (1100, 0).
+    bc, sc, f = robot({"start": (-1300.0, 0.0, 0.0)})
     b = Bench(args.elf, sc, f, bc)
     board = Board(b.bus)
     board.set_vitesse_traj(100, 100)
