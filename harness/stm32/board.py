@@ -24,7 +24,7 @@ from typing import Any
 
 from asserv._core import ffi, lib
 from emu import IRQ0, SYSTICK, Cpu, EmuError, struct_padding
-from periph import Adc, Flash, Gpio, I2c, Pwr, Rcc, Scs, Timer
+from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Scs, Timer
 
 from asserv.bus import VirtualBus
 
@@ -88,7 +88,11 @@ class _Lockstep:
                     self.trace.append(hashlib.blake2b(self.board_state(), digest_size=16).digest())
             nxt = min(self.ticks * TICK_NS, end)
             lib.sim_advance_ns(self.sim, nxt - self.now_ns)
+            self.time_passes(nxt - self.now_ns)
             self.now_ns = nxt
+
+    def time_passes(self, ns: int) -> None:
+        """Between two events: what runs on its own (the watchdog)."""
 
     # Clock (asserv.bus.Clock).
     def monotonic(self) -> float:
@@ -226,8 +230,11 @@ class Stm32Board(_Lockstep):
         self.adc = Adc(0x4001_2000)
         self.adc_common = Flash(0x4001_2300)  # ADC_CCR: storage only
         self.i2c = I2c(0x4000_5400)
+        self.iwdg = Iwdg(0x4000_3000)
         self.scs = Scs(self._vtor)
-        for p in (self.rcc, self.pwr, self.flash, self.i2c, self.scs):
+        self.ticks_on = True  # False: SysTick raised no more, as if the firmware hung
+        self.watchdog_resets = 0
+        for p in (self.rcc, self.pwr, self.flash, self.i2c, self.iwdg, self.scs):
             p.attach(cpu.uc)
         for g in self.gpio.values():
             g.attach(cpu.uc)
@@ -255,11 +262,40 @@ class Stm32Board(_Lockstep):
         self._enc_pos = {t: int(getattr(s, fld)[side]) for t, (fld, side) in self.encoders.items()}
         self.duty = (0, 0)
         self._drive_inputs(move_encoders=False)
-        cpu.reset()
-        cpu.run_until_idle(max_insns=20_000_000)
-        self._check_boot()
+        self._boot()
         self.proto_addr = cpu.symbols["asserv_board"] + self._layout()[2]
         self.padding = struct_padding(elf, "board")
+
+    def _boot(self) -> None:
+        self.cpu.reset()
+        self.cpu.run_until_idle(max_insns=20_000_000)
+        self._check_boot()
+
+    def time_passes(self, ns: int) -> None:
+        self.iwdg.advance(ns)
+        if self.iwdg.expired:
+            self._watchdog_reset()
+
+    def _watchdog_reset(self) -> None:
+        """The watchdog's reset: every peripheral to its reset state (the PWM stops at once:
+        TIM1 off), the CPU from its reset vector, the firmware booting again on the robot as
+        it is (the encoder inputs keep their phase: they are wires)."""
+        self.watchdog_resets += 1
+        models = [self.rcc, self.pwr, self.flash, self.adc, self.adc_common, self.i2c, self.iwdg]
+        models += [*self.gpio.values(), *self.tim.values(), self.scs]
+        phases = {t: self.tim[t].phase for t in self.encoders}
+        for m in models:
+            m.mem.clear()
+            m.reset_values()
+        for t, ph in phases.items():
+            self.tim[t].phase = ph
+        self.cpu.pending.clear()
+        self.cpu.active.clear()
+        self.cpu.vtor = 0x0800_0000
+        self.duty = (0, 0)
+        lib.sim_set_duty(self.sim, 0, 0)
+        self._drive_inputs(move_encoders=False)
+        self._boot()
 
     # ---- wiring ---------------------------------------------------------------------------
     def _vtor(self, value: int) -> None:
@@ -319,6 +355,8 @@ class Stm32Board(_Lockstep):
             raise EmuError(f"{self.flash.latency()} flash wait states at 180 MHz (5 needed)")
         if not self.scs.systick_on():
             raise EmuError("SysTick is not running")
+        if not self.iwdg.running or abs(self.iwdg.reload_ns() - 60e6) > 1:
+            raise EmuError("the watchdog is not running with its 60 ms")
         period = self.scs.systick_period_clocks(hz)
         if abs(period - TICK_NS * 1e-9) > 1e-12:
             raise EmuError(f"SysTick period {period} s, not 1 ms")
@@ -348,6 +386,8 @@ class Stm32Board(_Lockstep):
 
     def control_tick(self) -> None:
         self._drive_inputs()
+        if not self.ticks_on:
+            return
         self.cpu.pending.add(SYSTICK)
         self.cpu.run_until_idle()
         self.tim[1].update_event()  # the PWM period that follows takes the new compares

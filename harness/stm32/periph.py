@@ -144,6 +144,51 @@ class Flash(Regs):
         return self.mem[0] & 0xF
 
 
+class Iwdg(Regs):
+    """The independent watchdog, RM0390 19.3-19.4: the key 0xCCCC starts it, 0xAAAA reloads its
+    down-counter from RLR, 0x5555 opens PR and RLR to writes until the next key; the counter
+    runs at LSI / (4 << PR) (the nominal 32 kHz here) and resets the chip when it reaches 0.
+    SR's update flags are never seen set (the update takes no simulated time here)."""
+
+    KR, PR, RLR, SR = 0x00, 0x04, 0x08, 0x0C
+    LSI_HZ = 32_000
+
+    def reset_values(self) -> None:
+        self.mem[self.PR] = 0
+        self.mem[self.RLR] = 0xFFF
+        self.access = False
+        self.running = False
+        self.left_ns = 0.0
+        self.expired = False
+
+    def reload_ns(self) -> float:
+        return (self.mem[self.RLR] + 1) * (4 << self.mem[self.PR]) * 1e9 / self.LSI_HZ
+
+    def write(self, off: int, value: int) -> None:
+        if off == self.KR:
+            key = value & 0xFFFF
+            self.access = key == 0x5555
+            if key == 0xCCCC:
+                self.running = True
+                self.left_ns = self.reload_ns()
+            elif key == 0xAAAA:
+                self.left_ns = self.reload_ns()
+        elif off == self.PR and self.access:
+            self.mem[off] = value & 7
+        elif off == self.RLR and self.access:
+            self.mem[off] = value & 0xFFF
+
+    def read(self, off: int) -> int:
+        return 0 if off in (self.KR, self.SR) else self.mem.get(off, 0)
+
+    def advance(self, ns: int) -> None:
+        """Time passes; ``expired`` when the counter reaches 0."""
+        if self.running:
+            self.left_ns -= ns
+            if self.left_ns <= 0:
+                self.expired = True
+
+
 # ---- GPIO -----------------------------------------------------------------------------------
 class Gpio(Regs):
     """RM0390 7.4: IDR shows the pins: the level driven from outside on an input (``drive``),

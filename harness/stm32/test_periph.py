@@ -7,7 +7,7 @@ from typing import Any
 from board import PWM_PERIOD, adc_code, current_ma, duty_of, pwm_counts
 from hypothesis import given
 from hypothesis import strategies as st
-from periph import Adc, Gpio, I2c, Pwr, Rcc, Scs, Timer
+from periph import Adc, Gpio, I2c, Iwdg, Pwr, Rcc, Scs, Timer
 
 from asserv import codec
 
@@ -357,3 +357,30 @@ def test_systick_period_and_priority() -> None:
     assert s.systick_priority() == 0xF0
     s.write(s.VTOR, 0x0800_0000)
     assert seen == [0x0800_0000]
+
+
+# ---- Independent watchdog (RM0390 19.3, 19.4) ------------------------------------------
+def test_watchdog_registers_need_the_access_key_and_reload_restarts_the_count() -> None:
+    w = Iwdg(0)
+    w.write(w.PR, 3)
+    assert w.read(w.PR) == 0  # no 0x5555 first: ignored
+    w.write(w.KR, 0xCCCC)
+    w.write(w.KR, 0x5555)
+    w.write(w.PR, 0)
+    w.write(w.RLR, 479)
+    w.write(w.KR, 0xAAAA)
+    assert w.reload_ns() == 60e6
+    w.write(w.RLR, 100)  # access closed by the reload key
+    assert w.read(w.RLR) == 479
+    w.advance(59_000_000)
+    w.write(w.KR, 0xAAAA)
+    w.advance(59_000_000)
+    assert not w.expired
+    w.advance(1_000_000)
+    assert w.expired
+
+
+def test_watchdog_counts_only_once_started() -> None:
+    w = Iwdg(0)
+    w.advance(10**12)
+    assert not w.expired

@@ -38,6 +38,7 @@ def play(dev: Any, scn: Any) -> list[int]:
 
 
 def assert_same_runs(b: Stm32Board, r: Reference) -> None:
+    assert b.watchdog_resets == 0
     assert b.ticks == r.ticks
     for k, (x, y) in enumerate(zip(b.trace or [], r.trace or [], strict=True)):
         assert x == y, f"struct board differs after tick {k}"
@@ -68,3 +69,24 @@ def test_cut_encoder_is_detected_identically(elf: Any) -> None:
         board.check_busy()
     assert_same_runs(b, r)
     assert r.board.faults.cause == FAULT_ENCODER_LOST
+
+
+def test_watchdog_resets_the_chip_when_the_ticks_stop(elf: Any) -> None:
+    from board import robot
+
+    bc, sc, f = robot()
+    b = Stm32Board(elf, sc, f, bc)
+    board = Board(b.bus)
+    board.goto(500, -850)
+    b.sleep(0.3)
+    assert b.duty != (0, 0) and b.watchdog_resets == 0
+    b.ticks_on = False  # the firmware stops ticking (a hung handler)
+    b.sleep(0.055)
+    assert b.watchdog_resets == 0 and b.duty != (0, 0)  # the PWM still drives: 60 ms
+    b.sleep(0.010)
+    assert b.watchdog_resets == 1
+    assert b.tim[1].pwm_fraction(0)[0] == 0 and b.duty == (0, 0)  # the reset stopped the motors
+    b.ticks_on = True
+    b.sleep(0.1)
+    assert b.watchdog_resets == 1
+    assert board.check_busy() == 0  # booted again: idle, answering

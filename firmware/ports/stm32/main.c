@@ -1,7 +1,7 @@
 /* The asserv board on an STM32F4 Nucleo-64: start-up, then everything in interrupts. SysTick runs
- * the whole control tick at 1 kHz (one rate: the slow steps in it); the I2C interrupts preempt it;
- * the CPU sleeps in between. Pin map: pinmap.h; clocks: stm32_clock.h; build and flashing:
- * docs/stm32.md. */
+ * the whole control tick at 1 kHz (one rate: the slow steps in it) and feeds the watchdog; the I2C
+ * interrupts preempt it; the CPU sleeps in between. Pin map: pinmap.h; clocks: stm32_clock.h; build
+ * and flashing: docs/stm32.md. */
 #include <stddef.h>
 
 #include "hal.h"
@@ -19,6 +19,7 @@ const struct stm32_layout stm32_layout = {
 };
 
 void SysTick_Handler(void);
+static void stm32_watchdog_start(void);
 
 int main(void)
 {
@@ -38,8 +39,25 @@ int main(void)
 			;
 	}
 	hal_i2c_slave_init(PROTO_ADDRESS);
+	stm32_watchdog_start();
 	hal_tick_start(cfg.tick_hz);
 	stm32_idle();
+}
+
+/* The independent watchdog (RM0390 19.3: started, then configured, then reloaded), fed after
+ * each tick: if the ticks stop (a fault handler's loop, an interrupt that never ends), it resets
+ * the chip within 60 ms, and the reset stops the motors (the PWM pins float: the bridge's enable
+ * inputs need pull-downs, docs/stm32.md). 60 ms at the LSI's nominal 32 kHz: (479 + 1) * 4 /
+ * 32000; the LSI's spread (17..47 kHz) makes it 41..113 ms. */
+static void stm32_watchdog_start(void)
+{
+	IWDG_KR = IWDG_KR_START;
+	IWDG_KR = IWDG_KR_ACCESS;
+	IWDG_PR = 0; /* LSI / 4 */
+	IWDG_RLR = 479u;
+	while (IWDG_SR != 0)
+		;
+	IWDG_KR = IWDG_KR_RELOAD;
 }
 
 /* PM0214 4.5: SysTick at the processor clock, reloaded every period; its priority the lowest
@@ -58,5 +76,6 @@ void SysTick_Handler(void)
 	stm32_adc_sample();
 	port_control_tick(&asserv_board);
 	port_slow(&asserv_board);
+	IWDG_KR = IWDG_KR_RELOAD;
 	GPIO_BSRR(PIN_TICK_PORT) = 1u << (PIN_TICK + 16u);
 }

@@ -47,8 +47,8 @@ void Reset_Handler(void)
 		;
 }
 
-/* A fault or an interrupt the port does not use: stop here (the motors' PWM keeps its last
- * duty: a team adds the watchdog, docs/stm32.md). */
+/* A fault or an interrupt the port does not use: stop here, until the watchdog resets the chip
+ * (main.c), which stops the motors. */
 void Default_Handler(void)
 {
 	for (;;)

@@ -15,6 +15,7 @@
 #define TIM3_BASE 0x40000400u
 #define TIM4_BASE 0x40000800u
 #define TIM5_BASE 0x40000C00u
+#define IWDG_BASE 0x40003000u
 #define I2C1_BASE 0x40005400u
 #define PWR_BASE 0x40007000u
 #define TIM1_BASE 0x40010000u
@@ -143,6 +144,15 @@
 #define ADC1_JDR2 STM32_REG(ADC1_BASE + 0x40u)
 #define ADC_CCR STM32_REG(ADC_COMMON_BASE + 0x04u) /* 13.13.16 */
 #define ADC_CCR_ADCPRE_POS 16u                     /* PCLK2 / 2, 4, 6, 8 */
+
+/* ---- Independent watchdog: RM0390 section 19.4, on the LSI (about 32 kHz) ---- */
+#define IWDG_KR STM32_REG(IWDG_BASE + 0x00u) /* 19.4.1 */
+#define IWDG_KR_START 0xCCCCu
+#define IWDG_KR_ACCESS 0x5555u /* PR and RLR writable until the next key */
+#define IWDG_KR_RELOAD 0xAAAAu
+#define IWDG_PR STM32_REG(IWDG_BASE + 0x04u)  /* 19.4.2: LSI / (4 << PR) */
+#define IWDG_RLR STM32_REG(IWDG_BASE + 0x08u) /* 19.4.3: 12 bits */
+#define IWDG_SR STM32_REG(IWDG_BASE + 0x0Cu)  /* 19.4.4: PVU, RVU: an update in progress */
 
 /* ---- I2C1: RM0390 section 24.6 ---- */
 #define I2C1_CR1 STM32_REG(I2C1_BASE + 0x00u) /* 24.6.1 */
