@@ -31,6 +31,7 @@ sys.path.insert(0, str(ROOT / "harness" / "stm32"))
 
 from asserv._core import ffi, lib  # noqa: E402
 from board import SYSCLK_HZ, Stm32Board, robot  # noqa: E402
+from unicorn.arm_const import UC_ARM_REG_LR  # noqa: E402
 
 from asserv import Board, Status  # noqa: E402
 
@@ -80,8 +81,6 @@ class Bench(Stm32Board):
     def _on_block(self, address: int, n: int) -> None:
         cpu = self.cpu
         if address == self.slow_entry:
-            from unicorn.arm_const import UC_ARM_REG_LR
-
             self._slow_at = cpu.insns - n
             self._slow_ret = cpu.reg(UC_ARM_REG_LR) & ~1
         elif self._slow_at is not None and address == self._slow_ret:

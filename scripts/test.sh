@@ -47,5 +47,6 @@ cmake -S firmware/ports/stm32 -B build-stm32 -G Ninja -DCMAKE_TOOLCHAIN_FILE="$R
 cmake --build build-stm32
 ruff check harness/stm32
 ruff format --check harness/stm32
+mypy --config-file harness/stm32/mypy.ini harness/stm32 bench/stm32.py
 python -m pytest -p no:cacheprovider harness/stm32
 python bench/stm32.py build-stm32/asserv_stm32.elf

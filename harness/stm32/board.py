@@ -25,6 +25,8 @@ from typing import Any
 from asserv._core import ffi, lib
 from emu import IRQ0, SYSTICK, Cpu, EmuError, struct_padding
 from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Scs, Timer
+from unicorn import UC_HOOK_CODE
+from unicorn.arm_const import UC_ARM_REG_R1
 
 from asserv.bus import VirtualBus
 
@@ -247,8 +249,6 @@ class Stm32Board(_Lockstep):
         cpu.irq_lines.append(self._i2c_lines)
         self.config_override = bc
         if bc is not None:
-            from unicorn import UC_HOOK_CODE
-
             at = cpu.symbols["board_init"] & ~1
             cpu.uc.hook_add(UC_HOOK_CODE, self._inject_config, begin=at, end=at)
         self.encoders = {
@@ -335,7 +335,6 @@ class Stm32Board(_Lockstep):
     def _inject_config(self, uc: Any, address: int, size: int, user: object) -> None:
         """At board_init()'s entry: the simulated robot's configuration in place of the one
         compiled in (r1 points to it), as a team's robot.c would give it."""
-        from unicorn.arm_const import UC_ARM_REG_R1
 
         data = bytes(ffi.buffer(self.config_override))
         uc.mem_write(uc.reg_read(UC_ARM_REG_R1), data)

@@ -24,9 +24,8 @@ from unicorn import (
     UC_MODE_MCLASS,
     UC_MODE_THUMB,
     UC_PROT_ALL,
+    UC_PROT_EXEC,
     UC_PROT_READ,
-    Uc,
-    UcError,
 )
 from unicorn.arm_const import (
     UC_ARM_REG_LR,
@@ -41,6 +40,7 @@ from unicorn.arm_const import (
     UC_ARM_REG_XPSR,
     UC_CPU_ARM_CORTEX_M4,
 )
+from unicorn.unicorn_py3.unicorn import Uc, UcError
 
 FLASH_BASE = 0x0800_0000
 FLASH_SIZE = 512 * 1024
@@ -76,7 +76,7 @@ class Cpu:
     def __init__(self, elf_path: str | Path) -> None:
         self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         self.uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
-        self.uc.mem_map(FLASH_BASE, FLASH_SIZE, UC_PROT_READ | 4)  # read + exec
+        self.uc.mem_map(FLASH_BASE, FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC)
         self.uc.mem_map(SRAM_BASE, SRAM_SIZE, UC_PROT_ALL)
         self.symbols: dict[str, int] = {}
         self.sizes: dict[str, int] = {}

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from unicorn import Uc
+from unicorn.unicorn_py3.unicorn import Uc
 
 HSE_HZ = 8_000_000  # the ST-LINK's MCO on OSC_IN
 
@@ -28,12 +28,12 @@ class Regs:
     def attach(self, uc: Uc) -> None:
         uc.mmio_map(self.base, self.size, self._rd, None, self._wr, None)
 
-    def _rd(self, uc: Uc, offset: int, size: int, user: object) -> int:
+    def _rd(self, uc: object, offset: int, size: int, user: object) -> int:
         aligned = offset & ~3
         value = self.read(aligned)
         return (value >> (8 * (offset & 3))) & ((1 << (8 * size)) - 1)
 
-    def _wr(self, uc: Uc, offset: int, size: int, value: int, user: object) -> None:
+    def _wr(self, uc: object, offset: int, size: int, value: int, user: object) -> None:
         aligned = offset & ~3
         if size < 4:  # byte and halfword writes: merge (the NVIC's priority bytes)
             shift = 8 * (offset & 3)

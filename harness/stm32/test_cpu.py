@@ -8,7 +8,7 @@ import pytest
 from asserv._core import ffi
 from board import Stm32Board, robot
 from emu import FLASH_BASE, IRQ0, SYSTICK, thumb_insn_count
-from unicorn import UC_ERR_EXCEPTION, UcError
+from unicorn import UC_ERR_EXCEPTION
 from unicorn.arm_const import (
     UC_ARM_REG_LR,
     UC_ARM_REG_PC,
@@ -19,6 +19,7 @@ from unicorn.arm_const import (
     UC_ARM_REG_R12,
     UC_ARM_REG_SP,
 )
+from unicorn.unicorn_py3.unicorn import UcError
 
 REGS = (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12)
 
