@@ -31,6 +31,7 @@ sys.path.insert(0, str(ROOT / "harness" / "stm32"))
 
 from asserv._core import ffi, lib  # noqa: E402
 from board import SYSCLK_HZ, Stm32Board, robot  # noqa: E402
+from emu import EmuError  # noqa: E402
 from unicorn.arm_const import UC_ARM_REG_LR  # noqa: E402
 
 from asserv import Board, Status  # noqa: E402
@@ -187,7 +188,11 @@ def main() -> int:
         return 2
     # The robot at (-1300, 0), heading 0, and the board told so: 2.4 m straight to (1100, 0).
     bc, sc, f = robot({"start": (-1300.0, 0.0, 0.0)})
-    b = Bench(args.elf, sc, f, bc)
+    try:
+        b = Bench(args.elf, sc, f, bc)
+    except EmuError as e:
+        print(f"bench/stm32.py: {e}", file=sys.stderr)
+        return 2
     board = Board(b.bus)
     board.set_vitesse_traj(100, 100)
     board.goto(1100, 0)
@@ -226,17 +231,21 @@ def main() -> int:
         f"  busiest period at 1 m/s, the tick and the I2C interrupts up to the next: "
         f"{b.worst_period()} instructions, {load_pct(b.worst_period()):.2f} %"
     )
-    e = b.i2c_events
+    ev = b.i2c_events
     print(
-        f"\nI2C interrupts: {len(e.values)} bus events, {e.mean():.0f} instructions mean, "
-        f"{e.worst()} worst per event"
+        f"\nI2C interrupts: {len(ev.values)} bus events, {ev.mean():.0f} instructions mean, "
+        f"{ev.worst()} worst per event"
     )
     print(f"cycles per instruction assumed: {CPI}: {CPI_WHY}")
     avr_bench, avr_elf = Path(args.avr_bench), Path(args.avr_elf)
     print("\n---- the AVR beside: ATmega1284P at 16 MHz, one rate (harness/avr/bench_avr) ----")
     cmd = [str(avr_bench), str(avr_elf), "--no-profile"]
     if avr_bench.is_file() and avr_elf.is_file():
-        run = subprocess.run(cmd, check=False, capture_output=True, text=True)
+        try:
+            run = subprocess.run(cmd, check=False, capture_output=True, text=True)
+        except OSError as e:
+            print(f"bench/stm32.py: {avr_bench}: {e}", file=sys.stderr)
+            return 1
         print(run.stdout, end="")
         side_by_side(b, run.stdout)
     else:

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from elftools.common.exceptions import ELFError
 from elftools.elf.elffile import ELFFile
 from unicorn import (
     UC_ARCH_ARM,
@@ -89,6 +90,9 @@ class Cpu:
         self.enabled: Callable[[int], bool] = lambda exc: True
         self.irq_lines: list[Callable[[], set[int]]] = []
         self.vtor = FLASH_BASE
+        for name in ("stm32_idle", "asserv_board", "board_init", "stm32_layout"):
+            if name not in self.symbols:
+                raise EmuError(f"{elf_path}: not the asserv STM32 firmware (no symbol {name})")
         self.idle_pc = self.symbols["stm32_idle"] & ~1
         self.exception_returns = 0
         self.insns = 0
@@ -99,7 +103,12 @@ class Cpu:
     # ---- loading ---------------------------------------------------------------------------
     def _load(self, path: Path) -> None:
         with path.open("rb") as f:
-            elf = ELFFile(f)
+            try:
+                elf = ELFFile(f)
+            except ELFError as e:
+                raise EmuError(f"{path}: not an ELF file ({e})") from e
+            if elf["e_machine"] != "EM_ARM":
+                raise EmuError(f"{path}: not an ARM ELF ({elf['e_machine']})")
             for seg in elf.iter_segments():
                 if seg["p_type"] != "PT_LOAD" or not seg["p_filesz"]:
                     continue

@@ -2,12 +2,14 @@
 unicorn 2.1.4's faulty exception return, and what the firmware set up at boot (clock tree, pins,
 timers, the configuration compiled in)."""
 
+import sys
+from pathlib import Path
 from typing import Any
 
 import pytest
 from asserv._core import ffi
 from board import Stm32Board, robot
-from emu import FLASH_BASE, IRQ0, SYSTICK, thumb_insn_count
+from emu import FLASH_BASE, IRQ0, SYSTICK, Cpu, EmuError, thumb_insn_count
 from unicorn import UC_ERR_EXCEPTION
 from unicorn.arm_const import (
     UC_ARM_REG_LR,
@@ -114,3 +116,13 @@ def test_the_configuration_compiled_in_is_the_default_robots(elf: Any) -> None:
     off = 0  # cfg is struct board's first member
     size = ffi.sizeof("struct board_config")
     assert b.board_bytes()[off : off + size] == bytes(ffi.buffer(bc))
+
+
+def test_a_file_that_is_not_the_firmware_is_refused(tmp_path: Path, elf: Any) -> None:
+    text = tmp_path / "notes.txt"
+    text.write_text("not an ELF\n")
+    with pytest.raises(EmuError, match="not an ELF"):
+        Cpu(text)
+    host_elf = Path(sys.executable).resolve()  # an ELF, but an x86-64 one
+    with pytest.raises(EmuError, match="not an ARM ELF"):
+        Cpu(host_elf)

@@ -9,6 +9,8 @@ from typing import Any
 from asserv._core import lib
 from board import Reference, Stm32Board, of_simulator
 from conftest import ROOT
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from asserv import Board
 from asserv.scenario import BUS_COMMANDS, load
@@ -90,3 +92,33 @@ def test_watchdog_resets_the_chip_when_the_ticks_stop(elf: Any) -> None:
     b.sleep(0.1)
     assert b.watchdog_resets == 1
     assert board.check_busy() == 0  # booted again: idle, answering
+
+
+_OPS = st.lists(
+    st.one_of(
+        st.tuples(st.just("w"), st.binary(max_size=8), st.booleans()),
+        st.tuples(st.just("r"), st.integers(1, 8), st.just(True)),
+        st.tuples(st.just("s"), st.integers(0, 3000), st.just(True)),
+    ),
+    max_size=12,
+)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(ops=_OPS)
+def test_any_bus_traffic_is_bit_identical(elf: Any, ops: list[tuple[str, Any, bool]]) -> None:
+    """Whatever the master writes and reads (garbage, orders, reads of any length, repeated
+    starts), at any instant: the binary's replies and state follow the native run's."""
+    from board import robot
+
+    b, r = pair(elf, *robot())
+    for dev in (b, r):
+        for op, arg, stop in ops:
+            if op == "w":
+                dev.i2c_write(arg, stop)
+            elif op == "r":
+                dev.i2c_read(arg)
+            else:
+                dev.advance_ns(arg * 1000)
+        dev.advance_ns(2_000_000)
+    assert_same_runs(b, r)
