@@ -152,6 +152,8 @@ int16_t hal_motor_current_ma(enum hal_side side)
 	return stm32_current_ma(adc_code[side]);
 }
 
+/* The switches and line sensors are read once per tick: that sampling is their debouncing (a
+ * bounce shorter than a period is seen at most once), as on the AVR. */
 uint8_t hal_shock_read(void)
 {
 	return (uint8_t)~GPIO_IDR(PIN_SENSOR_PORT);
