@@ -64,7 +64,9 @@ class Bench(Stm32Board):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         cpu = self.cpu
-        self.slow_entry = cpu.symbols["slow_steps"] & ~1
+        # board.c's slow_steps() is static: GCC keeps it out of line today; if a later core
+        # inlines it, the split is not measured (printed as such) and the tick still is.
+        self.slow_entry = cpu.symbols.get("slow_steps", 1) & ~1
         self._slow_at: int | None = None
         self._slow_ret = 0
         self.slow_insns = 0
@@ -211,6 +213,8 @@ def main() -> int:
     )
     print(f"flash {flash} bytes (vectors + .text + .data); RAM {ram} bytes static (.data + .bss)")
     print(f"{b.ticks} ticks ({b.ticks / 1000:.2f} s), 2.4 m at 1 m/s, 1 m/s^2")
+    if "slow_steps" not in b.cpu.symbols:
+        print("(no slow_steps symbol in this ELF: the servo / slow steps split is not measured)")
     for part, title in (("move", "over the move"), ("cruise", "at 1 m/s")):
         p = b.parts[part]
         print(f"\n{title} ({len(p['tick'].values)} ticks): instructions per tick")
