@@ -330,6 +330,23 @@ int host_init(struct host *h, const struct board_config *bc, const struct sim_co
               const struct sim_field *f);
 uint64_t host_advance_ns(struct host *h, uint64_t duration_ns, struct host_sample *buf,
                          uint32_t cap, uint32_t *n_out);
+
+/* ---- the physics and the board apart, for a port's own lockstep (harness/stm32) ---- */
+struct board_inputs {
+    uint16_t free_count[2];
+    uint16_t motor_count[2];
+    int16_t current_ma[2];
+    uint8_t shocks;
+    uint8_t basket;
+    uint8_t lines;
+};
+struct board_outputs { int16_t duty_q15[2]; };
+int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field *field);
+void sim_set_duty(struct sim *s, int16_t left_q15, int16_t right_q15);
+void sim_advance_ns(struct sim *s, uint64_t duration_ns);
+int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
+void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out);
+void board_slow(struct board *b);
 """
 
 ffibuilder = FFI()

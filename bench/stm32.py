@@ -1,0 +1,265 @@
+"""Benchmark of the STM32 binary in the emulator (harness/stm32; prints, asserts nothing).
+
+The robot drives 2.4 m straight at 1 m/s (1 m/s^2), as bench_avr drives the AVR binary, while a
+master polls CHECK_BUSY every 10 ms and reads POSITION every 20 ms over I2C at 100 kHz. unicorn
+counts the instructions the binary executes (a block hook); it has no cycle model, so the CPU load
+is estimated from them with a stated cycles-per-instruction assumption.
+
+Printed: instructions per control tick (the SysTick handler), split into the servo and the slow
+steps (board.c's slow_steps(): orders, planner, faults, uncertainty, the replies; one rate,
+slow_shift 0, they run inside the tick),
+mean and worst over the move and at 1 m/s (true speed at least 0.95 m/s); the I2C interrupts'
+instructions per bus event; the estimated CPU load at 180 MHz; flash and RAM from the ELF's
+sections. Then the AVR's figures beside, from harness/avr's bench_avr on the one-rate AVR build
+when it is built (scripts/test.sh builds it in build-avr0), otherwise the command that prints
+them.
+
+    python bench/stm32.py [build-stm32/asserv_stm32.elf] [--avr-bench PATH --avr-elf PATH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import re
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "harness" / "stm32"))
+
+from asserv._core import ffi, lib  # noqa: E402
+from board import SYSCLK_HZ, Stm32Board, robot  # noqa: E402
+from emu import EmuError  # noqa: E402
+from unicorn.arm_const import UC_ARM_REG_LR  # noqa: E402
+
+from asserv import Board, Status  # noqa: E402
+
+CPI = 1.5  # cycles per instruction assumed (see CPI_WHY)
+CPI_WHY = (
+    "Cortex-M4: most instructions 1 cycle, loads and stores 2 (1 when pipelined), taken "
+    "branches 2..4, 32-bit divides 2..12; the flash accelerator (ART: prefetch, 1 KiB of "
+    "instruction cache) hides the 5 wait states on most fetches. 1.5 is a pessimistic mean."
+)
+EXCEPTION_CYCLES = 24  # entry 12 + return 12 (Cortex-M4 interrupt latency, no FPU context)
+CRUISE_MM_S, CRUISE_END_MM_S = 950.0, 900.0
+
+
+class Stat:
+    def __init__(self) -> None:
+        self.values: list[int] = []
+
+    def add(self, v: int) -> None:
+        self.values.append(v)
+
+    def mean(self) -> float:
+        return sum(self.values) / len(self.values) if self.values else 0.0
+
+    def worst(self) -> int:
+        return max(self.values, default=0)
+
+
+class Bench(Stm32Board):
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        cpu = self.cpu
+        # board.c's slow_steps() is static: GCC keeps it out of line today; if a later core
+        # inlines it, the split is not measured (printed as such) and the tick still is.
+        self.slow_entry = cpu.symbols.get("slow_steps", 1) & ~1
+        self._slow_at: int | None = None
+        self._slow_ret = 0
+        self.slow_insns = 0
+        cpu.on_block = self._on_block
+        cpu.count_instructions(True)
+        self.parts: dict[str, dict[str, Stat]] = {
+            p: {k: Stat() for k in ("tick", "servo", "slow")} for p in ("move", "cruise")
+        }
+        self.i2c_events = Stat()
+        self.cruise_ticks: dict[int, int] = {}  # tick number -> its instructions, at 1 m/s
+        self.i2c_after: dict[int, int] = {}  # I2C instructions while self.ticks == k
+        self.phase = "move"
+        self.truth = ffi.new("struct sim_truth *")
+
+    def _on_block(self, address: int, n: int) -> None:
+        cpu = self.cpu
+        if address == self.slow_entry:
+            self._slow_at = cpu.insns - n
+            self._slow_ret = cpu.reg(UC_ARM_REG_LR) & ~1
+        elif self._slow_at is not None and address == self._slow_ret:
+            self.slow_insns += cpu.insns - n - self._slow_at
+            self._slow_at = None
+
+    def control_tick(self) -> None:
+        i0, s0 = self.cpu.insns, self.slow_insns
+        super().control_tick()
+        tick, slow = self.cpu.insns - i0, self.slow_insns - s0
+        lib.sim_get_truth(self.sim, self.truth)
+        v = self.truth.v_mm_s
+        if self.phase == "move" and v >= CRUISE_MM_S:
+            self.phase = "cruise"
+        elif self.phase == "cruise" and v < CRUISE_END_MM_S:
+            self.phase = "after"
+        if self.phase == "cruise":
+            self.cruise_ticks[self.ticks] = tick
+        parts = [self.parts["move"]] + ([self.parts["cruise"]] if self.phase == "cruise" else [])
+        for p in parts:
+            p["tick"].add(tick)
+            p["servo"].add(tick - slow)
+            p["slow"].add(slow)
+
+    def _timed(self, fn: Any, *args: Any) -> Any:
+        i0 = self.cpu.insns
+        out = fn(*args)
+        self.i2c_events.add(self.cpu.insns - i0)
+        self.i2c_after[self.ticks] = self.i2c_after.get(self.ticks, 0) + self.cpu.insns - i0
+        return out
+
+    def worst_period(self) -> int:
+        """The busiest control period at 1 m/s: its tick and the I2C interrupts up to the
+        next tick [instructions]."""
+        return max(
+            (n + self.i2c_after.get(k + 1, 0) for k, n in self.cruise_ticks.items()), default=0
+        )
+
+    def ev_start(self, read: bool) -> None:
+        self._timed(super().ev_start, read)
+
+    def ev_byte(self, b: int) -> None:
+        self._timed(super().ev_byte, b)
+
+    def ev_stop(self) -> None:
+        self._timed(super().ev_stop)
+
+    def ev_read_end(self, ack: bool) -> None:
+        self._timed(super().ev_read_end, ack)
+
+
+def sizes(b: Stm32Board) -> tuple[int, int]:
+    s = b.cpu.sections
+    flash = sum(s.get(n, 0) for n in (".isr_vector", ".text", ".ARM.exidx", ".data"))
+    ram = s.get(".data", 0) + s.get(".bss", 0)
+    return flash, ram
+
+
+def load_pct(insns: float) -> float:
+    return (insns * CPI + EXCEPTION_CYCLES) / (SYSCLK_HZ / 1000) * 100
+
+
+def side_by_side(b: Bench, avr: str) -> None:
+    """The figures of both boards at 1 m/s, one line each (the AVR's parsed from bench_avr)."""
+    cruise = avr.split("at 1 m/s", 1)[-1]
+    tick = re.search(r"control tick, computing\s+(\d+) cycles mean\s+(\d+) worst", cruise)
+    load = re.search(
+        r"CPU load of a period at\s+\d+ Hz\s+([\d.]+) % mean\s+([\d.]+) % worst", cruise
+    )
+    mem = re.search(r"flash (\d+) bytes .*?RAM (\d+) bytes", avr)
+    if not (tick and load and mem):
+        print("\n(bench_avr's output was not recognised: no side-by-side table)")
+        return
+    t = b.parts["cruise"]["tick"]
+    flash, ram = sizes(b)
+    est = "cycles (est.)"
+    rows = [
+        ("control tick at 1 m/s, mean", f"{t.mean() * CPI:.0f} {est}", tick[1] + " cycles"),
+        ("control tick at 1 m/s, worst", f"{t.worst() * CPI:.0f} {est}", tick[2] + " cycles"),
+        ("CPU load of a period, worst", f"{load_pct(b.worst_period()):.1f} %", load[2] + " %"),
+        ("flash [bytes]", str(flash), mem[1]),
+        ("RAM, static [bytes]", str(ram), mem[2]),
+    ]
+    print(f"\n{'one rate, at 1 kHz':<30} {'STM32F446RE, 180 MHz':>24} {'ATmega1284P, 16 MHz':>24}")
+    for name, st, av in rows:
+        print(f"{name:<30} {st:>24} {av:>24}")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("elf", nargs="?", default=str(ROOT / "build-stm32" / "asserv_stm32.elf"))
+    ap.add_argument(
+        "--avr-bench", default=str(ROOT / "build-avr0" / "harness" / "avr" / "bench_avr")
+    )
+    ap.add_argument(
+        "--avr-elf",
+        default=str(ROOT / "build-avr0" / "harness" / "avr" / "firmware" / "asserv_avr.elf"),
+    )
+    args = ap.parse_args()
+    if not Path(args.elf).is_file():
+        print(
+            f"bench/stm32.py: {args.elf}: no such file (build it: docs/stm32.md)", file=sys.stderr
+        )
+        return 2
+    # The robot at (-1300, 0), heading 0, and the board told so: 2.4 m straight to (1100, 0).
+    bc, sc, f = robot({"start": (-1300.0, 0.0, 0.0)})
+    try:
+        b = Bench(args.elf, sc, f, bc)
+    except EmuError as e:
+        print(f"bench/stm32.py: {e}", file=sys.stderr)
+        return 2
+    board = Board(b.bus)
+    board.set_vitesse_traj(100, 100)
+    board.goto(1100, 0)
+    polls = 0
+    while b.now_ns < 10_000_000_000:
+        b.sleep(0.01)
+        polls += 1
+        if not board.check_busy() & Status.BUSY_TRAJET:
+            break
+        if polls % 2 == 0:
+            board.position()
+    flash, ram = sizes(b)
+    print(
+        f"asserv_stm32.elf on an STM32F446RE at {SYSCLK_HZ // 1_000_000} MHz (unicorn): control "
+        "at 1000 Hz, one rate (slow_shift 0), motor encoders 2048 counts/turn in hardware"
+    )
+    print(f"flash {flash} bytes (vectors + .text + .data); RAM {ram} bytes static (.data + .bss)")
+    print(f"{b.ticks} ticks ({b.ticks / 1000:.2f} s), 2.4 m at 1 m/s, 1 m/s^2")
+    if "slow_steps" not in b.cpu.symbols:
+        print("(no slow_steps symbol in this ELF: the servo / slow steps split is not measured)")
+    for part, title in (("move", "over the move"), ("cruise", "at 1 m/s")):
+        p = b.parts[part]
+        print(f"\n{title} ({len(p['tick'].values)} ticks): instructions per tick")
+        for k, name in (
+            ("tick", "control tick (SysTick handler)"),
+            ("servo", "  servo (the tick without the slow steps)"),
+            ("slow", "  slow steps (slow_steps: orders, planner, faults)"),
+        ):
+            s = p[k]
+            print(f"  {name:<50} {s.mean():8.0f} mean {s.worst():8d} worst")
+        t = p["tick"]
+        print(
+            f"  CPU load at {SYSCLK_HZ // 1_000_000} MHz, 1 kHz, {CPI} cycles/instruction "
+            f"+ {EXCEPTION_CYCLES} cycles of exception entry and return: "
+            f"{load_pct(t.mean()):.2f} % mean, {load_pct(t.worst()):.2f} % worst"
+        )
+    print(
+        f"  busiest period at 1 m/s, the tick and the I2C interrupts up to the next: "
+        f"{b.worst_period()} instructions, {load_pct(b.worst_period()):.2f} %"
+    )
+    ev = b.i2c_events
+    print(
+        f"\nI2C interrupts: {len(ev.values)} bus events, {ev.mean():.0f} instructions mean, "
+        f"{ev.worst()} worst per event"
+    )
+    print(f"cycles per instruction assumed: {CPI}: {CPI_WHY}")
+    avr_bench, avr_elf = Path(args.avr_bench), Path(args.avr_elf)
+    print("\n---- the AVR beside: ATmega1284P at 16 MHz, one rate (harness/avr/bench_avr) ----")
+    cmd = [str(avr_bench), str(avr_elf), "--no-profile"]
+    if avr_bench.is_file() and avr_elf.is_file():
+        try:
+            run = subprocess.run(cmd, check=False, capture_output=True, text=True)
+        except OSError as e:
+            print(f"bench/stm32.py: {avr_bench}: {e}", file=sys.stderr)
+            return 1
+        print(run.stdout, end="")
+        side_by_side(b, run.stdout)
+    else:
+        print(
+            "not built here; build it and print its figures with:\n"
+            "  cmake -S . -B build-avr0 -G Ninja -DASSERV_AVR_HARNESS=ON -DASSERV_TESTS=OFF "
+            "-DASSERV_AVR_SLOW_SHIFT=0 && cmake --build build-avr0\n  " + " ".join(cmd)
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

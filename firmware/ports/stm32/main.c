@@ -1,0 +1,81 @@
+/* The asserv board on an STM32F4 Nucleo-64: start-up, then everything in interrupts. SysTick runs
+ * the whole control tick at 1 kHz (one rate: the slow steps in it) and feeds the watchdog; the I2C
+ * interrupts preempt it; the CPU sleeps in between. Pin map: pinmap.h; clocks: stm32_clock.h; build
+ * and flashing: docs/stm32.md. */
+#include <stddef.h>
+
+#include "hal.h"
+#include "pinmap.h"
+#include "port.h"
+#include "stm32_port.h"
+#include "stm32f4_regs.h"
+
+struct board asserv_board;
+
+const struct stm32_layout stm32_layout = {
+	.board_size = sizeof(struct board),
+	.config_size = sizeof(struct board_config),
+	.proto_offset = offsetof(struct board, proto),
+};
+
+void SysTick_Handler(void);
+static void stm32_watchdog_start(void);
+
+int main(void)
+{
+	struct board_config cfg;
+	struct board_inputs in;
+
+	stm32_clock_init();
+	stm32_io_init();
+	stm32_robot_config(&cfg);
+	stm32_adc_sample();
+	port_sample(&in);
+	port_sample_period(&in);
+	/* One rate only: SysTick runs board_slow() through port_slow() right after the tick. */
+	if (board_init(&asserv_board, &cfg, &in) != 0) {
+		/* A configuration the core refuses: motors off, no bus, wait for a new binary. */
+		for (;;)
+			;
+	}
+	hal_i2c_slave_init(PROTO_ADDRESS);
+	stm32_watchdog_start();
+	hal_tick_start(cfg.tick_hz);
+	stm32_idle();
+}
+
+/* The independent watchdog (RM0390 19.3: started, then configured, then reloaded), fed after
+ * each tick: if the ticks stop (a fault handler's loop, an interrupt that never ends), it resets
+ * the chip within 60 ms, and the reset stops the motors (the PWM pins float: the bridge's enable
+ * inputs need pull-downs, docs/stm32.md). 60 ms at the LSI's nominal 32 kHz: (479 + 1) * 4 /
+ * 32000; the LSI's spread (17..47 kHz) makes it 41..113 ms. */
+static void stm32_watchdog_start(void)
+{
+	IWDG_KR = IWDG_KR_START;
+	IWDG_KR = IWDG_KR_ACCESS;
+	IWDG_PR = 0; /* LSI / 4 */
+	IWDG_RLR = 479u;
+	while (IWDG_SR != 0)
+		;
+	IWDG_KR = IWDG_KR_RELOAD;
+}
+
+/* PM0214 4.5: SysTick at the processor clock, reloaded every period; its priority the lowest
+ * (0xF0), under the I2C interrupts'. */
+void hal_tick_start(uint16_t rate_hz)
+{
+	SCB_SHPR3 = (SCB_SHPR3 & 0x00FFFFFFu) | 0xF0u << 24;
+	SYST_RVR = STM32_SYSCLK_HZ / rate_hz - 1u;
+	SYST_CVR = 0;
+	SYST_CSR = SYST_CSR_ENABLE | SYST_CSR_TICKINT | SYST_CSR_CLKSOURCE;
+}
+
+void SysTick_Handler(void)
+{
+	GPIO_BSRR(PIN_TICK_PORT) = 1u << PIN_TICK;
+	stm32_adc_sample();
+	port_control_tick(&asserv_board);
+	port_slow(&asserv_board);
+	IWDG_KR = IWDG_KR_RELOAD;
+	GPIO_BSRR(PIN_TICK_PORT) = 1u << (PIN_TICK + 16u);
+}

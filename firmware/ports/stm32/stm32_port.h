@@ -1,0 +1,55 @@
+/* What the files of the STM32F4 port share: the board instance, the set-up of each peripheral,
+ * and the unit conversions of the PWM and the current sense (plain integer C: the emulator
+ * harness, harness/stm32, mirrors them for its native reference run). The HAL itself is
+ * firmware/hal/. */
+#ifndef ASSERV_STM32_PORT_H
+#define ASSERV_STM32_PORT_H
+
+#include <stdint.h>
+
+#include "board.h"
+#include "stm32_clock.h"
+
+/* The one board, shared by the control tick (SysTick) and the I2C interrupts (its proto). The
+ * emulator harness finds it by this symbol name. */
+extern struct board asserv_board;
+
+/* Sizes and offsets the emulator harness checks against the host build's before it compares
+ * the board's RAM with the native run byte for byte (main.c). */
+struct stm32_layout {
+	uint32_t board_size;
+	uint32_t config_size;
+	uint32_t proto_offset;
+};
+extern const struct stm32_layout stm32_layout;
+
+/* Set-up, once, interrupts off (the clocks first: clock.c; then io.c). */
+void stm32_clock_init(void);
+void stm32_io_init(void);
+
+/* The current-sense conversions of both motors, at the start of each tick (io.c). */
+void stm32_adc_sample(void);
+
+/* The robot this binary drives (robot.c). */
+void stm32_robot_config(struct board_config *cfg);
+
+/* The idle loop (startup.c): sleeps between interrupts, forever. */
+void stm32_idle(void) __attribute__((noreturn));
+
+/* TIM1 compare counts for a duty [2^-15]: |duty| * (ARR + 1) / 32768, rounded; ARR + 1 is full
+ * on (PWM mode 1 keeps the output high while CNT < CCR). */
+static inline uint32_t stm32_pwm_counts(int16_t duty_q15)
+{
+	uint32_t a = (uint32_t)(duty_q15 < 0 ? -(int32_t)duty_q15 : duty_q15);
+
+	return (a * STM32_PWM_PERIOD + 16384u) >> 15;
+}
+
+/* Motor current [mA] of a 12-bit reading of the sense amplifier (1.65 V at 0 A, 100 mV/A, 3.3 V
+ * reference): (code - 2048) * 3300 mV / 4096 / 0.1 V/A, rounded down (arithmetic shift). */
+static inline int16_t stm32_current_ma(uint32_t code)
+{
+	return (int16_t)(((int32_t)code - 2048) * 33000 >> 12);
+}
+
+#endif

@@ -1,0 +1,23 @@
+"""pytest set-up of the STM32 emulator harness: the modules beside this file, and the ELF
+(ASSERV_STM32_ELF, default build-stm32/asserv_stm32.elf, which scripts/test.sh builds)."""
+
+import os
+import sys
+from pathlib import Path
+
+import pytest
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+ROOT = HERE.parents[1]
+
+
+@pytest.fixture(scope="session")
+def elf() -> Path:
+    path = Path(os.environ.get("ASSERV_STM32_ELF", ROOT / "build-stm32" / "asserv_stm32.elf"))
+    if not path.is_file():
+        pytest.fail(
+            f"{path}: no STM32 firmware; build it with: cmake -S firmware/ports/stm32 -B "
+            "build-stm32 -DCMAKE_TOOLCHAIN_FILE=cmake/stm32f4.cmake && cmake --build build-stm32"
+        )
+    return path

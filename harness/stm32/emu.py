@@ -1,0 +1,329 @@
+"""A Cortex-M4 on unicorn: the ELF loaded into flash and SRAM, the peripherals as MMIO models
+(periph.py), and the exception model of the ARMv7-M architecture done here, in Python (PM0214
+2.3.7 exception entry and return), because unicorn 2.1.4 mishandles the exception return: a
+``bx lr`` to an EXC_RETURN value stops the emulation with UC_ERR_EXCEPTION at 0xFFFFFFF8 instead
+of unstacking. The harness enters exceptions itself (stack the 8-word frame, LR = EXC_RETURN,
+PC = the vector) and catches the stop at the EXC_RETURN address to unstack the frame.
+
+The CPU runs until it reaches the idle loop (the ``wfi`` of ``stm32_idle``) with no exception
+pending: the lockstep (board.py) then moves the world on and raises the next interrupt.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from elftools.common.exceptions import ELFError
+from elftools.elf.elffile import ELFFile
+from unicorn import (
+    UC_ARCH_ARM,
+    UC_ERR_EXCEPTION,
+    UC_HOOK_BLOCK,
+    UC_MODE_MCLASS,
+    UC_MODE_THUMB,
+    UC_PROT_ALL,
+    UC_PROT_EXEC,
+    UC_PROT_READ,
+)
+from unicorn.arm_const import (
+    UC_ARM_REG_LR,
+    UC_ARM_REG_PC,
+    UC_ARM_REG_PRIMASK,
+    UC_ARM_REG_R0,
+    UC_ARM_REG_R1,
+    UC_ARM_REG_R2,
+    UC_ARM_REG_R3,
+    UC_ARM_REG_R12,
+    UC_ARM_REG_SP,
+    UC_ARM_REG_XPSR,
+    UC_CPU_ARM_CORTEX_M4,
+)
+from unicorn.unicorn_py3.unicorn import Uc, UcError
+
+FLASH_BASE = 0x0800_0000
+FLASH_SIZE = 512 * 1024
+SRAM_BASE = 0x2000_0000
+SRAM_SIZE = 128 * 1024
+EXC_RETURN_THREAD_MSP = 0xFFFF_FFF9  # PM0214 Table 17: return to thread mode, main stack
+EXC_RETURN_HANDLER = 0xFFFF_FFF1  # return to handler mode (a nested exception)
+SYSTICK = 15  # exception numbers: PM0214 2.3.2
+IRQ0 = 16
+XPSR_STACK_ALIGN = 1 << 9  # PM0214 2.3.7: the frame was realigned to 8 bytes
+THREAD_PRIORITY = 256  # lower than any configurable priority
+
+
+class EmuError(RuntimeError):
+    """The firmware did something the harness does not expect (a hang, a fault)."""
+
+
+def thumb_insn_count(code: bytes) -> int:
+    """Instructions in a block of Thumb-2 code: a halfword whose top five bits are 0b11101,
+    0b11110 or 0b11111 starts a 32-bit instruction (ARMv7-M ARM A5.1)."""
+    n = i = 0
+    while i + 1 < len(code):
+        hw = code[i] | code[i + 1] << 8
+        i += 4 if (hw >> 11) in (0b11101, 0b11110, 0b11111) else 2
+        n += 1
+    return n
+
+
+class Cpu:
+    """The CPU, its memory and its exceptions. Peripheral models attach with ``mmio``; they
+    report their interrupt lines through ``irq_line`` callbacks."""
+
+    def __init__(self, elf_path: str | Path) -> None:
+        self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+        self.uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
+        self.uc.mem_map(FLASH_BASE, FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC)
+        self.uc.mem_map(SRAM_BASE, SRAM_SIZE, UC_PROT_ALL)
+        self.symbols: dict[str, int] = {}
+        self.sizes: dict[str, int] = {}
+        self.sections: dict[str, int] = {}
+        self._load(Path(elf_path))
+        # Exceptions: priorities, pending, enabled; the stack of active ones.
+        self.pending: set[int] = set()
+        self.active: list[int] = []
+        self.priority: Callable[[int], int] = lambda exc: 0
+        self.enabled: Callable[[int], bool] = lambda exc: True
+        self.irq_lines: list[Callable[[], set[int]]] = []
+        self.vtor = FLASH_BASE
+        for name in ("stm32_idle", "asserv_board", "board_init", "stm32_layout"):
+            if name not in self.symbols:
+                raise EmuError(f"{elf_path}: not the asserv STM32 firmware (no symbol {name})")
+        self.idle_pc = self.symbols["stm32_idle"] & ~1
+        self.exception_returns = 0
+        self.insns = 0
+        self._counting = False
+        self._block_insns: dict[tuple[int, int], int] = {}
+        self.on_block: Callable[[int, int], None] | None = None
+
+    # ---- loading ---------------------------------------------------------------------------
+    def _load(self, path: Path) -> None:
+        with path.open("rb") as f:
+            try:
+                elf = ELFFile(f)
+            except ELFError as e:
+                raise EmuError(f"{path}: not an ELF file ({e})") from e
+            if elf["e_machine"] != "EM_ARM":
+                raise EmuError(f"{path}: not an ARM ELF ({elf['e_machine']})")
+            for seg in elf.iter_segments():
+                if seg["p_type"] != "PT_LOAD" or not seg["p_filesz"]:
+                    continue
+                # Flash holds every loadable byte at its load address (.data's initial values
+                # too: the reset handler copies them).
+                self.uc.mem_write(seg["p_paddr"], seg.data())
+            for sec in elf.iter_sections():
+                self.sections[sec.name] = int(sec["sh_size"])
+            symtab = elf.get_section_by_name(".symtab")
+            if symtab is None:
+                raise EmuError(f"{path}: no symbol table")
+            for sym in symtab.iter_symbols():  # type: ignore[attr-defined]
+                if sym.name and sym["st_info"]["type"] in ("STT_FUNC", "STT_OBJECT"):
+                    self.symbols[sym.name] = int(sym["st_value"])
+                    self.sizes[sym.name] = int(sym["st_size"])
+
+    # ---- memory helpers --------------------------------------------------------------------
+    def read32(self, addr: int) -> int:
+        return int(struct.unpack("<I", self.uc.mem_read(addr, 4))[0])
+
+    def write32(self, addr: int, value: int) -> None:
+        self.uc.mem_write(addr, struct.pack("<I", value & 0xFFFFFFFF))
+
+    def reg(self, r: int) -> int:
+        return int(self.uc.reg_read(r))
+
+    # ---- reset and exceptions --------------------------------------------------------------
+    def reset(self) -> None:
+        """PM0214 2.3.1 (reset): SP from vector 0, PC from vector 1 (the boot alias of flash)."""
+        self.uc.reg_write(UC_ARM_REG_SP, self.read32(FLASH_BASE))
+        self.uc.reg_write(UC_ARM_REG_PC, self.read32(FLASH_BASE + 4))
+        self.uc.reg_write(UC_ARM_REG_LR, 0xFFFF_FFFF)
+
+    def _current_priority(self) -> int:
+        return self.priority(self.active[-1]) if self.active else THREAD_PRIORITY
+
+    def _next_exception(self) -> int | None:
+        """The pending exception to take now, if any (PM0214 2.3.4: the lowest priority value
+        wins, then the lowest number)."""
+        if self.reg(UC_ARM_REG_PRIMASK) & 1:
+            return None
+        candidates = set(self.pending)
+        for line in self.irq_lines:
+            candidates |= line()
+        candidates -= set(self.active)
+        best: int | None = None
+        for exc in sorted(candidates):
+            if exc >= IRQ0 and not self.enabled(exc):
+                continue
+            if self.priority(exc) >= self._current_priority():
+                continue
+            if best is None or self.priority(exc) < self.priority(best):
+                best = exc
+        return best
+
+    def enter_exception(self, exc: int) -> None:
+        """Exception entry, PM0214 2.3.7: the frame r0-r3, r12, lr, return address, xPSR
+        pushed on the main stack (realigned to 8 bytes, flagged in the stacked xPSR bit 9),
+        LR = EXC_RETURN, PC = the vector."""
+        sp = self.reg(UC_ARM_REG_SP)
+        xpsr = self.reg(UC_ARM_REG_XPSR)
+        if sp & 4:
+            sp -= 4
+            xpsr |= XPSR_STACK_ALIGN
+        else:
+            xpsr &= ~XPSR_STACK_ALIGN
+        sp -= 32
+        regs = [
+            self.reg(r)
+            for r in (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12)
+        ]
+        frame = [*regs, self.reg(UC_ARM_REG_LR), self.reg(UC_ARM_REG_PC), xpsr | 1 << 24]
+        self.uc.mem_write(sp, struct.pack("<8I", *[v & 0xFFFFFFFF for v in frame]))
+        self.uc.reg_write(UC_ARM_REG_SP, sp)
+        self.uc.reg_write(
+            UC_ARM_REG_LR, EXC_RETURN_HANDLER if self.active else EXC_RETURN_THREAD_MSP
+        )
+        self.pending.discard(exc)
+        self.active.append(exc)
+        vector = self.read32(self.vtor + 4 * exc)
+        self.uc.reg_write(UC_ARM_REG_PC, vector)
+
+    def exception_return(self) -> None:
+        """Exception return (PM0214 2.3.7), done here: unstack the frame, restore the
+        alignment, leave the active exception."""
+        if not self.active:
+            raise EmuError("exception return with no active exception")
+        sp = self.reg(UC_ARM_REG_SP)
+        r0, r1, r2, r3, r12, lr, pc, xpsr = struct.unpack("<8I", self.uc.mem_read(sp, 32))
+        sp += 32
+        if xpsr & XPSR_STACK_ALIGN:
+            sp += 4
+        for r, v in zip(
+            (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12),
+            (r0, r1, r2, r3, r12),
+            strict=True,
+        ):
+            self.uc.reg_write(r, v)
+        self.uc.reg_write(UC_ARM_REG_LR, lr)
+        self.uc.reg_write(UC_ARM_REG_SP, sp)
+        self.uc.reg_write(UC_ARM_REG_XPSR, xpsr & ~XPSR_STACK_ALIGN)
+        self.uc.reg_write(UC_ARM_REG_PC, pc | 1)
+        self.active.pop()
+        self.exception_returns += 1
+
+    # ---- running ---------------------------------------------------------------------------
+    def count_instructions(self, on: bool) -> None:
+        """Counts executed instructions in ``insns`` (a block hook: slower)."""
+        if on and not self._counting:
+            self._hook = self.uc.hook_add(UC_HOOK_BLOCK, self._block)
+        elif not on and self._counting:
+            self.uc.hook_del(self._hook)
+        self._counting = on
+
+    def _block(self, uc: Uc, address: int, size: int, user: object) -> None:
+        key = (address, size)
+        n = self._block_insns.get(key)
+        if n is None:
+            n = self._block_insns[key] = thumb_insn_count(bytes(uc.mem_read(address, size)))
+        self.insns += n
+        if self.on_block is not None:
+            self.on_block(address, n)
+
+    def step(self, until: int, max_insns: int) -> None:
+        """Runs from the current PC until ``until`` (or max_insns): EXC_RETURN stops are
+        unstacked here and the run goes on."""
+        while True:
+            pc = self.reg(UC_ARM_REG_PC)
+            try:
+                self.uc.emu_start(pc | 1, until, count=max_insns)
+            except UcError as e:
+                pc = self.reg(UC_ARM_REG_PC)
+                if e.errno == UC_ERR_EXCEPTION and pc >= 0xFFFF_FFF0:
+                    self.exception_return()
+                    if self.reg(UC_ARM_REG_PC) & ~1 == until:
+                        return
+                    continue
+                raise EmuError(f"CPU stopped at 0x{pc:08x}: {e}") from e
+            return
+
+    def run_until_idle(self, max_insns: int = 5_000_000) -> None:
+        """Runs the firmware, taking pending exceptions, until it sleeps in the idle loop with
+        none left to take."""
+        for _ in range(1000):
+            pc = self.reg(UC_ARM_REG_PC) & ~1
+            if pc == self.idle_pc and not self.active:
+                exc = self._next_exception()
+                if exc is None:
+                    return
+                self.enter_exception(exc)
+            elif self.active:
+                exc = self._next_exception()
+                if exc is not None:
+                    self.enter_exception(exc)
+            self.step(self.idle_pc, max_insns)
+            if self.reg(UC_ARM_REG_PC) & ~1 != self.idle_pc:
+                pc = self.reg(UC_ARM_REG_PC)
+                raise EmuError(f"the firmware did not reach its idle loop (PC 0x{pc:08x})")
+        raise EmuError("interrupts kept coming: an interrupt line is never cleared")
+
+
+def struct_padding(elf_path: str | Path, name: str) -> list[int]:
+    """Offsets of the padding bytes of ``struct name`` (and of every struct inside it), from the
+    ELF's DWARF: bytes no member covers. A struct copied from the stack carries whatever was
+    there in its padding, so comparisons of RAM skip them."""
+    with Path(elf_path).open("rb") as f:
+        elf = ELFFile(f)
+        dwarf = elf.get_dwarf_info()
+        top = None
+        for cu in dwarf.iter_CUs():
+            for die in cu.iter_DIEs():
+                if (
+                    die.tag == "DW_TAG_structure_type"
+                    and "DW_AT_name" in die.attributes
+                    and die.attributes["DW_AT_name"].value == name.encode()
+                    and "DW_AT_byte_size" in die.attributes
+                ):
+                    top = die
+                    break
+            if top is not None:
+                break
+        if top is None:
+            raise EmuError(f"no struct {name} in the DWARF of {elf_path}")
+        size = int(top.attributes["DW_AT_byte_size"].value)
+        used = bytearray(size)
+
+        def resolve(die: Any) -> Any:
+            while die.tag in ("DW_TAG_typedef", "DW_TAG_volatile_type", "DW_TAG_const_type"):
+                die = die.get_DIE_from_attribute("DW_AT_type")
+            return die
+
+        def mark(die: Any, base: int) -> None:
+            die = resolve(die)
+            if die.tag == "DW_TAG_structure_type":
+                for m in die.iter_children():
+                    if m.tag == "DW_TAG_member":
+                        loc = int(m.attributes["DW_AT_data_member_location"].value)
+                        mark(m.get_DIE_from_attribute("DW_AT_type"), base + loc)
+            elif die.tag == "DW_TAG_array_type":
+                elem = die.get_DIE_from_attribute("DW_AT_type")
+                esize = int(resolve(elem).attributes["DW_AT_byte_size"].value)
+                dims = []
+                for sub in die.iter_children():
+                    if "DW_AT_count" in sub.attributes:
+                        dims.append(int(sub.attributes["DW_AT_count"].value))
+                    elif "DW_AT_upper_bound" in sub.attributes:
+                        dims.append(int(sub.attributes["DW_AT_upper_bound"].value) + 1)
+                n = 1
+                for d in dims:
+                    n *= d
+                for i in range(n):
+                    mark(elem, base + i * esize)
+            else:
+                for i in range(int(die.attributes["DW_AT_byte_size"].value)):
+                    used[base + i] = 1
+
+        mark(top, 0)
+        return [i for i in range(size) if not used[i]]
