@@ -446,11 +446,84 @@ static void test_heading_bound(void **state)
 	assert_int_equal(uncertainty_get_heading_bound_turn32(&u), 1u << 31);
 }
 
+/* New residual bounds keep what the old ones accumulated: after 3.105 m with a 1000 ppm ratio
+ * bound (17 mm), bounds of 0 leave the radius at 17 mm, and backing up no longer undoes it (the
+ * systematic offset became a fixed error); a reset of that coordinate clears it. */
+static void test_new_bounds_keep_what_was_accumulated(void **state)
+{
+	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16};
+	struct uncertainty_config none = cfg;
+	struct uncertainty u;
+
+	(void)state;
+	none.ratio_error_ppm = 0;
+	uncertainty_init(&u, &cfg);
+	heading_rad = 0;
+	drive(&u, 1000, 1000, 345 * BATCH, 300000);
+	settle(&u);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 17);
+	assert_int_equal(uncertainty_set_config(&u, &none), 0);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 17);
+	drive(&u, -1000, -1000, 345 * BATCH, 300000);
+	settle(&u);
+	assert_true(uncertainty_get_radius_mm(&u) >= 17);
+	uncertainty_reset_axis(&u, UNCERTAINTY_AXIS_Y, 0);
+	uncertainty_reset_axis(&u, UNCERTAINTY_AXIS_X, 0);
+	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
+}
+
+/* The heading's bound counts the systematic drift: a 1000 ppm ratio over 1 m of a 300 mm track
+ * is 1000e-6 * 1 m / 0.3 m = 3.33 mrad (0.19 degree), with no noise at all. */
+static void test_heading_bound_counts_the_drift(void **state)
+{
+	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16};
+	struct uncertainty u;
+	long double rad;
+
+	(void)state;
+	uncertainty_init(&u, &cfg);
+	heading_rad = 0;
+	drive(&u, 1000, 1000, 1000, 300000);
+	settle(&u);
+	rad = uncertainty_get_heading_bound_turn32(&u) / 4294967296.0L * 2 * PI_L;
+	assert_true(rad >= 1e-3L / 0.3L && rad <= 1e-3L / 0.3L * 1.01L);
+}
+
+/* A wheel's unseen travel w widens the position's bound by w / 2 and the heading's by w / b;
+ * a position bound p adds p. From a radius of 0: 10 mm unseen gives 5 mm, then 10 mm of slide
+ * 15 mm; the heading's bound 10 mm / 280 mm. */
+static void test_widen(void **state)
+{
+	struct uncertainty u;
+	long double rad;
+	uint8_t r;
+
+	(void)state;
+	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	uncertainty_widen(&u, 0, 10000);
+	settle(&u);
+	/* rounded up at each step: sigma to 4 um, then the millimetre */
+	assert_in_range(uncertainty_get_radius_mm(&u), 5, 6);
+	rad = uncertainty_get_heading_bound_turn32(&u) / 4294967296.0L * 2 * PI_L;
+	assert_true(rad >= 10.0L / 280 && rad <= 10.0L / 280 * 1.01L);
+	uncertainty_widen(&u, 10000, 0);
+	settle(&u);
+	assert_in_range(uncertainty_get_radius_mm(&u), 15, 16);
+	r = uncertainty_get_radius_mm(&u);
+	/* Nothing to widen by: nothing changes. */
+	uncertainty_widen(&u, 0, 0);
+	settle(&u);
+	assert_int_equal(uncertainty_get_radius_mm(&u), r);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_reset_along),
 		cmocka_unit_test(test_heading_bound),
+		cmocka_unit_test(test_new_bounds_keep_what_was_accumulated),
+		cmocka_unit_test(test_heading_bound_counts_the_drift),
+		cmocka_unit_test(test_widen),
 		cmocka_unit_test(test_straight_lateral_sigma),
 		cmocka_unit_test(test_straight_any_heading),
 		cmocka_unit_test(test_straight_fast),
