@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Every test and check of the project, as CI runs them (.ci/run calls this and nothing else).
-. "$(dirname "$0")/setup.sh"
+. "$(dirname "$0")/setup.sh" test
 
 step() { printf '\n== %s\n' "$*"; }
 
