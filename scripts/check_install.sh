@@ -13,7 +13,7 @@ ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 PYTHON=${PYTHON:-python3}
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
-say() { printf -- '-- %s\n' "$*"; }
+say() { printf -- '-- %s %s\n' "$(date +%T)" "$*"; }
 fail() {
 	echo "check_install: $*" >&2
 	exit 1
