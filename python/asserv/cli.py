@@ -22,7 +22,7 @@ class _Parser(argparse.ArgumentParser):
     """argparse, with a usage error on one line: ``asserv demo: argument --png: ...``."""
 
     def error(self, message: str) -> NoReturn:
-        self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
+        self.exit(2, cli_args.one_line(f"{self.prog}: {message} (see {self.prog} --help)") + "\n")
 
 
 # encode / decode -----------------------------------------------------------------------------
@@ -402,10 +402,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         code: int = args.func(args)
     except UsageError as e:
-        print(f"{prog}: {e}", file=sys.stderr)
+        print(cli_args.one_line(f"{prog}: {e}"), file=sys.stderr)
         return 2
     except codec.FrameError as e:  # a value the board would refuse: nothing was sent
-        print(f"{prog}: the board would reject this: {e}", file=sys.stderr)
+        print(cli_args.one_line(f"{prog}: the board would reject this: {e}"), file=sys.stderr)
         return 2
     except ImportError as e:
         if not (getattr(e, "name", None) in SIMULATOR_MODULES or "asserv[sim]" in str(e)):

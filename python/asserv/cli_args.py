@@ -39,6 +39,7 @@ __all__ = [
     "finite_float",
     "message_name",
     "natural",
+    "one_line",
     "output_dir",
     "output_file",
     "positive_float",
@@ -116,6 +117,12 @@ def positive_float(text: str) -> float:
     if value <= 0:
         raise argparse.ArgumentTypeError(f"{text!r} must be > 0")
     return value
+
+
+def one_line(text: str) -> str:
+    """``text`` with its unprintable characters escaped, so that a message stays on one line
+    whatever a path or an argument contains (``\\n``, ``\\x1d``...)."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def _reason(e: OSError) -> str:

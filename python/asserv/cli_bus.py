@@ -26,6 +26,7 @@ import smbus2
 from . import codec
 from ._protocol import ADDRESS, Filtre, Status
 from .cli_args import UsageError as _UsageError
+from .cli_args import one_line
 from .driver import AsservError, Board, SMBusLike, _flag_names
 
 __all__ = [
@@ -354,7 +355,7 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = N
     prog = f"asserv {cmd}"
 
     def fail(code: int, message: str) -> int:
-        print(f"{prog}: {message}", file=sys.stderr)
+        print(one_line(f"{prog}: {message}"), file=sys.stderr)
         return code
 
     try:
