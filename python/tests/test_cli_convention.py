@@ -292,3 +292,17 @@ def test_any_png_path_is_checked_before_the_run(
     assert code == 2 and len(err.strip().splitlines()) == 1, (path, err)
     assert no_runs == []
     assert sorted(Path().rglob("*")) == before
+
+
+def test_the_driver_imports_nothing_of_the_simulator() -> None:
+    """``pip install asserv`` has no numpy, matplotlib or cffi: the driver and the CLI must not
+    import them (scripts/check_install.sh checks it on a real driver-only install)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, asserv, asserv.cli, asserv.cli_bus, asserv.cli_args, asserv.driver;"
+        "print(sorted({'numpy', 'matplotlib', 'cffi', 'asserv_sim'} & set(sys.modules)))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
