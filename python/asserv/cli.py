@@ -92,10 +92,14 @@ def _add_codec(sub: Subparsers) -> None:
 # demo / sim run ------------------------------------------------------------------------------
 
 
+DEMO_PNG = "asserv-demo.png"
+
+
 def _demo(args: argparse.Namespace) -> int:
+    png = None if args.no_png else args.png or cli_args.check_output_file(DEMO_PNG, (".png",))
     from . import demo
 
-    return demo.run(png=None if args.no_png else args.png)
+    return demo.run(png=png)
 
 
 def _add_demo(sub: Subparsers) -> None:
@@ -105,8 +109,7 @@ def _add_demo(sub: Subparsers) -> None:
     p.add_argument(
         "--png",
         type=cli_args.output_file(".png"),
-        default="asserv-demo.png",
-        help="plot file (default %(default)s)",
+        help=f"plot file (default {DEMO_PNG})",
     )
     p.add_argument("--no-png", action="store_true", help="do not write the plot")
     p.set_defaults(func=_demo)
@@ -156,7 +159,7 @@ def _sim_run(args: argparse.Namespace) -> int:
 
 def _add_sim(sub: Subparsers) -> None:
     sim = sub.add_parser("sim", help="the simulated board")
-    simsub = sim.add_subparsers(dest="sim_command", required=True)
+    simsub = sim.add_subparsers(dest="sim_command", required=True, metavar="SUBCOMMAND")
     p = simsub.add_parser("run", help="play a scenario file (orders, waits) on the simulator")
     p.add_argument(
         "scenario",
@@ -342,7 +345,7 @@ def _bench_accuracy(args: argparse.Namespace) -> int:
 
 def _add_bench(sub: Subparsers) -> None:
     bench = sub.add_parser("bench", help="benchmarks that print figures")
-    bsub = bench.add_subparsers(dest="bench_command", required=True)
+    bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="SUBCOMMAND")
     acc = bsub.add_parser(
         "accuracy",
         help="the specification's Performances experiment on randomized robots",

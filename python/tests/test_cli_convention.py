@@ -306,3 +306,14 @@ def test_the_driver_imports_nothing_of_the_simulator() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_no_png_needs_no_writable_directory(
+    no_runs: list[int], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``demo --no-png`` checks no plot path (it writes none); ``demo`` checks the default."""
+    monkeypatch.chdir("/proc")
+    with pytest.raises(RunReachedError):
+        cli.main(["demo", "--no-png"])
+    code, _, err = run(["demo"])
+    assert code == 2 and "asserv-demo.png: cannot write the file" in err
