@@ -173,6 +173,7 @@ def test_encode_and_goto_panier_agree_in_degrees(
 
 
 def test_raw_steps_only_when_asked(monkeypatch: pytest.MonkeyPatch) -> None:
+    assert run(["encode", "stop"])[1].strip() == "0c"  # names in any case
     assert run(["encode", "goto_panier", "45"])[1].strip() == "02 16"  # 44 degrees
     assert run(["encode", "goto_panier", "45", "--raw"])[1].strip() == "02 2d"  # 90 degrees
     assert run(["decode", "02", "2d"])[1].strip() == "GOTO_PANIER angle_deg=90"
