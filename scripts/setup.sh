@@ -1,17 +1,34 @@
 # Sourced by scripts/demo.sh and scripts/test.sh: installs what the project needs, idempotently.
+#   . scripts/setup.sh demo    what the simulator needs: a C compiler and Python (scripts/demo.sh)
+#   . scripts/setup.sh [test]  everything the tests and checks use: CMake, the sanitizers, clang,
+#                              valgrind, the AVR and ARM toolchains, simavr (scripts/test.sh)
 #  - Debian packages: with apt-get when run as root, otherwise a message naming the missing ones.
-#  - A Python virtual environment in .venv with the package and its dev tools (pip).
+#  - A Python virtual environment in .venv with the package, its simulator (python/asserv-sim,
+#    compiled from the C sources) and, for `test`, the dev tools (pip).
 # After it: ROOT is the repository, the venv is active, and build/ is the CMake build directory.
 
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$ROOT"
 
-DEBIAN_PACKAGES=(
-	build-essential cmake ninja-build pkg-config python3 python3-venv python3-dev
-	libcmocka-dev clang-format valgrind clang libclang-rt-14-dev
-	gcc-avr avr-libc simavr libsimavr-dev libelf-dev bc gcc-arm-none-eabi libnewlib-arm-none-eabi
-)
+SETUP_PROFILE=${1:-test}
+# The simulator: a C compiler and the Python headers for the cffi extension, and the venv.
+DEBIAN_PACKAGES=(build-essential python3 python3-venv python3-dev)
+case "$SETUP_PROFILE" in
+demo) PIP_EXTRAS=sim ;;
+test)
+	PIP_EXTRAS=dev,sim
+	DEBIAN_PACKAGES+=(
+		cmake ninja-build pkg-config libcmocka-dev clang-format valgrind clang libclang-rt-14-dev
+		gcc-avr avr-libc simavr libsimavr-dev libelf-dev bc gcc-arm-none-eabi
+		libnewlib-arm-none-eabi
+	)
+	;;
+*)
+	echo "setup: unknown profile '$SETUP_PROFILE' (demo or test)" >&2
+	exit 2
+	;;
+esac
 
 missing=()
 for pkg in "${DEBIAN_PACKAGES[@]}"; do
@@ -37,5 +54,9 @@ fi
 # shellcheck disable=SC1091
 . .venv/bin/activate
 python -m pip install -q --upgrade pip >/dev/null
-echo "setup: installing the asserv package and its tools into .venv (pip)"
-python -m pip install -q -e '.[dev]'
+# The extension used to be built into python/asserv/; a stale copy there would shadow _core.py.
+rm -f python/asserv/_core.*.so python/asserv/_core.c
+echo "setup: building the simulator (python/asserv-sim) into .venv (pip)"
+python -m pip install -q -e python/asserv-sim
+echo "setup: installing the asserv package ($PIP_EXTRAS) into .venv (pip)"
+python -m pip install -q -e ".[$PIP_EXTRAS]"

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Every test and check of the project, as CI runs them (.ci/run calls this and nothing else).
-. "$(dirname "$0")/setup.sh"
+. "$(dirname "$0")/setup.sh" test
 
 step() { printf '\n== %s\n' "$*"; }
 
@@ -23,6 +23,9 @@ ctest --test-dir build --output-on-failure
 
 step "Python: pytest"
 python -m pytest
+
+step "install: sdist and wheel built, installed outside the checkout (driver alone, no compiler; asserv[sim])"
+bash scripts/check_install.sh
 
 step "fuzz: the protocol layer and the board tick, 30 s each (libFuzzer, ASan + UBSan: fuzz/README.md)"
 bash fuzz/run.sh 30

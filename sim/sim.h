@@ -1,6 +1,6 @@
 /* Public API of the robot and field physics simulator (C99, double precision, deterministic).
  *
- * What is simulated (defaults and sources in /work/shared/notes/physics.md):
+ * What is simulated (defaults and sources in docs/physics-sources.md):
  *   - a differential-drive robot: two DC motors (Maxon RE25 24 V by default) with a gearbox,
  *     driving two wheels whose contact force on the table is limited by friction (mu N, friction
  *     circle), so the wheels slip when the motors ask for more than the table can give;

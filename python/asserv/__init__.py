@@ -1,4 +1,11 @@
-"""asserv: master-side tools of the asserv motion-control board (driver, codec, simulator)."""
+"""asserv: master-side tools of the asserv motion-control board (driver, codec, simulator).
+
+``pip install asserv``: the driver, the codec and the CLI (needs smbus2 only). The simulator
+(``asserv.sim``, ``asserv.scenario``, plots) is the ``sim`` extra: ``pip install "asserv[sim]"``.
+"""
+
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 
 from ._protocol import ADDRESS, Capability, EndReason, Filtre, OrderState, Reject, Status
 from .bus import Clock, I2CDevice, ProtocolDevice, VirtualBus
@@ -24,6 +31,11 @@ from .driver import (
     OrderRejected,
     PecMismatch,
 )
+
+try:
+    __version__ = _version("asserv")
+except PackageNotFoundError:  # run from a checkout that is not installed
+    __version__ = "0+unknown"
 
 __all__ = [
     "ADDRESS",
@@ -51,6 +63,7 @@ __all__ = [
     "Status",
     "Version",
     "VirtualBus",
+    "__version__",
     "crc8",
     "decode_reply",
     "decode_write",

@@ -6,7 +6,7 @@ independent of the speed, and an arrival error of "+/-7 cm" at 1 m/s and 1 m/s^2
 at random (wheel mismatch, track error, encoder noise, start pose error: ``sim_config_randomize``)
 and, on the same robots in the same run:
 
-- **legacy**: what the 2002 board is thought to have been (../shared/notes/physics.md): a P-only
+- **legacy**: what the 2002 board is thought to have been (docs/physics-sources.md): a P-only
   position loop (Kp 15 /s), no feed-forward, the move declared finished when the set point
   ends. It is this board's code with that configuration (``LEGACY_CONFIG``, ``LEGACY_P``), so
   it has the same odometry, profiles and error radius;

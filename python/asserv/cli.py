@@ -1,12 +1,31 @@
-"""The ``asserv`` command line: the annex demonstration, simulated scenarios, protocol tools."""
+"""The ``asserv`` command line: the annex demonstration, simulated scenarios, protocol tools.
+
+The conventions (exit codes, checks before anything runs, names and units) and how to add a
+subcommand are in ``cli_args``; the commands that drive a board over I2C are in ``cli_bus``.
+"""
 
 from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any, NoReturn
 
-from . import cli_bus, codec
+from . import __version__, cli_args, cli_bus, codec
+from .cli_args import Subparsers, UsageError, at_least, finite_float, natural, positive_float
+
+SIMULATOR_MODULES = {"asserv_sim", "asserv_sim._core", "numpy", "matplotlib", "cffi"}
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with a usage error on one line: ``asserv demo: argument --png: ...``."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, cli_args.one_line(f"{self.prog}: {message} (see {self.prog} --help)") + "\n")
+
+
+# encode / decode -----------------------------------------------------------------------------
 
 
 def _parse_bytes(words: list[str]) -> bytes:
@@ -15,60 +34,293 @@ def _parse_bytes(words: list[str]) -> bytes:
         try:
             value = int(w, 16)
         except ValueError:
-            raise SystemExit(f"asserv decode: byte {i} ({w!r}) is not hexadecimal") from None
+            raise UsageError(f"byte {i} ({w!r}) is not hexadecimal") from None
         if not 0 <= value <= 255:
-            raise SystemExit(f"asserv decode: byte {i} ({w!r}) is not a byte (00..ff)")
+            raise UsageError(f"byte {i} ({w!r}) is not a byte (00..ff)")
         out.append(value)
     return bytes(out)
 
 
-def _parse_ints(name: str, words: list[str]) -> list[int]:
-    out = []
-    for i, w in enumerate(words, 1):
+def _encode(args: argparse.Namespace) -> int:
+    msg = cli_args.message_name(args.message)
+    values: list[float] = []
+    for i, w in enumerate(args.params, 1):
+        f = msg.params[i - 1] if i <= len(msg.params) else None
+        if f is not None and codec.is_2deg(f) and not args.raw:
+            try:
+                values.append(finite_float(w))
+            except argparse.ArgumentTypeError:
+                raise UsageError(f"param {i} ({w!r}) is not a number of degrees") from None
+            continue
         try:
-            out.append(int(w, 0))
+            values.append(int(w, 0))
         except ValueError:
-            raise SystemExit(f"asserv encode {name}: param {i} ({w!r}) is not an integer") from None
-    return out
+            raise UsageError(f"param {i} ({w!r}) is not an integer") from None
+    if args.raw:
+        frame = codec.encode(msg.name, *(int(v) for v in values), pec=args.pec)
+    else:
+        frame = codec.encode_deg(msg.name, *values, pec=args.pec)
+    print(" ".join(f"{b:02x}" for b in frame))
+    return 0
 
 
-def _sim_run(path: str, png: str | None, zoom: list[float] | None = None) -> int:
-    from . import plots, scenario
+def _decode(args: argparse.Namespace) -> int:
+    print(codec.decode_write(_parse_bytes(args.bytes)).describe(raw=args.raw))
+    return 0
 
+
+def _add_codec(sub: Subparsers) -> None:
+    enc = sub.add_parser(
+        "encode",
+        help="print the bytes of a write, e.g. encode GOTO 200 100 0",
+        description="The bytes of a write: the message name in any case (goto-panier,"
+        " GOTO_PANIER), its params in the table's order; angles in degrees.",
+    )
+    enc.add_argument("message", help="message name, in any case: GOTO, goto-panier, stop...")
+    enc.add_argument("params", nargs="*", help="params; an angle in degrees (-180..180)")
+    enc.add_argument("--pec", action="store_true", help="append the SMBus PEC")
+    enc.add_argument("--raw", action="store_true", help="an angle in raw 2-degree steps")
+    enc.set_defaults(func=_encode)
+    dec = sub.add_parser(
+        "decode", help="explain the bytes of a write, e.g. decode 00 00 c8 00 64 00"
+    )
+    dec.add_argument("bytes", nargs="+", help="the bytes, in hexadecimal")
+    dec.add_argument("--raw", action="store_true", help="show an angle in raw 2-degree steps")
+    dec.set_defaults(func=_decode)
+
+
+# demo / sim run ------------------------------------------------------------------------------
+
+
+DEMO_PNG = "asserv-demo.png"
+
+
+def _demo(args: argparse.Namespace) -> int:
+    png = None if args.no_png else args.png or cli_args.check_output_file(DEMO_PNG, (".png",))
+    from . import demo
+
+    return demo.run(png=png)
+
+
+def _add_demo(sub: Subparsers) -> None:
+    p = sub.add_parser(
+        "demo", help="the specification's annex session on the simulated board (frames, poses, PNG)"
+    )
+    p.add_argument(
+        "--png",
+        type=cli_args.output_file(".png"),
+        help=f"plot file (default {DEMO_PNG})",
+    )
+    p.add_argument("--no-png", action="store_true", help="do not write the plot")
+    p.set_defaults(func=_demo)
+
+
+def scenario_path(text: str) -> Path:
+    """A scenario file: a path, or else the name of one installed with the simulator (``annex``,
+    ``recal_border``)."""
+    path = Path(text)
+    if path.exists():
+        return path
+    if text and "/" not in text:
+        from .field import data_dir
+
+        for cand in (data_dir("scenarios") / text, data_dir("scenarios") / f"{text}.txt"):
+            if cand.is_file():
+                return cand
+    return path  # scenario.load says what is wrong with it
+
+
+def _sim_run(args: argparse.Namespace) -> int:
+    zoom = args.zoom
     if zoom is not None and not (zoom[0] < zoom[1] and zoom[2] < zoom[3]):
-        print(
-            "asserv sim run: --zoom XMIN XMAX YMIN YMAX needs XMIN < XMAX and YMIN < YMAX, "
-            f"not {' '.join(f'{v:g}' for v in zoom)}",
-            file=sys.stderr,
+        raise UsageError(
+            "--zoom XMIN XMAX YMIN YMAX needs XMIN < XMAX and YMIN < YMAX, "
+            f"not {' '.join(f'{v:g}' for v in zoom)}"
         )
-        return 2
-    if zoom is not None and not png:
-        print("asserv sim run: --zoom applies to the plot: give --png too", file=sys.stderr)
-        return 2
+    if zoom is not None and not args.png:
+        raise UsageError("--zoom applies to the plot: give --png too")
+    path = scenario_path(args.scenario)
+    from . import plots, scenario
 
     try:
         scn = scenario.load(path)
     except scenario.ScenarioError as e:
-        print(f"asserv sim run: {e}", file=sys.stderr)
-        return 2
+        raise UsageError(str(e)) from None
     res = scenario.play(scn)
     scenario.summary(res)
-    if png:
+    if args.png:
         box = None if zoom is None else (zoom[0], zoom[1], zoom[2], zoom[3])
         out = plots.plot_run(
-            res.sim.trace, scn.field, png, title=path, targets=res.targets, zoom=box
+            res.sim.trace, scn.field, args.png, title=args.scenario, targets=res.targets, zoom=box
         )
         print(f"plot: {out}")
     return 0 if res.ok else 1
 
 
+def _add_sim(sub: Subparsers) -> None:
+    sim = sub.add_parser("sim", help="the simulated board")
+    simsub = sim.add_subparsers(dest="sim_command", required=True, metavar="SUBCOMMAND")
+    p = simsub.add_parser("run", help="play a scenario file (orders, waits) on the simulator")
+    p.add_argument(
+        "scenario",
+        help="scenario file, e.g. scenarios/annex.txt, or the name of an installed one: annex",
+    )
+    p.add_argument(
+        "--png", type=cli_args.output_file(".png"), help="also write a plot of the run to this file"
+    )
+    p.add_argument(
+        "--zoom",
+        nargs=4,
+        type=finite_float,
+        metavar=("XMIN", "XMAX", "YMIN", "YMAX"),
+        help="field view of the plot [mm]",
+    )
+    p.set_defaults(func=_sim_run)
+
+
+# calibrate -----------------------------------------------------------------------------------
+
+
+def _calibrate(args: argparse.Namespace) -> int:
+    from . import calibration
+    from .driver import AsservError, Board
+
+    prog = "asserv calibrate"
+    real = getattr(args, "bus", None) is not None
+    address = cli_bus.parse_address(args.address)
+    number = cli_bus.parse_bus(args.bus) if real else 0
+    current = calibration.OdometrySetting(
+        args.ratio_ppm, round(args.track_mm * 100), args.scale_ppm
+    )
+    codec.encode("SET_ODOMETRIE", current.ratio_ppm, current.track_10um, current.scale_ppm)
+    plan = calibration.Plan(turns=args.turns, round_trips=args.round_trips)
+    geometry = calibration.Geometry(
+        table_length_mm=args.table_length,
+        robot_length_mm=args.robot_length,
+        turn_radius_mm=args.turn_radius,
+    )
+    if not real:
+        from . import accuracy
+        from .sim import Simulator
+
+        sim = Simulator(
+            {"start": accuracy.CALIBRATION_START}, seed=args.seed, randomize=True, record=False
+        )
+        print(f"{prog}: simulated robot {args.seed}: {sim.describe_robot()}")
+        geometry = calibration.Geometry(
+            table_length_mm=sim.field.length_mm,
+            robot_length_mm=float(sim.config.outline_length_mm),
+            turn_radius_mm=args.turn_radius,
+        )
+        before = sim.odometry_errors()
+        bus: Any = sim.bus
+    else:
+        import smbus2
+
+        try:
+            bus = smbus2.SMBus(number)
+        except OSError as e:
+            print(f"{prog}: {cli_bus.open_error(number, e)}", file=sys.stderr)
+            return 1
+    try:
+        board = Board(bus, address, pec=args.pec)
+        res = calibration.calibrate(board, geometry, plan, current, write=not args.dry_run)
+    except (calibration.CalibrationError, AsservError) as e:
+        print(f"{prog}: {e}", file=sys.stderr)
+        return 1
+    finally:
+        if real:
+            bus.close()
+    print("measured:")
+    for line in res.lines():
+        print(line)
+    if not real:
+        sim.advance(0.002)
+        after = sim.odometry_errors()
+        print("the simulated robot's true errors (configured odometry vs true wheels):")
+        for name, errs in (("before", before), ("after", after)):
+            print(
+                f"  {name}: wheel ratio {errs.ratio * 100:+.4f} %, track {errs.track_mm:+.3f} mm,"
+                f" scale {errs.scale * 100:+.4f} %"
+            )
+        print(f"simulated time {sim.time_s:.1f} s")
+    return 0
+
+
+def _add_calibrate(sub: Subparsers) -> None:
+    cal = sub.add_parser(
+        "calibrate",
+        help="odometry calibration against the borders (simulated robot, or --bus N)",
+        description="Measure the wheel ratio, the encoder track and the wheel scale by N turns"
+        " and wall-to-wall round trips, and write them with SET_ODOMETRIE (docs/calibration.md)."
+        " The robot starts with its rear flat against a border, facing the opposite one.",
+    )
+    cal.add_argument(
+        "--bus",
+        metavar="N",
+        default=argparse.SUPPRESS,
+        help="a real board on /dev/i2c-N (default: a simulated robot)",
+    )
+    cal.add_argument("--address", default="2", help="7-bit address of the board (default 2)")
+    cal.add_argument("--pec", action="store_true", help="PEC on every write and reply")
+    cal.add_argument("--seed", type=natural, default=0, help="the simulated robot (default 0)")
+    cal.add_argument("--turns", type=at_least(1), default=10, help="full turns in place (10)")
+    cal.add_argument(
+        "--round-trips", type=at_least(2), default=3, help="wall-to-wall round trips (default 3)"
+    )
+    cal.add_argument(
+        "--table-length",
+        type=positive_float,
+        default=3000.0,
+        help="between the two borders driven between, mm (default 3000)",
+    )
+    cal.add_argument(
+        "--robot-length",
+        type=positive_float,
+        default=250.0,
+        help="rear bumper to front bumper, mm (default 250)",
+    )
+    cal.add_argument(
+        "--turn-radius",
+        type=positive_float,
+        default=200.0,
+        help="encoder midpoint to the outline's farthest point, mm (default 200)",
+    )
+    cal.add_argument(
+        "--ratio-ppm",
+        type=at_least(-30000, 30000),
+        default=0,
+        help="the board's current SET_ODOMETRIE ratio (default 0, as after reset)",
+    )
+    cal.add_argument(
+        "--track-mm",
+        type=positive_float,
+        default=280.0,
+        help="the board's current encoder track, mm (default 280: the build's)",
+    )
+    cal.add_argument(
+        "--scale-ppm",
+        type=at_least(-30000, 30000),
+        default=0,
+        help="the board's current SET_ODOMETRIE scale (default 0)",
+    )
+    cal.add_argument(
+        "--dry-run", action="store_true", help="measure, but leave the board's setting as it was"
+    )
+    cal.set_defaults(func=_calibrate)
+
+
+# bench ---------------------------------------------------------------------------------------
+
+
 def _bench_accuracy(args: argparse.Namespace) -> int:
+    if args.first_seed + args.robots - 1 > cli_args.SEED_MAX:
+        raise UsageError("--first-seed + --robots goes past the last seed (2^64-1)")
+    if not args.no_png:
+        cli_args.check_output_dir(args.out)
     from . import accuracy
     from .calibration import Plan
 
-    if args.robots < 1 or args.jobs < 1:
-        print("asserv bench accuracy: --robots and --jobs must be at least 1", file=sys.stderr)
-        return 2
     plan = Plan(turns=args.turns, round_trips=args.round_trips)
 
     def progress(done: int, total: int) -> None:
@@ -91,210 +343,83 @@ def _bench_accuracy(args: argparse.Namespace) -> int:
     return 0
 
 
-def _calibrate(args: argparse.Namespace) -> int:
-    from . import calibration
-    from .driver import AsservError, Board
-
-    prog = "asserv calibrate"
-    if args.turns < 1 or args.round_trips < 2:
-        print(f"{prog}: the procedure needs at least 1 turn and 2 round trips", file=sys.stderr)
-        return 2
-    geometry = calibration.Geometry(
-        table_length_mm=args.table_length,
-        robot_length_mm=args.robot_length,
-        turn_radius_mm=args.turn_radius,
-    )
-    plan = calibration.Plan(turns=args.turns, round_trips=args.round_trips)
-    current = calibration.OdometrySetting(
-        args.ratio_ppm, round(args.track_mm * 100), args.scale_ppm
-    )
-    if getattr(args, "bus", None) is None:
-        from . import accuracy
-        from .sim import Simulator
-
-        sim = Simulator(
-            {"start": accuracy.CALIBRATION_START}, seed=args.seed, randomize=True, record=False
-        )
-        print(f"{prog}: simulated robot {args.seed}: {sim.describe_robot()}")
-        geometry = calibration.Geometry(
-            table_length_mm=sim.field.length_mm,
-            robot_length_mm=float(sim.config.outline_length_mm),
-            turn_radius_mm=args.turn_radius,
-        )
-        before = sim.odometry_errors()
-        bus: Any = sim.bus
-    else:
-        import smbus2
-
-        try:
-            bus = smbus2.SMBus(int(args.bus, 0))
-        except (OSError, ValueError) as e:
-            print(f"{prog}: cannot open I2C bus {args.bus!r}: {e}", file=sys.stderr)
-            return 1
-    try:
-        board = Board(bus, int(args.address, 0), pec=args.pec)
-        res = calibration.calibrate(board, geometry, plan, current, write=not args.dry_run)
-    except (calibration.CalibrationError, AsservError) as e:
-        print(f"{prog}: {e}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted (the robot may still be moving: `stop`)", file=sys.stderr)
-        return 130
-    finally:
-        if getattr(args, "bus", None) is not None:
-            bus.close()
-    print("measured:")
-    for line in res.lines():
-        print(line)
-    if getattr(args, "bus", None) is None:
-        sim.advance(0.002)
-        after = sim.odometry_errors()
-        print("the simulated robot's true errors (configured odometry vs true wheels):")
-        for name, errs in (("before", before), ("after", after)):
-            print(
-                f"  {name}: wheel ratio {errs.ratio * 100:+.4f} %, track {errs.track_mm:+.3f} mm,"
-                f" scale {errs.scale * 100:+.4f} %"
-            )
-        print(f"simulated time {sim.time_s:.1f} s")
-    return 0
-
-
-def _add_calibrate(sub: Any) -> None:
-    cal = sub.add_parser(
-        "calibrate",
-        help="odometry calibration against the borders (simulated robot, or --bus N)",
-        description="Measure the wheel ratio, the encoder track and the wheel scale by N turns"
-        " and wall-to-wall round trips, and write them with SET_ODOMETRIE (docs/calibration.md)."
-        " The robot starts with its rear flat against a border, facing the opposite one.",
-    )
-    cal.add_argument(
-        "--bus",
-        metavar="N",
-        default=argparse.SUPPRESS,
-        help="a real board on /dev/i2c-N (default: a simulated robot)",
-    )
-    cal.add_argument("--address", default="2", help="7-bit address of the board (default 2)")
-    cal.add_argument("--pec", action="store_true", help="PEC on every write and reply")
-    cal.add_argument("--seed", type=int, default=0, help="the simulated robot (default 0)")
-    cal.add_argument("--turns", type=int, default=10, help="full turns in place (default 10)")
-    cal.add_argument(
-        "--round-trips", type=int, default=3, help="wall-to-wall round trips (default 3)"
-    )
-    cal.add_argument(
-        "--table-length",
-        type=float,
-        default=3000.0,
-        help="between the two borders driven between, mm (default 3000)",
-    )
-    cal.add_argument(
-        "--robot-length",
-        type=float,
-        default=250.0,
-        help="rear bumper to front bumper, mm (default 250)",
-    )
-    cal.add_argument(
-        "--turn-radius",
-        type=float,
-        default=200.0,
-        help="encoder midpoint to the outline's farthest point, mm (default 200)",
-    )
-    cal.add_argument(
-        "--ratio-ppm",
-        type=int,
-        default=0,
-        help="the board's current SET_ODOMETRIE ratio (default 0, as after reset)",
-    )
-    cal.add_argument(
-        "--track-mm",
-        type=float,
-        default=280.0,
-        help="the board's current encoder track, mm (default 280: the build's)",
-    )
-    cal.add_argument(
-        "--scale-ppm",
-        type=int,
-        default=0,
-        help="the board's current SET_ODOMETRIE scale (default 0)",
-    )
-    cal.add_argument(
-        "--dry-run", action="store_true", help="measure, but leave the board's setting as it was"
-    )
-
-
-def _add_bench(sub: Any) -> None:
+def _add_bench(sub: Subparsers) -> None:
     bench = sub.add_parser("bench", help="benchmarks that print figures")
-    bsub = bench.add_subparsers(dest="bench_command", required=True)
+    bsub = bench.add_subparsers(dest="bench_command", required=True, metavar="SUBCOMMAND")
     acc = bsub.add_parser(
         "accuracy",
         help="the specification's Performances experiment on randomized robots",
         description="A 1.8 m straight at 0.2, 0.5 and 1 m/s on randomized simulated robots:"
         " legacy P-only baseline, this board, this board calibrated (bench/README.md).",
     )
-    acc.add_argument("--robots", type=int, default=200, help="how many (default 200)")
-    acc.add_argument("--first-seed", type=int, default=0, help="seed of the first robot")
-    acc.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
-    acc.add_argument("--turns", type=int, default=10, help="calibration: full turns")
-    acc.add_argument("--round-trips", type=int, default=3, help="calibration: round trips")
+    acc.add_argument("--robots", type=at_least(1), default=200, help="how many (default 200)")
+    acc.add_argument("--first-seed", type=natural, default=0, help="seed of the first robot")
+    acc.add_argument("--jobs", type=at_least(1, 256), default=1, help="processes (default 1)")
+    acc.add_argument("--turns", type=at_least(1), default=10, help="calibration: full turns")
+    acc.add_argument("--round-trips", type=at_least(2), default=3, help="calibration: round trips")
     acc.add_argument(
         "--out", default="bench-out", help="directory of the PNGs (default %(default)s)"
     )
     acc.add_argument("--no-png", action="store_true", help="do not write the plots")
+    acc.set_defaults(func=_bench_accuracy)
+
+
+# main ----------------------------------------------------------------------------------------
+
+#: The subcommands: each adds its parser and sets ``func`` (see cli_args for the convention).
+REGISTER: list[Callable[[Subparsers], None]] = [
+    _add_demo,
+    _add_sim,
+    _add_codec,
+    _add_calibrate,
+    _add_bench,
+]
+
+
+def parser() -> argparse.ArgumentParser:
+    """The whole command line's parser."""
+    ap: argparse.ArgumentParser = _Parser(prog="asserv", description=__doc__.splitlines()[0])
+    ap.add_argument("--version", action="version", version=f"asserv {__version__}")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for register in REGISTER:
+        register(sub)
+    cli_bus.add_bus_arguments(ap, sub)
+    return ap
+
+
+def _prog(args: argparse.Namespace) -> str:
+    words = [getattr(args, k, None) for k in ("command", "sim_command", "bench_command")]
+    return " ".join(["asserv", *(w for w in words if w)])
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="asserv", description=__doc__)
-    sub = ap.add_subparsers(dest="command", required=True)
-    demo_p = sub.add_parser(
-        "demo", help="the specification's annex session on the simulated board (frames, poses, PNG)"
-    )
-    demo_p.add_argument("--png", default="asserv-demo.png", help="plot file (default %(default)s)")
-    demo_p.add_argument("--no-png", action="store_true", help="do not write the plot")
-    sim = sub.add_parser("sim", help="the simulated board")
-    simsub = sim.add_subparsers(dest="sim_command", required=True)
-    run_p = simsub.add_parser("run", help="play a scenario file (orders, waits) on the simulator")
-    run_p.add_argument("scenario", help="scenario file, e.g. scenarios/annex.txt")
-    run_p.add_argument("--png", help="also write a plot of the run to this file")
-    run_p.add_argument(
-        "--zoom",
-        nargs=4,
-        type=float,
-        metavar=("XMIN", "XMAX", "YMIN", "YMAX"),
-        help="field view of the plot [mm]",
-    )
-    enc = sub.add_parser("encode", help="print the bytes of a write, e.g. encode GOTO 200 100 0")
-    enc.add_argument("message")
-    enc.add_argument("params", nargs="*")
-    enc.add_argument("--pec", action="store_true", help="append the SMBus PEC")
-    dec = sub.add_parser(
-        "decode", help="explain the bytes of a write, e.g. decode 00 00 c8 00 64 00"
-    )
-    dec.add_argument("bytes", nargs="+")
-    _add_calibrate(sub)
-    _add_bench(sub)
-    cli_bus.add_bus_arguments(ap, sub)
-    args = ap.parse_args(argv)
+    """Run the command line; returns the exit code: 0 done, 1 the bus, the board or the run
+    failed, 2 bad usage or input (one line on stderr), 130 interrupted."""
+    try:
+        args = parser().parse_args(argv)
+    except SystemExit as e:  # --help, --version (0) or a usage error (2), already printed
+        return e.code if isinstance(e.code, int) else 2
     if cli_bus.is_bus_command(args):
         return cli_bus.run_bus_command(args)
-
-    if args.command == "demo":
-        from . import demo
-
-        return demo.run(png=None if args.no_png else args.png)
-    if args.command == "sim":
-        return _sim_run(args.scenario, args.png, args.zoom)
-    if args.command == "calibrate":
-        return _calibrate(args)
-    if args.command == "bench":
-        return _bench_accuracy(args)
+    prog = _prog(args)
     try:
-        if args.command == "encode":
-            frame = codec.encode(
-                args.message, *_parse_ints(args.message, args.params), pec=args.pec
-            )
-            print(" ".join(f"{b:02x}" for b in frame))
-        else:
-            print(codec.decode_write(_parse_bytes(args.bytes)).describe())
-    except codec.FrameError as e:
-        print(f"asserv {args.command}: the board would reject this: {e}", file=sys.stderr)
+        code: int = args.func(args)
+    except UsageError as e:
+        print(cli_args.one_line(f"{prog}: {e}"), file=sys.stderr)
         return 2
-    return 0
+    except codec.FrameError as e:  # a value the board would refuse: nothing was sent
+        print(cli_args.one_line(f"{prog}: the board would reject this: {e}"), file=sys.stderr)
+        return 2
+    except ImportError as e:
+        if not (getattr(e, "name", None) in SIMULATOR_MODULES or "asserv[sim]" in str(e)):
+            raise
+        print(
+            f'{prog}: the simulator is not installed: pip install "asserv[sim]"'
+            " (it needs a C compiler and the Python headers)",
+            file=sys.stderr,
+        )
+        return 1
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted (an order already sent goes on; `stop` stops it)")
+        return 130
+    return code

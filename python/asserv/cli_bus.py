@@ -3,7 +3,9 @@
 ``add_bus_arguments(parser, subparsers)`` adds ``--bus``, ``--address``, ``--pec`` and one
 subcommand per message; ``run_bus_command(args)`` runs the parsed command and returns the exit
 code: 0 done, 1 the bus or the board failed (the driver's message on stderr), 2 bad arguments
-(one line on stderr, nothing sent). The options are accepted before or after the subcommand:
+(one line on stderr, nothing sent). Every argument is checked against the message table before
+the bus opens: a value out of range is reported as the board would (OUT_OF_RANGE) without a bus.
+The options are accepted before or after the subcommand:
 ``asserv --bus 1 goto 200 100`` and ``asserv goto 200 100 --bus 1`` are the same.
 """
 
@@ -23,9 +25,19 @@ import smbus2
 
 from . import codec
 from ._protocol import ADDRESS, Filtre, Status
+from .cli_args import UsageError as _UsageError
+from .cli_args import one_line
 from .driver import AsservError, Board, SMBusLike, _flag_names
 
-__all__ = ["BUS_COMMANDS", "add_bus_arguments", "is_bus_command", "run_bus_command"]
+__all__ = [
+    "BUS_COMMANDS",
+    "add_bus_arguments",
+    "is_bus_command",
+    "open_error",
+    "parse_address",
+    "parse_bus",
+    "run_bus_command",
+]
 
 
 class ClosableBus(SMBusLike, Protocol):
@@ -55,10 +67,6 @@ BUS_COMMANDS: dict[str, str] = {
     "wait": "poll the status until the trajectory is over (the annex's while (BUSY_TRAJET))",
     "debug": "read the DEBUG telemetry frame",
 }
-
-
-class _UsageError(Exception):
-    """A bad argument: one line on stderr, exit code 2."""
 
 
 def _bus_options(parser: argparse.ArgumentParser, *, suppress: bool) -> None:
@@ -114,7 +122,9 @@ def add_bus_arguments(
         "--options", default="0", help="option bits: 1 line recalibration, 2 border recalibration"
     )
     add("goto-reverse").add_argument("distance", metavar="D", help="distance, mm (0..255)")
-    add("goto-panier").add_argument("angle", metavar="ANGLE", help="heading, degrees (-180..180)")
+    p = add("goto-panier")
+    p.add_argument("angle", metavar="ANGLE", help="heading, degrees (-180..180)")
+    p.add_argument("--raw", action="store_true", help="ANGLE in raw 2-degree steps (-90..90)")
     for name in ("set-vitesse-traj", "set-vitesse-rot"):
         p = add(name)
         p.add_argument("speed", metavar="SPEED", help="cm/s (1..255)")
@@ -140,6 +150,11 @@ def add_bus_arguments(
 def is_bus_command(args: argparse.Namespace) -> bool:
     """True if ``args`` was parsed from one of the bus subcommands."""
     return getattr(args, "bus_command", None) is not None
+
+
+def _checked(name: str, *args: int) -> None:
+    """Raise FrameError now if the board would refuse these params (before the bus opens)."""
+    codec.encode(name, *args)
 
 
 def _int(what: str, text: str) -> int:
@@ -214,12 +229,19 @@ def _action(args: argparse.Namespace) -> Action:
     if cmd == "goto":
         x, y = _int("X", args.x), _int("Y", args.y)
         opts = _int("--options", args.options)
+        _checked("GOTO", x, y, opts)
         return order(lambda b: b.goto(x, y, opts), f"GOTO ({x}, {y}) options {opts}")
     if cmd == "goto-reverse":
         d = _int("D", args.distance)
+        _checked("GOTO_REVERSE", d)
         return order(lambda b: b.goto_reverse(d), f"GOTO_REVERSE {d} mm")
     if cmd == "goto-panier":
+        if args.raw:
+            steps = _int("ANGLE", args.angle)
+            _checked("GOTO_PANIER", steps)
+            return order(lambda b: b.goto_panier(2 * steps), f"GOTO_PANIER {2 * steps} deg")
         a = _float("ANGLE", args.angle)
+        codec.encode_deg("GOTO_PANIER", a)
         return order(lambda b: b.goto_panier(a), f"GOTO_PANIER {a:g} deg")
     if cmd == "stop":
         return order(lambda b: b.stop(), "STOP")
@@ -227,6 +249,7 @@ def _action(args: argparse.Namespace) -> Action:
         speed = _int("SPEED", args.speed)
         accel = None if args.accel is None else _int("ACCEL", args.accel)
         name = cmd.upper().replace("-", "_")
+        _checked(name, speed, *(() if accel is None else (accel,)))
         label = f"{name} {speed} cm/s" + (f", {accel} cm/s^2" if accel is not None else "")
         if cmd == "set-vitesse-traj":
             return order(lambda b: b.set_vitesse_traj(speed, accel), label)
@@ -236,16 +259,20 @@ def _action(args: argparse.Namespace) -> Action:
         return order(lambda b: b.set_filtre(preset), f"SET_FILTRE {preset.name}")
     if cmd == "set-filtre-raw":
         p, i, d = _int("P", args.p), _int("I", args.i), _int("D", args.d)
+        _checked("SET_FILTRE_RAW", p, i, d)
         return order(lambda b: b.set_filtre_raw(p, i, d), f"SET_FILTRE_RAW P={p} I={i} D={d}")
     if cmd == "set-new-pos":
         ex, ey, ea = _int("X", args.x), _int("Y", args.y), _int("ANGLE", args.angle)
+        _checked("SET_NEW_POS", ex, ey, ea)
         return order(lambda b: b.set_new_pos(ex, ey, ea), f"SET_NEW_POS ({ex}, {ey}, {ea})")
     if cmd == "set-timeout":
         ms = _int("MS", args.ms)
+        _checked("SET_TIMEOUT", ms)
         return order(lambda b: b.set_timeout(ms), f"SET_TIMEOUT {ms} ms")
     if cmd == "set-odometrie":
         ratio, scale = _int("RATIO_PPM", args.ratio), _int("SCALE_PPM", args.scale)
         track = round(_float("TRACK_MM", args.track) * 100)
+        _checked("SET_ODOMETRIE", ratio, track, scale)
         return order(
             lambda b: b.set_odometrie(ratio, track, scale),
             f"SET_ODOMETRIE ratio {ratio} ppm, track {track / 100:.2f} mm, scale {scale} ppm",
@@ -294,38 +321,58 @@ def _action(args: argparse.Namespace) -> Action:
     raise _UsageError(f"unknown command {cmd!r}")  # add_bus_arguments and this list disagree
 
 
-def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory = smbus2.SMBus) -> int:
+def parse_bus(text: str) -> int:
+    """``--bus N``: the bus number (raises _UsageError)."""
+    number = _int("--bus", text)
+    if not 0 <= number <= 0xFFFF:
+        raise _UsageError(f"--bus ({text!r}) is not a bus number (0..65535)")
+    return number
+
+
+def parse_address(text: str) -> int:
+    """``--address A``: a 7-bit address (raises _UsageError)."""
+    address = _int("--address", text)
+    if not 0 <= address <= 0x7F:
+        raise _UsageError(f"--address ({text!r}) is not a 7-bit address (0..0x7f)")
+    return address
+
+
+def open_error(number: int, e: OSError) -> str:
+    """The message for a bus that does not open, with a hint for the usual causes."""
+    hint = {
+        errno.ENOENT: "; is I2C enabled? (raspi-config, or dtparam=i2c_arm=on)",
+        errno.EACCES: "; add your user to the i2c group",
+    }.get(e.errno or 0, "")
+    reason = os.strerror(e.errno) if e.errno else str(e)
+    return f"cannot open /dev/i2c-{number}: {reason}{hint}"
+
+
+def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = None) -> int:
     """Run a parsed bus command; return the exit code (0 done, 1 bus or board error, 2 bad
-    arguments). ``bus_factory(N)`` opens bus N: ``smbus2.SMBus``, or a VirtualBus in tests."""
+    arguments). ``bus_factory(N)`` opens bus N: ``smbus2.SMBus`` (looked up at each call), or a
+    VirtualBus in tests."""
     cmd = getattr(args, "bus_command", None) or "?"
     prog = f"asserv {cmd}"
 
     def fail(code: int, message: str) -> int:
-        print(f"{prog}: {message}", file=sys.stderr)
+        print(one_line(f"{prog}: {message}"), file=sys.stderr)
         return code
 
     try:
         if getattr(args, "bus", None) is None:
             raise _UsageError("--bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi)")
-        number = _int("--bus", args.bus)
-        if number < 0:
-            raise _UsageError(f"--bus ({args.bus!r}) must be >= 0")
-        address = _int("--address", args.bus_address)
-        if not 0 <= address <= 0x7F:
-            raise _UsageError(f"--address ({args.bus_address!r}) is not a 7-bit address (0..0x7f)")
+        number = parse_bus(args.bus)
+        address = parse_address(args.bus_address)
         action = _action(args)
     except _UsageError as e:
         return fail(2, str(e))
+    except codec.FrameError as e:  # out of range: reported as the board would, nothing opened
+        return fail(2, str(e))
 
     try:
-        bus = bus_factory(number)
+        bus = (bus_factory or smbus2.SMBus)(number)
     except OSError as e:
-        hint = {
-            errno.ENOENT: "; is I2C enabled? (raspi-config, or dtparam=i2c_arm=on)",
-            errno.EACCES: "; add your user to the i2c group",
-        }.get(e.errno or 0, "")
-        reason = os.strerror(e.errno) if e.errno else str(e)
-        return fail(1, f"cannot open /dev/i2c-{number}: {reason}{hint}")
+        return fail(1, open_error(number, e))
     try:
         board = Board(bus, address, pec=bool(args.bus_pec))
         for line in action(board):

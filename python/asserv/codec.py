@@ -7,6 +7,8 @@ this module refuses is a frame the board would reject, with the same reason.
 
 from __future__ import annotations
 
+import difflib
+import math
 from dataclasses import dataclass, fields
 from typing import Final
 
@@ -60,15 +62,67 @@ def read_address(address: int = ADDRESS) -> int:
 
 
 def message(name_or_designation: str | int) -> Message:
-    """The table entry of a message, by name (``"GOTO"``) or designation byte (aliases too)."""
+    """The table entry of a message, by name or designation byte (aliases too).
+
+    Names are taken in any case, with ``-`` for ``_``: ``"GOTO_PANIER"``, ``"goto_panier"`` and
+    ``"goto-panier"`` are the same message."""
+    if isinstance(name_or_designation, str):
+        key = name_or_designation.strip().upper().replace("-", "_")
+        if key in BY_NAME:
+            return BY_NAME[key]
+        close = difflib.get_close_matches(key, BY_NAME, n=3)
+        hint = f" (did you mean {', '.join(close)}?)" if close else ""
+        raise FrameError(Reject.UNKNOWN_DESIGNATION, f"no message {name_or_designation!r}{hint}")
     try:
-        if isinstance(name_or_designation, str):
-            return BY_NAME[name_or_designation]
         return BY_DESIGNATION[name_or_designation]
     except KeyError:
         raise FrameError(
             Reject.UNKNOWN_DESIGNATION, f"no message {name_or_designation!r}"
         ) from None
+
+
+# Angles in 2-degree steps (GOTO_PANIER's param, POSITION's angle): the one unit that is not the
+# user's. Everything shown or typed is in degrees; the raw steps only where asked for (``raw``).
+STEP_SUFFIX: Final = "_2deg"
+
+
+def is_2deg(f: Field) -> bool:
+    """True for a field that travels in 2-degree steps."""
+    return f.name.endswith(STEP_SUFFIX)
+
+
+def deg_name(f: Field) -> str:
+    """The field's name in degrees: ``angle_2deg`` -> ``angle_deg``; other names unchanged."""
+    return f.name.removesuffix(STEP_SUFFIX) + "_deg" if is_2deg(f) else f.name
+
+
+def steps_2deg(angle_deg: float) -> int:
+    """Degrees to 2-degree steps: the nearest step, a half step going towards zero (45 -> 22, as
+    the 2002 annex sends it; -45 -> -22). ``angle_deg`` must be finite."""
+    steps = math.ceil(abs(angle_deg) / 2 - 0.5)
+    return -steps if angle_deg < 0 else steps
+
+
+def encode_deg(name: str, *values: float, pec: bool = False, address: int = ADDRESS) -> bytes:
+    """``encode`` with the user's units: an angle in 2-degree steps is given in degrees
+    (-180..180, rounded as ``steps_2deg``); the other params as in the table. Raises FrameError
+    (OUT_OF_RANGE names the angle in degrees)."""
+    msg = message(name)
+    args: list[int] = []
+    for f, v in zip(msg.params, values, strict=False):
+        if is_2deg(f):
+            lo, hi = 2 * f.min, 2 * f.max
+            if not (math.isfinite(v) and lo <= v <= hi):
+                raise FrameError(
+                    Reject.OUT_OF_RANGE, f"{msg.name}.{deg_name(f)}={v:g} is outside {lo}..{hi}"
+                )
+            args.append(steps_2deg(v))
+        elif isinstance(v, int):
+            args.append(v)
+        else:
+            raise FrameError(Reject.OUT_OF_RANGE, f"{msg.name}.{f.name}={v!r} is not an integer")
+    args.extend(int(v) for v in values[len(msg.params) :])  # too many: encode says BAD_LENGTH
+    return encode(msg.name, *args, pec=pec, address=address)
 
 
 def _check(msg: Message, f: Field, value: int) -> None:
@@ -132,9 +186,11 @@ class Write:
     args: tuple[int, ...]
     pec: bool
 
-    def describe(self) -> str:
+    def describe(self, raw: bool = False) -> str:
+        """``GOTO_PANIER angle_deg=44``: angles in degrees; ``raw``: as sent (``angle_2deg=22``)."""
         params = " ".join(
-            f"{f.name}={v}" for f, v in zip(self.message.params, self.args, strict=False)
+            f"{f.name}={v}" if raw or not is_2deg(f) else f"{deg_name(f)}={2 * v}"
+            for f, v in zip(self.message.params, self.args, strict=False)
         )
         pec = " +PEC" if self.pec else ""
         return f"{self.message.name} {params}".rstrip() + pec
@@ -182,9 +238,10 @@ def decode_write(frame: bytes | bytearray | list[int], address: int = ADDRESS) -
     return Write(msg, tuple(args), pec)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Pose:
-    """POSITION: the board's estimate and its error radius."""
+    """POSITION: the board's estimate and its error radius. The angle travels in 2-degree steps
+    (``angle_2deg``, as on the wire); it is shown in degrees (``angle_deg``)."""
 
     x_mm: int
     y_mm: int
@@ -194,6 +251,12 @@ class Pose:
     @property
     def angle_deg(self) -> int:
         return 2 * self.angle_2deg
+
+    def __repr__(self) -> str:
+        return (
+            f"Pose(x_mm={self.x_mm}, y_mm={self.y_mm}, angle_deg={self.angle_deg},"
+            f" radius_mm={self.radius_mm})"
+        )
 
 
 @dataclass(frozen=True)

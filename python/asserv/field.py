@@ -10,14 +10,31 @@ any virtual environment exists.
 
 from __future__ import annotations
 
+import importlib.resources
 import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-#: The repository's field files.
-FIELD_DIR = Path(__file__).resolve().parents[2] / "field"
+
+def data_dir(name: str) -> Path:
+    """The directory of the simulator's data files ``name`` ("field" or "scenarios").
+
+    Installed, they are package data of asserv-sim (``pip install "asserv[sim]"``), found with
+    importlib.resources; in a checkout without it, the repository's own directory.
+    """
+    try:
+        packaged = importlib.resources.files("asserv_sim") / name
+        if packaged.is_dir():
+            return Path(str(packaged))
+    except ModuleNotFoundError:
+        pass
+    return Path(__file__).resolve().parents[2] / name
+
+
+#: The field files: field/ of the repository, installed as asserv-sim's package data.
+FIELD_DIR = data_dir("field")
 DEFAULT = FIELD_DIR / "default.toml"
 
 # Capacities of the C structures the description is copied into.

@@ -40,7 +40,7 @@ from ._protocol import Filtre, Status
 from .driver import AsservError, Board, GotoOption
 from .sim import Frame, Simulator
 
-SCENARIO_DIR = Path(__file__).resolve().parents[2] / "scenarios"
+SCENARIO_DIR = fieldmod.data_dir("scenarios")
 
 
 class ScenarioError(ValueError):

@@ -69,4 +69,4 @@ def test_calibrate_command_on_a_simulated_robot(capsys: pytest.CaptureFixture[st
     assert "result: SET_ODOMETRIE ratio" in out
     assert "the simulated robot's true errors" in out and "after: wheel ratio" in out
     assert main(["calibrate", "--round-trips", "1"]) == 2
-    assert "at least 1 turn and 2 round trips" in capsys.readouterr().err
+    assert "--round-trips: '1' must be at least 2" in capsys.readouterr().err

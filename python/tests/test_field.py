@@ -6,9 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from asserv._core import ffi, lib
 
 from asserv import field as fieldmod
+from asserv._core import ffi, lib
 
 
 def test_default_file_is_what_the_c_code_is_built_with() -> None:

@@ -1,12 +1,16 @@
-"""cffi build script of asserv._core: the board's C sources (control core, protocol layer, host
-port) and the physics simulator compiled into the Python package, so that Python drives exactly
-the code the board runs (run by setup.py at install time, i.e. by ``pip install -e .``)."""
+"""cffi build script of asserv_sim._core: the board's C sources (control core, protocol layer, host
+port) and the physics simulator compiled for Python, so that Python drives exactly the code the
+board runs (run by setup.py when asserv-sim is built: ``pip install "asserv[sim]"``).
+
+The sources are under csrc/: in the repository, links to firmware/ and sim/; in the sdist, the
+files themselves. Paths are relative to this directory, where setuptools runs."""
 
 from pathlib import Path
 
 from cffi import FFI
 
-ROOT = Path(__file__).resolve().parents[2]
+HERE = Path(__file__).resolve().parent
+ROOT = HERE / "csrc"
 CORE = ROOT / "firmware" / "core"
 SIM = ROOT / "sim"
 PORTS = ROOT / "firmware" / "ports"
@@ -352,10 +356,10 @@ void board_slow(struct board *b);
 ffibuilder = FFI()
 ffibuilder.cdef(CDEF)
 ffibuilder.set_source(
-    "asserv._core",
+    "asserv_sim._core",
     '#include "protocol.h"\n#include "sim.h"\n#include "host.h"\n',
-    sources=[str(s.relative_to(ROOT)) for s in SOURCES],
-    include_dirs=[str(i) for i in INCLUDES],
+    sources=[str(s.relative_to(HERE)) for s in SOURCES],
+    include_dirs=[str(i.relative_to(HERE)) for i in INCLUDES],
     # As the CMake build: C99, and no fused multiply-add so the physics gives the same bits.
     extra_compile_args=["-std=c99", "-O2", "-Wall", "-Wextra", "-ffp-contract=off"],
 )

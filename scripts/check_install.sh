@@ -1,0 +1,103 @@
+#!/usr/bin/env bash
+# Installs the package as a team would, outside the checkout, and runs it there (scripts/test.sh):
+#  1. builds the sdist and the wheel of asserv (pure Python) and of asserv-sim (the C simulator);
+#  2. the driver alone, from the wheel and from the sdist, on a machine with no C compiler (cc,
+#     gcc and clang replaced by a command that fails and records the attempt; CC=false): it
+#     installs, imports without numpy, matplotlib or cffi, and answers the CLI;
+#  3. asserv[sim] from the wheels: `asserv demo`, a scenario, and the driver's tests;
+#  4. asserv[sim] from the sdists (the extension compiled from the C sources the sdist carries):
+#     `asserv demo` and a scenario.
+# Needs network access to PyPI for the dependencies (smbus2, numpy, matplotlib, cffi, pytest).
+set -euo pipefail
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+PYTHON=${PYTHON:-python3}
+WORK=$(mktemp -d)
+trap 'rm -rf "$WORK"' EXIT
+say() { printf -- '-- %s %s\n' "$(date +%T)" "$*"; }
+fail() {
+	echo "check_install: $*" >&2
+	exit 1
+}
+
+say "build: sdist and wheel of asserv and asserv-sim (python -m build)"
+python -m build -o "$WORK/dist" "$ROOT" >"$WORK/build.log" 2>&1 || {
+	cat "$WORK/build.log"
+	fail "python -m build of asserv failed"
+}
+python -m build -o "$WORK/dist" "$ROOT/python/asserv-sim" >>"$WORK/build.log" 2>&1 || {
+	cat "$WORK/build.log"
+	fail "python -m build of asserv-sim failed"
+}
+ls "$WORK/dist"
+WHEEL=$(echo "$WORK"/dist/asserv-*-py3-none-any.whl)
+SDIST=$(echo "$WORK"/dist/asserv-[0-9]*.tar.gz)
+SIM_WHEEL=$(echo "$WORK"/dist/asserv_sim-*.whl)
+SIM_SDIST=$(echo "$WORK"/dist/asserv_sim-*.tar.gz)
+for f in "$WHEEL" "$SDIST" "$SIM_WHEEL" "$SIM_SDIST"; do [ -f "$f" ] || fail "missing $f"; done
+
+cd "$WORK" # from here on, nothing of the checkout is on the path
+
+# A machine without a C compiler: every compiler name runs this, which records and fails.
+mkdir nocc
+for cc in cc gcc c++ g++ clang clang++ x86_64-linux-gnu-gcc aarch64-linux-gnu-gcc; do
+	printf '#!/bin/sh\necho "$0 $*" >>%s/compiler-calls\nexit 1\n' "$WORK" >"nocc/$cc"
+	chmod +x "nocc/$cc"
+done
+
+for kind in wheel sdist; do
+	if [ $kind = wheel ]; then pkg=$WHEEL; else pkg=$SDIST; fi
+	say "driver only, from the $kind, no compiler: pip install asserv"
+	"$PYTHON" -m venv "drv-$kind"
+	(
+		export PATH="$WORK/nocc:$WORK/drv-$kind/bin:$PATH" CC=false CXX=false
+		pip install -q "$pkg"
+		if pip show -q cffi 2>/dev/null; then fail "the driver-only install pulled in cffi"; fi
+		python - <<-'EOF'
+			import sys
+			import asserv, asserv.cli, asserv.cli_bus, asserv.driver, asserv.codec
+			loaded = {"numpy", "matplotlib", "cffi", "asserv_sim"} & set(sys.modules)
+			assert not loaded, f"the driver imports {loaded}"
+			print(f"import asserv {asserv.__version__}: without numpy, matplotlib, cffi")
+		EOF
+		asserv --version
+		[ "$(asserv encode goto 200 100 0)" = "00 00 c8 00 64 00" ] || fail "asserv encode"
+		set +e
+		asserv --bus 1 goto 40000 0 2>err.txt
+		rc=$?
+		asserv demo --no-png 2>demo-err.txt
+		rc_demo=$?
+		set -e
+		[ $rc = 2 ] && grep -q OUT_OF_RANGE err.txt || fail "goto 40000 0: exit $rc, $(cat err.txt)"
+		[ $rc_demo = 1 ] && grep -q 'pip install "asserv\[sim\]"' demo-err.txt ||
+			fail "asserv demo without the simulator: exit $rc_demo, $(cat demo-err.txt)"
+		cat demo-err.txt
+	)
+	[ ! -s compiler-calls ] || fail "a compiler was called: $(cat compiler-calls)"
+done
+
+say "asserv[sim] from the wheels: demo, a scenario, the driver's tests"
+"$PYTHON" -m venv sim-wheel
+(
+	. sim-wheel/bin/activate
+	pip install -q "$SIM_WHEEL"
+	pip install -q "$WHEEL[sim]" pytest hypothesis
+	asserv demo --png demo.png | tail -n 3
+	[ -s demo.png ] || fail "asserv demo wrote no plot"
+	asserv sim run annex --png annex.png | tail -n 2
+	asserv sim run recal_border | tail -n 1
+	mkdir tests
+	cp "$ROOT"/python/tests/test_{driver,bus,codec,cli_bus}.py tests/
+	python -m pytest -q -p no:cacheprovider tests
+)
+
+say "asserv[sim] from the sdists: the extension compiled from the sources the sdist carries"
+"$PYTHON" -m venv sim-sdist
+(
+	. sim-sdist/bin/activate
+	pip install -q "$SIM_SDIST"
+	pip install -q "$SDIST[sim]"
+	python -c 'import asserv_sim._core, sys; print("built:", asserv_sim._core.__file__)'
+	asserv demo --no-png | tail -n 2
+	asserv sim run recal_line | tail -n 1
+)
+say "install checks passed"
