@@ -32,8 +32,14 @@ def _parse_ints(name: str, words: list[str]) -> list[int]:
     return out
 
 
-def _sim_run(path: str, png: str | None, zoom: list[float] | None = None) -> int:
-    from . import plots, scenario
+def _sim_run(
+    path: str,
+    png: str | None,
+    zoom: list[float] | None = None,
+    mcap: str | None = None,
+    csv: str | None = None,
+) -> int:
+    from . import log, plots, scenario
 
     if zoom is not None and not (zoom[0] < zoom[1] and zoom[2] < zoom[3]):
         print(
@@ -45,6 +51,10 @@ def _sim_run(path: str, png: str | None, zoom: list[float] | None = None) -> int
     if zoom is not None and not png:
         print("asserv sim run: --zoom applies to the plot: give --png too", file=sys.stderr)
         return 2
+    for kind, out_path in (("MCAP", mcap), ("CSV", csv)):
+        if out_path is not None and (why := log.check_output(out_path, kind)):
+            print(f"asserv sim run: {why}", file=sys.stderr)
+            return 2
 
     try:
         scn = scenario.load(path)
@@ -59,6 +69,10 @@ def _sim_run(path: str, png: str | None, zoom: list[float] | None = None) -> int
             res.sim.trace, scn.field, png, title=path, targets=res.targets, zoom=box
         )
         print(f"plot: {out}")
+    if mcap or csv:
+        rows, outline = log.from_sim(res.sim), log.Outline.of(res.sim)
+        if log.write_outputs("asserv sim run", rows, mcap, csv, scn.field, outline):
+            return 2
     return 0 if res.ok else 1
 
 
@@ -261,6 +275,8 @@ def main(argv: list[str] | None = None) -> int:
         metavar=("XMIN", "XMAX", "YMIN", "YMAX"),
         help="field view of the plot [mm]",
     )
+    run_p.add_argument("--mcap", metavar="FILE", help="also record the run as MCAP (docs/view.md)")
+    run_p.add_argument("--csv", metavar="FILE", help="also record the run as CSV")
     enc = sub.add_parser("encode", help="print the bytes of a write, e.g. encode GOTO 200 100 0")
     enc.add_argument("message")
     enc.add_argument("params", nargs="*")
@@ -271,8 +287,13 @@ def main(argv: list[str] | None = None) -> int:
     dec.add_argument("bytes", nargs="+")
     _add_calibrate(sub)
     _add_bench(sub)
+    from . import log
+
+    log.register(sub)
     cli_bus.add_bus_arguments(ap, sub)
     args = ap.parse_args(argv)
+    if getattr(args, "run", None) is not None:  # subcommands registered by their own module
+        return int(args.run(args))
     if cli_bus.is_bus_command(args):
         return cli_bus.run_bus_command(args)
 
@@ -281,7 +302,7 @@ def main(argv: list[str] | None = None) -> int:
 
         return demo.run(png=None if args.no_png else args.png)
     if args.command == "sim":
-        return _sim_run(args.scenario, args.png, args.zoom)
+        return _sim_run(args.scenario, args.png, args.zoom, args.mcap, args.csv)
     if args.command == "calibrate":
         return _calibrate(args)
     if args.command == "bench":
