@@ -66,7 +66,13 @@ def _sim_run(
     if png:
         box = None if zoom is None else (zoom[0], zoom[1], zoom[2], zoom[3])
         out = plots.plot_run(
-            res.sim.trace, scn.field, png, title=path, targets=res.targets, zoom=box
+            res.sim.trace,
+            scn.field,
+            png,
+            title=path,
+            targets=res.targets,
+            zoom=box,
+            outline=log.Outline.of(res.sim),
         )
         print(f"plot: {out}")
     if mcap or csv:
