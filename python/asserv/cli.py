@@ -293,10 +293,11 @@ def main(argv: list[str] | None = None) -> int:
     dec.add_argument("bytes", nargs="+")
     _add_calibrate(sub)
     _add_bench(sub)
-    from . import log, tune
+    from . import log, tune, view
 
     log.register(sub)
     tune.register(sub)
+    view.register(sub)
     cli_bus.add_bus_arguments(ap, sub)
     args = ap.parse_args(argv)
     if getattr(args, "run", None) is not None:  # subcommands registered by their own module

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import json
 import math
 import sys
@@ -302,6 +303,28 @@ def _color(r: float, g: float, b: float, a: float = 1.0) -> dict[str, float]:
     return {"r": r, "g": g, "b": b, "a": a}
 
 
+def field_dict(field: Field) -> dict[str, Any]:
+    """The field as plain data (the view's and the MCAP metadata's form)."""
+    d = dataclasses.asdict(field)
+    d.pop("source", None)
+    return d
+
+
+def field_from_dict(d: dict[str, Any]) -> Field:
+    """The inverse of ``field_dict``."""
+    from .field import Basket, Line, Obstacle
+
+    return Field(
+        length_mm=float(d["length_mm"]),
+        width_mm=float(d["width_mm"]),
+        borders=bool(d["borders"]),
+        baskets=tuple(Basket(**b) for b in d["baskets"]),
+        lines=tuple(Line(**ln) for ln in d["lines"]),
+        obstacles=tuple(Obstacle(**o) for o in d["obstacles"]),
+        source="<MCAP log>",
+    )
+
+
 def field_scene(field: Field, t_s: float = 0.0) -> dict[str, Any]:
     """The field as a foxglove.SceneUpdate in the frame ``field`` (metres)."""
     hx, hy = field.length_mm / 2, field.width_mm / 2
@@ -464,6 +487,10 @@ class LogWriter:
                     self._channels[topic] = self._writer.register_channel(
                         topic=topic, message_encoding="json", schema_id=schema_ids[schema]
                     )
+                meta = {"outline": json.dumps(dataclasses.asdict(outline or Outline()))}
+                if field is not None:
+                    meta["field"] = json.dumps(field_dict(field))
+                self._writer.add_metadata("asserv", meta)
                 if field is not None:
                     self._write("/field", 0.0, field_scene(field))
                 frames = ["robot", "robot_true"] if truth else ["robot"]
@@ -577,6 +604,8 @@ class McapLog:
     schemas: dict[str, str]  # topic: schema name
     encodings: dict[str, tuple[str, str]]  # topic: (schema encoding, message encoding)
     messages: dict[str, list[dict[str, Any]]]  # topic: decoded messages (all but /asserv)
+    field: Field | None = None  # from the metadata "asserv"
+    outline: Outline | None = None
 
 
 def read_mcap(path: str | Path) -> McapLog:
@@ -589,8 +618,18 @@ def read_mcap(path: str | Path) -> McapLog:
     schemas: dict[str, str] = {}
     encodings: dict[str, tuple[str, str]] = {}
     messages: dict[str, list[dict[str, Any]]] = {}
+    fld: Field | None = None
+    outline: Outline | None = None
     try:
         with p.open("rb") as f:
+            reader = make_reader(f)
+            for meta in reader.iter_metadata():
+                if meta.name == "asserv":
+                    if "field" in meta.metadata:
+                        fld = field_from_dict(json.loads(meta.metadata["field"]))
+                    if "outline" in meta.metadata:
+                        outline = Outline(**json.loads(meta.metadata["outline"]))
+            f.seek(0)
             for schema, channel, message in make_reader(f).iter_messages():
                 name = schema.name if schema is not None else ""
                 schemas[channel.topic] = name
@@ -607,10 +646,10 @@ def read_mcap(path: str | Path) -> McapLog:
                     messages.setdefault(channel.topic, []).append(msg)
     except OSError as e:
         raise LogError(f"cannot read the MCAP file {p}: {e.strerror}") from None
-    except (McapError, ValueError, KeyError, EOFError) as e:
+    except (McapError, ValueError, KeyError, EOFError, TypeError) as e:
         raise LogError(f"{p} is not an asserv MCAP log: {e}") from None
     out = np.array(rows, dtype=LOG_DTYPE) if rows else empty(0)
-    return McapLog(out, schemas, encodings, messages)
+    return McapLog(out, schemas, encodings, messages, fld, outline)
 
 
 def read_csv(path: str | Path) -> np.ndarray:

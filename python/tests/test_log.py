@@ -73,6 +73,8 @@ def test_mcap_schemas_and_values_against_the_trace(sim_run: Simulator, tmp_path:
     assert max(xs) == pytest.approx(sim_run.field.length_mm / 2000)
     assert len(entity["cylinders"]) == len(sim_run.field.baskets)
     assert len(entity["lines"]) == 1 + len(sim_run.field.lines)
+    assert back.field is not None and back.field.baskets == sim_run.field.baskets
+    assert back.field.lines == sim_run.field.lines and back.outline == log.Outline.of(sim_run)
     (robot,) = back.messages["/robot"]
     assert {e["frame_id"] for e in robot["entities"]} == {"robot", "robot_true"}
     # Each schema is JSON and says which fields the messages have.
