@@ -11,6 +11,7 @@ DEBIAN_PACKAGES=(
 	build-essential cmake ninja-build pkg-config python3 python3-venv python3-dev
 	libcmocka-dev clang-format valgrind clang libclang-rt-14-dev
 	gcc-avr avr-libc simavr libsimavr-dev libelf-dev bc gcc-arm-none-eabi libnewlib-arm-none-eabi
+	chromium # asserv view's browser tests (Playwright drives it: no browser download)
 )
 
 missing=()

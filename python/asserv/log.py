@@ -31,6 +31,7 @@ import csv
 import dataclasses
 import json
 import math
+import struct
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -646,7 +647,7 @@ def read_mcap(path: str | Path) -> McapLog:
                     messages.setdefault(channel.topic, []).append(msg)
     except OSError as e:
         raise LogError(f"cannot read the MCAP file {p}: {e.strerror}") from None
-    except (McapError, ValueError, KeyError, EOFError, TypeError) as e:
+    except (McapError, ValueError, KeyError, EOFError, TypeError, struct.error) as e:
         raise LogError(f"{p} is not an asserv MCAP log: {e}") from None
     out = np.array(rows, dtype=LOG_DTYPE) if rows else empty(0)
     return McapLog(out, schemas, encodings, messages, fld, outline)

@@ -177,6 +177,7 @@ class SimSource(Source):
         self.sim = sim
         self.board = Board(sim.bus, pec=scenario.pec if scenario is not None else False)
         self._steps = list(scenario.steps) if scenario is not None else []
+        self._playing = bool(self._steps)
         self._waiting: tuple[str, float] | None = None  # ("wait" | "sleep", until sim time)
         self._drive_track = float(sim.config.drive_track_mm)
         self._dist0 = self._angle0 = 0.0
@@ -217,7 +218,8 @@ class SimSource(Source):
             except AsservError as e:
                 self.message = f"line {st.line}: {e}"
                 self._steps.clear()
-        if not self._steps and self._waiting is None and self.message.startswith("line"):
+        if not self._steps and self._waiting is None and self._playing:
+            self._playing = False
             self.message += " (scenario over)"
 
     def advance(self, dt_s: float) -> np.ndarray:
@@ -306,8 +308,8 @@ class BoardSource(Source):
 
 
 class ReplaySource(Source):
-    """A log read back (``asserv.log.read_mcap``), played at the speed chosen; at its end it
-    starts again. No GOTO."""
+    """A log read back (``asserv.log.read_mcap``), played at the speed chosen; it pauses at its
+    end, and play starts it again. No GOTO."""
 
     def __init__(self, path: str | Path) -> None:
         from . import field as fieldmod
@@ -328,20 +330,30 @@ class ReplaySource(Source):
         self._i = 0
         self.message = f"replay of {path}: {len(rows)} rows, {rows['t_s'][-1]:.1f} s"
 
-    def advance(self, dt_s: float) -> np.ndarray:
-        if self.paused:
-            return log.empty(0)
-        if self._i >= len(self.rows):  # from the start again
+    @property
+    def at_end(self) -> bool:
+        return self._i >= len(self.rows)
+
+    def set_paused(self, paused: bool) -> None:
+        if not paused and self.at_end:  # play at the end: from the start again
             self._i = 0
             self.t = float(self.rows["t_s"][0])
             self.outcome = Outcome()
+        self.paused = paused
+
+    def advance(self, dt_s: float) -> np.ndarray:
+        if self.paused:
+            return log.empty(0)
         self.t += dt_s * self.speed
         j = int(np.searchsorted(self.rows["t_s"], self.t, side="right"))
         out = self.rows[self._i : j]
-        self._i = j
+        self._i = max(self._i, j)
         for s in out["status"]:
             if not math.isnan(s):
                 self.outcome.update(int(s))
+        if self._i >= len(self.rows):
+            self.paused = True
+            self.message = "end of the log (play: from the start again)"
         return out
 
     def goto(self, x_mm: float, y_mm: float) -> None:

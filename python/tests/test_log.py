@@ -233,3 +233,14 @@ def test_log_bad_arguments(
     monkeypatch.setattr(log, "BUS_FACTORY", no_bus)
     assert cli.main(argv) == 2
     assert "asserv log:" in capsys.readouterr().err
+
+
+@given(st.binary(max_size=300))
+@settings(suppress_health_check=[HealthCheck.function_scoped_fixture], deadline=None)
+def test_any_bytes_read_as_a_log_or_a_log_error(tmp_path: Path, data: bytes) -> None:
+    path = tmp_path / "x.mcap"
+    path.write_bytes(b"\x89MCAP0\r\n" + data)
+    try:
+        log.read_mcap(path)
+    except log.LogError as e:
+        assert str(path) in str(e)

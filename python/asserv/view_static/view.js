@@ -206,6 +206,8 @@ function drawPlot(p) {
   let lx = W - R - 10;
   for (const [key, color, label] of [...p.series].reverse()) {
     const k = view.ix[key];
+    g.save();
+    g.beginPath(); g.rect(L, T, W - L - R, H - T - B); g.clip();
     g.strokeStyle = color; g.lineWidth = 1.3;
     g.beginPath();
     let started = false;
@@ -215,6 +217,7 @@ function drawPlot(p) {
       if (started) g.lineTo(X(r[it]), Y(v)); else { g.moveTo(X(r[it]), Y(v)); started = true; }
     }
     g.stroke();
+    g.restore();
     g.fillStyle = color; g.font = "11px sans-serif";
     lx -= g.measureText(label).width + 12;
     g.fillText(label, lx, 13);
@@ -282,19 +285,17 @@ function setup(info) {
 function onRows(msg) {
   view.state = msg.state;
   for (const r of msg.rows) {
+    const o = rowObject(r);
+    if (view.last && o.t_s < view.last.t_s) { // a replay started again: so do the paths
+      view.rows = [];
+      view.estPath = [];
+      view.truePath = [];
+    }
     view.rows.push(r);
     view.received += 1;
-    const o = rowObject(r);
     if (o.est_x_mm !== null) view.estPath.push([o.est_x_mm, o.est_y_mm]);
     if (o.x_mm !== null) view.truePath.push([o.x_mm, o.y_mm]);
     view.last = o;
-  }
-  // a replay that starts again: the time goes back, start the path again
-  const n = view.rows.length;
-  if (n > 1 && view.rows[n - 1][view.ix.t_s] < view.rows[0][view.ix.t_s]) {
-    view.rows = view.rows.slice(-msg.rows.length);
-    view.estPath = view.estPath.slice(-msg.rows.length);
-    view.truePath = view.truePath.slice(-msg.rows.length);
   }
   if (view.rows.length > HISTORY_MAX) view.rows.splice(0, view.rows.length - HISTORY_MAX);
   if (view.estPath.length > PATH_MAX) view.estPath.splice(0, view.estPath.length - PATH_MAX);
