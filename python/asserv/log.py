@@ -342,7 +342,7 @@ def field_scene(field: Field, t_s: float = 0.0) -> dict[str, Any]:
     }
     lines = [
         {
-            "type": 1,  # LINE_LIST
+            "type": 2,  # LINE_LIST (0 LINE_STRIP, 1 LINE_LOOP)
             "pose": _pose(0, 0, 0, 0),
             "thickness": ln.width_mm / 1000,
             "scale_invariant": False,
