@@ -282,13 +282,17 @@ class BoardSource(Source):
                 self._rows.put(row)
                 while not self._orders.empty():
                     x, y = self._orders.get()
-                    self.board.goto(x, y)
+                    try:
+                        self.board.goto(x, y)
+                        self.target = (float(x), float(y))
+                    except (AsservError, ValueError) as e:  # refused: shown, polling goes on
+                        self.message = f"GOTO ({x}, {y}): {e}"
         except AsservError as e:
-            self.message = f"the board: {e}"
+            self.message = f"the board stopped answering: {e}"
 
     def goto(self, x_mm: float, y_mm: float) -> None:
+        """Queued for the polling thread; ``target`` shows it once the board has taken it."""
         self._orders.put((round(x_mm), round(y_mm)))
-        self.target = (float(round(x_mm)), float(round(y_mm)))
 
     def advance(self, dt_s: float) -> np.ndarray:
         rows = []

@@ -153,6 +153,7 @@ def test_board_source_polls_and_sends_gotos() -> None:
                 break
             time.sleep(0.005)
         assert src.outcome.last == "done"
+        assert src.target == (-300.0, -600.0)
         out = np.concatenate(rows)
         assert len(out) > 50 and np.isnan(out["x_mm"]).all()
         # 50 rows a second on the board's clock (a 100 kHz bus: each row takes ~4 ms of it)
@@ -161,6 +162,17 @@ def test_board_source_polls_and_sends_gotos() -> None:
         last = out[-1]
         assert math.hypot(last["est_x_mm"] + 300, last["est_y_mm"] + 600) < 5
         assert not src.truth and src.info()["kind"] == "board"
+        # A GOTO the board cannot take: said on the page, the polling goes on.
+        src.goto(40000, 0)
+        for _ in range(500):
+            time.sleep(0.005)
+            if src.message:
+                break
+        assert src.message.startswith("GOTO (40000, 0):")
+        n = len(src.advance(0.02))
+        time.sleep(0.05)
+        assert n + len(src.advance(0.02)) > 0
+        assert src.target == (-300.0, -600.0)
     finally:
         src.close()
 
