@@ -31,6 +31,7 @@ import queue
 import sys
 import threading
 import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -81,6 +82,47 @@ class Outcome:
             bits = [str(b.name) for b in _END_BITS if status & b]
             self.last = "|".join(bits) if bits else "done"
         self.busy = busy
+
+
+#: A Python strategy: a generator function of the board that yields how many seconds of
+#: simulated time to wait before its next turn (0 or None: the next 10 ms).
+Strategy = Callable[["Board"], Iterator[float | None]]
+
+
+def wait_idle(board: Board, poll_s: float = 0.01) -> Iterator[float]:
+    """For strategies: ``yield from wait_idle(board)`` waits until the order is over (the
+    annex's ``while (BUSY_TRAJET)``), polling CHECK_BUSY every ``poll_s`` of simulated time."""
+    while board.check_busy() & _BUSY:
+        yield poll_s
+
+
+class StrategyError(ValueError):
+    """A strategy file that cannot be used; the message names the file."""
+
+
+def load_strategy(path: str | Path) -> Strategy:
+    """The ``strategy(board)`` generator function of a Python file."""
+    import importlib.util
+    import inspect
+
+    p = Path(path)
+    if not p.is_file():
+        raise StrategyError(f"{p}: no such strategy file")
+    spec = importlib.util.spec_from_file_location(f"asserv_strategy_{p.stem}", p)
+    if spec is None or spec.loader is None:
+        raise StrategyError(f"{p}: not a Python file")
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as e:
+        raise StrategyError(f"{p}: cannot load it: {type(e).__name__}: {e}") from None
+    fn = getattr(module, "strategy", None)
+    if not inspect.isgeneratorfunction(fn):
+        raise StrategyError(
+            f"{p}: needs a generator function strategy(board) that yields seconds to wait"
+        )
+    strategy: Strategy = fn
+    return strategy
 
 
 @dataclass
@@ -167,7 +209,12 @@ class SimSource(Source):
     """A simulated board, playing a scenario's steps (if any) as simulated time goes on; page
     clicks send GOTOs to it. Paced by the wall clock times the speed."""
 
-    def __init__(self, scenario: Scenario | None = None, sim: Simulator | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Scenario | None = None,
+        sim: Simulator | None = None,
+        strategy: Strategy | None = None,
+    ) -> None:
         from .driver import Board
         from .sim import Simulator
 
@@ -180,20 +227,38 @@ class SimSource(Source):
         self._playing = bool(self._steps)
         self._waiting: tuple[str, float] | None = None  # ("wait" | "sleep", until sim time)
         self._drive_track = float(sim.config.drive_track_mm)
-        self._dist0 = self._angle0 = 0.0
+        self._gen = strategy(self.board) if strategy is not None else None
+        self._resume = 0.0  # the strategy's next turn, simulated time
         self._last: np.ndarray | None = None
         self._carry = (0.0, 0.0)  # following error's sums at the end of the last chunk
         self.message = f"scenario: {len(self._steps)} steps" if self._steps else "no scenario"
+        if self._gen is not None:
+            self.message = "strategy"
 
     def goto(self, x_mm: float, y_mm: float) -> None:
         self.board.goto(round(x_mm), round(y_mm))
         self.target = (float(round(x_mm)), float(round(y_mm)))
 
+    def _strategy(self) -> None:
+        """Give the strategy its turn when its wait is over."""
+        if self._gen is None or self.sim.time_s < self._resume:
+            return
+        try:
+            wait = next(self._gen)
+            self._resume = self.sim.time_s + max(0.0, float(wait or 0.0))
+        except StopIteration:
+            self._gen = None
+            self.message = "strategy over"
+        except Exception as e:  # the team's code: shown on the page, the simulator goes on
+            self._gen = None
+            self.message = f"strategy stopped: {type(e).__name__}: {e}"
+
     def _script(self) -> None:
-        """Run the scenario's steps up to its next wait or sleep."""
+        """Run the scenario's steps up to its next wait or sleep, or the strategy's turn."""
         from .driver import AsservError
         from .scenario import BUS_COMMANDS
 
+        self._strategy()
         if self._waiting is not None:
             kind, until = self._waiting
             if self.sim.time_s < until:
@@ -543,9 +608,12 @@ def _command(args: argparse.Namespace) -> int:
             board, bus = opened
             source = BoardSource(board, args.hz, fld)
         else:
-            scn = scenario.load(args.scenario) if args.scenario else None
-            source = SimSource(scn)
-    except (log.LogError, scenario.ScenarioError, fieldmod.FieldError) as e:
+            if args.scenario and args.scenario.endswith(".py"):
+                source = SimSource(strategy=load_strategy(args.scenario))
+            else:
+                scn = scenario.load(args.scenario) if args.scenario else None
+                source = SimSource(scn)
+    except (log.LogError, scenario.ScenarioError, fieldmod.FieldError, StrategyError) as e:
         return usage(str(e))
     server = ViewServer(source, args.host, args.port)
 
@@ -581,7 +649,11 @@ def register(sub: Any) -> None:
         " play/pause, speed x1..x50, a click on the field sends a GOTO (docs/view.md).",
     )
     log.bus_options(p)
-    p.add_argument("scenario", nargs="?", help="a scenario file to play (simulator)")
+    p.add_argument(
+        "scenario",
+        nargs="?",
+        help="a scenario file, or a Python file with a strategy(board) generator (simulator)",
+    )
     p.add_argument("--replay", metavar="RUN.mcap", help="replay a log instead")
     p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0: any)")
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")

@@ -249,3 +249,56 @@ def test_a_log_that_is_not_mcap_is_refused(
     bad.write_text("hello")
     assert cli.main(["view", "--replay", str(bad)]) == 2
     assert "not an asserv MCAP log" in capsys.readouterr().err
+
+
+STRATEGY = """
+from asserv import view
+
+def strategy(board):
+    board.set_vitesse_traj(60, 100)
+    board.goto(400, -850)
+    yield from view.wait_idle(board)
+    yield 0.5
+    board.goto(400, -500)
+    yield from view.wait_idle(board)
+"""
+
+
+def test_a_python_strategy_plays_in_simulated_time(tmp_path: Path) -> None:
+    path = tmp_path / "strat.py"
+    path.write_text(STRATEGY)
+    src = view.SimSource(strategy=view.load_strategy(path))
+    src.set_speed(20)
+    for _ in range(200):
+        rows = src.advance(0.1)
+        if src.message == "strategy over":
+            break
+    assert src.message == "strategy over"
+    assert src.outcome.orders == 2 and src.outcome.last == "done"
+    last = rows[-1]
+    assert math.hypot(last["est_x_mm"] - 400, last["est_y_mm"] + 500) < 2
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [
+        ("def strategy(board):\n    return 1\n", "generator function"),
+        ("x = 1\n", "generator function"),
+        ("def strategy(board:\n", "cannot load it"),
+    ],
+)
+def test_bad_strategy_files(tmp_path: Path, text: str, why: str) -> None:
+    path = tmp_path / "s.py"
+    path.write_text(text)
+    with pytest.raises(view.StrategyError, match=why):
+        view.load_strategy(path)
+    assert cli.main(["view", str(path)]) == 2
+
+
+def test_a_strategy_that_fails_is_shown(tmp_path: Path) -> None:
+    path = tmp_path / "s.py"
+    path.write_text("def strategy(board):\n    yield 0.1\n    board.goto(99999, 0)\n")
+    src = view.SimSource(strategy=view.load_strategy(path))
+    src.advance(0.5)
+    assert src.message.startswith("strategy stopped: FrameError")
+    assert len(src.advance(0.1)) == 100  # the simulator goes on
