@@ -14,9 +14,10 @@ of ``asserv.log.LOG_FIELDS``) and takes the page's commands (``goto``, ``pause``
 more bus object, not a new source.
 
 Messages on ``/ws`` are JSON. Server to page: ``{"type": "hello", "info": {...}}`` once, then
-``{"type": "rows", "fields": [...], "rows": [[...], ...], "state": {...}}`` about 30 times a
-second. Page to server: ``{"type": "goto", "x": mm, "y": mm}``, ``{"type": "pause", "paused":
-bool}``, ``{"type": "speed", "speed": 1..50}``.
+``{"type": "rows", "rows": [[...], ...], "state": {...}}`` about 30 times a second. Page to
+server: ``{"type": "goto", "x": mm, "y": mm}``, ``{"type": "pause", "paused": bool}``,
+``{"type": "speed", "speed": 1..50}``. The simulator's and the replay's time stands still
+while no page is open.
 """
 
 from __future__ import annotations
@@ -518,6 +519,8 @@ class ViewServer:
             await asyncio.sleep(FRAME_S)
             now = time.monotonic()
             dt, last = min(now - last, 0.2), now
+            if not self._clients and self.source.kind != "board":
+                continue  # the simulator's and the replay's time waits for a page
             rows = await asyncio.to_thread(self._tick, dt)
             if not self._clients:
                 continue

@@ -190,6 +190,8 @@ def test_server_serves_the_page_and_the_stream() -> None:
     srv = view.ViewServer(src, "127.0.0.1", 0)
     srv.start_thread()
     try:
+        time.sleep(0.3)
+        assert src.sim.time_s == 0  # no page yet: the simulator waits
         assert srv.url.startswith("http://127.0.0.1:")
         code, ctype, body = _get(srv.url)
         assert code == 200 and ctype.startswith("text/html") and b"view.js" in body
