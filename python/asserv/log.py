@@ -150,26 +150,100 @@ def empty(n: int = 0) -> np.ndarray:
     return out
 
 
-def following_errors(trace: np.ndarray, drive_track_mm: float) -> tuple[np.ndarray, np.ndarray]:
+#: A step of the estimate this far from the truth's step in one tick is a correction of the pose
+#: (a recalibration, SET_NEW_POS), not travel: odometry errs by micrometres per tick.
+CORRECTION_MM = 0.3
+CORRECTION_DEG = 0.05
+_BUSY_BITS = 2 | 4  # BUSY_TRAJET, BUSY_GOTO_PANIER
+_REANCHOR_STATES = (6, 7)  # SQUARE, BACK_OFF (the order_state table)
+
+
+class FollowingErrors:
     """The distance loop's and the angle loop's following errors, mm, rebuilt from a simulator
-    trace: the set point's travel (its speed summed over the ticks) minus the estimate's travel
-    (along its heading, and its heading's change times half the drive track), from the first row,
-    where both are taken as zero."""
-    n = len(trace)
-    if n == 0:
-        return np.zeros(0), np.zeros(0)
-    t = trace["t_s"]
-    dt = np.diff(t, prepend=t[0])
-    h = np.radians(trace["est_heading_deg"])
-    dx = np.diff(trace["est_x_mm"], prepend=trace["est_x_mm"][0])
-    dy = np.diff(trace["est_y_mm"], prepend=trace["est_y_mm"][0])
-    h_mid = np.unwrap(h)
-    moved = np.cumsum(dx * np.cos(h_mid) + dy * np.sin(h_mid))
-    sp = np.cumsum(trace["v_set_mm_s"] * dt)
-    turned = h_mid - h_mid[0]
-    sp_turn = np.cumsum(np.radians(trace["omega_set_deg_s"]) * dt)
-    half = drive_track_mm / 2
-    return sp - moved, (sp_turn - turned) * half
+    trace, chunk after chunk (``update``): the set point's travel (its speed summed over the
+    ticks) minus the estimate's travel (along its heading, and its heading's change times half
+    the drive track).
+
+    - The board's loops follow the odometry's travel, which a correction of the pose does not
+      move: in a tick where the estimate jumps (``CORRECTION_MM``, ``CORRECTION_DEG``), the
+      truth's step stands for the travel.
+    - Each order counts from zero: the board's error is continuous there but settled (hundredths
+      of a mm), and this keeps what a rebuild misses from piling up over a match.
+    - The border recalibration re-anchors the set points (SQUARE, BACK_OFF): unknown (NaN) from
+      there to the next order.
+    """
+
+    def __init__(self, drive_track_mm: float) -> None:
+        self.half_track_mm = drive_track_mm / 2
+        self._prev: np.ndarray | None = None  # the last row seen
+        self._sums = (0.0, 0.0)  # the running values after it
+        self._busy = False
+        self._unknown = False
+
+    def update(self, trace: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = len(trace)
+        if n == 0:
+            return np.zeros(0), np.zeros(0)
+        first = trace[:1] if self._prev is None else self._prev
+
+        def steps(prefix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            x = np.concatenate((first[prefix + "x_mm"], trace[prefix + "x_mm"]))
+            y = np.concatenate((first[prefix + "y_mm"], trace[prefix + "y_mm"]))
+            h = np.unwrap(
+                np.radians(
+                    np.concatenate((first[prefix + "heading_deg"], trace[prefix + "heading_deg"]))
+                )
+            )
+            return np.diff(x), np.diff(y), np.diff(h)
+
+        t = np.concatenate((first["t_s"], trace["t_s"]))
+        dt = np.diff(t)
+        dx, dy, dh = steps("est_")
+        tx, ty, th = steps("")
+        jump = (np.hypot(dx - tx, dy - ty) > CORRECTION_MM) | (
+            np.abs(dh - th) > np.radians(CORRECTION_DEG)
+        )
+        jump &= ~np.isnan(tx)  # no truth: no way to tell
+        dx, dy, dh = (np.where(jump, b, a) for a, b in ((dx, tx), (dy, ty), (dh, th)))
+        h = np.radians(trace["est_heading_deg"])
+        inc_d = trace["v_set_mm_s"] * dt - (dx * np.cos(h) + dy * np.sin(h))
+        inc_t = (np.radians(trace["omega_set_deg_s"]) * dt - dh) * self.half_track_mm
+
+        busy = (np.nan_to_num(trace["status"]).astype(int) & _BUSY_BITS) != 0
+        rise = busy & ~np.concatenate(([self._busy], busy[:-1]))
+        starts = np.nonzero(rise)[0]
+        seg = np.searchsorted(starts, np.arange(n), side="right")  # 0: before a new order
+        out = []
+        for inc, carried in ((inc_d, self._sums[0]), (inc_t, self._sums[1])):
+            c = np.cumsum(inc) + carried
+            before = np.where(starts > 0, c[np.maximum(starts - 1, 0)], carried)
+            out.append(c - np.concatenate(([0.0], before))[seg])
+        dist, turn = out
+        self._sums = (float(dist[-1]), float(turn[-1]))
+
+        lost = np.isin(np.nan_to_num(trace["order_state"]).astype(int), _REANCHOR_STATES)
+        unknown = np.zeros(n, dtype=bool)
+        bounds = [0, *starts.tolist(), n]
+        flag = self._unknown
+        for k in range(len(bounds) - 1):
+            lo, hi = bounds[k], bounds[k + 1]
+            if k > 0 or (len(starts) and starts[0] == 0):
+                flag = False  # a new order
+            hits = np.nonzero(lost[lo:hi])[0]
+            if flag:
+                unknown[lo:hi] = True
+            elif len(hits):
+                unknown[lo + hits[0] : hi] = True
+                flag = True
+        self._unknown = flag
+        self._busy = bool(busy[-1])
+        self._prev = trace[-1:].copy()
+        return np.where(unknown, np.nan, dist), np.where(unknown, np.nan, turn)
+
+
+def following_errors(trace: np.ndarray, drive_track_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """``FollowingErrors`` over a whole trace."""
+    return FollowingErrors(drive_track_mm).update(trace)
 
 
 def from_trace(trace: np.ndarray, drive_track_mm: float = 160.0) -> np.ndarray:

@@ -227,11 +227,9 @@ class SimSource(Source):
         self._steps = list(scenario.steps) if scenario is not None else []
         self._playing = bool(self._steps)
         self._waiting: tuple[str, float] | None = None  # ("wait" | "sleep", until sim time)
-        self._drive_track = float(sim.config.drive_track_mm)
         self._gen = strategy(self.board) if strategy is not None else None
         self._resume = 0.0  # the strategy's next turn, simulated time
-        self._last: np.ndarray | None = None
-        self._carry = (0.0, 0.0)  # following error's sums at the end of the last chunk
+        self._errors = log.FollowingErrors(float(sim.config.drive_track_mm))
         self.message = f"scenario: {len(self._steps)} steps" if self._steps else "no scenario"
         if self._gen is not None:
             self.message = "strategy"
@@ -305,17 +303,12 @@ class SimSource(Source):
         return rows
 
     def _rows(self, raw: np.ndarray) -> np.ndarray:
-        """Log rows with the following errors carried on from the previous chunk."""
-        if self._last is not None:
-            raw = np.concatenate((self._last, raw))
-        rows = log.from_trace(raw, self._drive_track)
-        if self._last is not None:
-            rows = rows[1:]
-            rows["dist_err_mm"] += self._carry[0]
-            rows["angle_err_mm"] += self._carry[1]
-        if len(rows):
-            self._last = raw[-1:].copy()
-            self._carry = (float(rows["dist_err_mm"][-1]), float(rows["angle_err_mm"][-1]))
+        """Log rows, the following errors carried on from the previous chunk."""
+        rows = log.empty(len(raw))
+        for name in log.LOG_FIELDS:
+            if name in (raw.dtype.names or ()):
+                rows[name] = raw[name]
+        rows["dist_err_mm"], rows["angle_err_mm"] = self._errors.update(raw)
         return rows
 
 
