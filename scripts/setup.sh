@@ -22,6 +22,7 @@ test)
 		cmake ninja-build pkg-config libcmocka-dev clang-format valgrind clang libclang-rt-14-dev
 		gcc-avr avr-libc simavr libsimavr-dev libelf-dev bc gcc-arm-none-eabi
 		libnewlib-arm-none-eabi
+		chromium # asserv view's browser tests (Playwright drives it: no browser download)
 	)
 	;;
 *)

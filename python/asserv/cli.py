@@ -7,6 +7,7 @@ subcommand are in ``cli_args``; the commands that drive a board over I2C are in 
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -140,7 +141,11 @@ def _sim_run(args: argparse.Namespace) -> int:
     if zoom is not None and not args.png:
         raise UsageError("--zoom applies to the plot: give --png too")
     path = scenario_path(args.scenario)
-    from . import plots, scenario
+    from . import log, plots, scenario
+
+    for kind, out_path in (("MCAP", args.mcap), ("CSV", args.csv)):
+        if out_path is not None and (why := log.check_output(out_path, kind)):
+            raise UsageError(why)
 
     try:
         scn = scenario.load(path)
@@ -151,9 +156,19 @@ def _sim_run(args: argparse.Namespace) -> int:
     if args.png:
         box = None if zoom is None else (zoom[0], zoom[1], zoom[2], zoom[3])
         out = plots.plot_run(
-            res.sim.trace, scn.field, args.png, title=args.scenario, targets=res.targets, zoom=box
+            res.sim.trace,
+            scn.field,
+            args.png,
+            title=args.scenario,
+            targets=res.targets,
+            zoom=box,
+            outline=log.Outline.of(res.sim),
         )
         print(f"plot: {out}")
+    if args.mcap or args.csv:
+        rows, outline = log.from_sim(res.sim), log.Outline.of(res.sim)
+        if log.write_outputs("asserv sim run", rows, args.mcap, args.csv, scn.field, outline):
+            return 2
     return 0 if res.ok else 1
 
 
@@ -175,6 +190,8 @@ def _add_sim(sub: Subparsers) -> None:
         metavar=("XMIN", "XMAX", "YMIN", "YMAX"),
         help="field view of the plot [mm]",
     )
+    p.add_argument("--mcap", metavar="FILE", help="also record the run as MCAP (docs/view.md)")
+    p.add_argument("--csv", metavar="FILE", help="also record the run as CSV")
     p.set_defaults(func=_sim_run)
 
 
@@ -366,13 +383,39 @@ def _add_bench(sub: Subparsers) -> None:
 
 # main ----------------------------------------------------------------------------------------
 
-#: The subcommands: each adds its parser and sets ``func`` (see cli_args for the convention).
+
+def _add_optional(module: str, command: str, extra: str, what: str) -> Callable[[Subparsers], None]:
+    """A subcommand whose module needs an extra (numpy, mcap, websockets): its own register()
+    when the extra is installed (it sets ``run``), otherwise a parser that says what to install."""
+
+    def add(sub: Subparsers) -> None:
+        try:
+            mod = importlib.import_module(f".{module}", __package__)
+        except ImportError:
+
+            def missing(args: argparse.Namespace) -> int:
+                raise UsageError(f'{what} is not installed: pip install "asserv[{extra}]"')
+
+            p = sub.add_parser(command, help=f"{what} (needs asserv[{extra}])", add_help=False)
+            p.add_argument("rest", nargs=argparse.REMAINDER)
+            p.set_defaults(func=missing)
+            return
+        mod.register(sub)
+
+    return add
+
+
+#: The subcommands: each adds its parser and sets ``func`` (see cli_args for the convention);
+#: those of log, tune and view set ``run`` from their own module.
 REGISTER: list[Callable[[Subparsers], None]] = [
     _add_demo,
     _add_sim,
     _add_codec,
     _add_calibrate,
     _add_bench,
+    _add_optional("log", "log", "view", "asserv log"),
+    _add_optional("tune", "tune", "sim", "asserv tune"),
+    _add_optional("view", "view", "view", "asserv view"),
 ]
 
 
@@ -403,7 +446,8 @@ def main(argv: list[str] | None = None) -> int:
         return cli_bus.run_bus_command(args)
     prog = _prog(args)
     try:
-        code: int = args.func(args)
+        handler = getattr(args, "func", None) or args.run
+        code: int = handler(args)
     except UsageError as e:
         print(cli_args.one_line(f"{prog}: {e}"), file=sys.stderr)
         return 2

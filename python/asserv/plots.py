@@ -12,7 +12,7 @@ matplotlib.use("Agg")  # files only: no display needed, on a Raspberry Pi or in 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
-from matplotlib.patches import Circle, Rectangle
+from matplotlib.patches import Circle, Polygon, Rectangle
 
 from . import accuracy
 from ._protocol import Status
@@ -20,7 +20,50 @@ from .field import Field
 
 if TYPE_CHECKING:
     from .accuracy import BenchResult, StraightRun
+    from .log import Outline
     from .sim import OdometryErrors
+
+#: The bits that say how an order ended (docs/protocol.md): they show for as little as one tick.
+END_BITS = (Status.CHOC_PANIER, Status.CHOC_BORD, Status.PB_MOTEUR, Status.PB_GRAVE)
+_BUSY = int(Status.BUSY_TRAJET | Status.BUSY_GOTO_PANIER)
+
+
+def outline_corners(
+    x_mm: float, y_mm: float, heading_deg: float, outline: Outline
+) -> list[tuple[float, float]]:
+    """The four corners of the robot's rectangle at a pose, field frame, mm."""
+    h = np.radians(heading_deg)
+    c, s = float(np.cos(h)), float(np.sin(h))
+    hl, hw = outline.length_mm / 2, outline.width_mm / 2
+    out = []
+    for u, v in ((hl, hw), (hl, -hw), (-hl, -hw), (-hl, hw)):
+        u, v = u + outline.offset_x_mm, v + outline.offset_y_mm
+        out.append((x_mm + c * u - s * v, y_mm + s * u + c * v))
+    return out
+
+
+def contact_rows(trace: np.ndarray) -> list[int]:
+    """The ticks where the robot's outline starts touching something (a border, a basket, an
+    obstacle: contact force or a shock switch), and the last tick."""
+    touching = (trace["contact_force_N"] > 0) | (trace["shocks"] != 0)
+    starts = np.nonzero(touching & ~np.concatenate(([False], touching[:-1])))[0]
+    rows = [int(i) for i in starts]
+    if len(trace) and (not rows or rows[-1] != len(trace) - 1):
+        rows.append(len(trace) - 1)
+    return rows
+
+
+def order_ends(trace: np.ndarray) -> list[tuple[float, str]]:
+    """When each order ended (the busy bits fall) and how: the end bits of that tick, or "done"
+    when it has none."""
+    status = trace["status"].astype(int)
+    busy = (status & _BUSY) != 0
+    ends = np.nonzero(~busy[1:] & busy[:-1])[0] + 1
+    out = []
+    for i in ends:
+        bits = [str(b.name) for b in END_BITS if status[i] & b]
+        out.append((float(trace["t_s"][i]), "|".join(bits) if bits else "done"))
+    return out
 
 
 def draw_field(ax: Axes, field: Field) -> None:
@@ -61,10 +104,15 @@ def plot_run(
     title: str = "",
     targets: Sequence[tuple[float, float]] = (),
     zoom: tuple[float, float, float, float] | None = None,
+    outline: Outline | None = None,
 ) -> Path:
-    """Field with the true and estimated paths, speed profiles (set-point and true) and the
-    status over time, and the estimate's error beside the error radius, in one PNG.
-    ``zoom`` = (xmin, xmax, ymin, ymax) limits the field view."""
+    """Field with the true and estimated paths and the robot's outline where it touched something,
+    speed profiles (set-point and true), the status bits with each order's end, and the
+    estimate's error beside the error radius, in one PNG. ``zoom`` = (xmin, xmax, ymin, ymax)
+    limits the field view; ``outline`` is the robot's rectangle (default: the nominal robot)."""
+    from .log import Outline
+
+    outline = outline or Outline()
     fig = plt.figure(figsize=(15, 8.5), layout="constrained")
     grid = fig.add_gridspec(3, 2, width_ratios=(1.35, 1))
     ax_map = fig.add_subplot(grid[:2, 0])
@@ -79,12 +127,39 @@ def plot_run(
     draw_field(ax_map, field)
     ax_map.plot(trace["x_mm"], trace["y_mm"], color="tab:blue", lw=1.5, label="true path")
     ax_map.plot(trace["est_x_mm"], trace["est_y_mm"], "--", color="tab:red", lw=1, label="estimate")
-    for x, y in targets:
-        ax_map.plot(x, y, "x", color="k", ms=8)
+    for i, (x, y) in enumerate(targets):
+        ax_map.plot(x, y, "x", color="k", ms=8, label="GOTO target" if i == 0 else None)
+    shown = ["true path", "estimate"] + (["GOTO targets"] if targets else [])
     if len(trace):
         ax_map.plot(trace["x_mm"][0], trace["y_mm"][0], "o", color="tab:green", label="start")
-    ax_map.legend(loc="upper center", ncols=3)
-    ax_map.set_title("field: true path and the board's estimate (x: GOTO targets)")
+        shown.append("start")
+        for k, i in enumerate(contact_rows(trace)):
+            last = i == len(trace) - 1
+            corners = outline_corners(
+                float(trace["x_mm"][i]),
+                float(trace["y_mm"][i]),
+                float(trace["heading_deg"][i]),
+                outline,
+            )
+            ax_map.add_patch(
+                Polygon(
+                    corners,
+                    closed=True,
+                    fill=False,
+                    lw=1.2,
+                    ls="-" if last else ":",
+                    color="tab:blue" if last else "tab:purple",
+                    label=(
+                        "robot at the end" if last else "robot at a contact" if k == 0 else None
+                    ),
+                )
+            )
+        touched = len(contact_rows(trace)) > 1 or bool(
+            (trace["contact_force_N"][-1:] > 0).any() or (trace["shocks"][-1:] != 0).any()
+        )
+        shown.append("outline at contacts and at the end" if touched else "outline at the end")
+    ax_map.legend(loc="upper center", ncols=3, fontsize=8)
+    ax_map.set_title("field: " + ", ".join(shown))
     if zoom is not None:
         ax_map.set_xlim(zoom[0], zoom[1])
         ax_map.set_ylim(zoom[2], zoom[3])
@@ -102,32 +177,55 @@ def plot_run(
     ax_err.set_ylabel("[mm]")
     ax_err.set_xlabel("time [s]")
     ax_err.legend(loc="upper left")
-    ax_err.set_title("position error of the estimate, and the radius the board reports")
+    ax_err.set_title("error of the estimate (total, x, y) and the error radius the board reports")
 
     ax_v.plot(t, trace["v_set_mm_s"], color="k", lw=1, label="set-point")
     ax_v.plot(t, trace["v_mm_s"], color="tab:blue", lw=1, label="true")
     ax_v.set_ylabel("speed [mm/s]")
     ax_v.legend(loc="upper right")
-    ax_v.set_title("speed profiles")
+    ax_v.set_title("speed and turn rate: set point and true")
     ax_w.plot(t, trace["omega_set_deg_s"], color="k", lw=1, label="set-point")
     ax_w.plot(t, trace["omega_deg_s"], color="tab:blue", lw=1, label="true")
     ax_w.set_ylabel("turn rate [deg/s]")
     ax_w.legend(loc="upper right")
 
-    status = trace["status"].astype(int)
-    shown = [s for s in Status if s.name and (status & s).any()]
-    for i, bit in enumerate(shown):
-        on = (status & bit) != 0
-        ax_s.fill_between(t, i + 0.1, i + 0.9, where=on, step="post", alpha=0.7)
-    ax_s.set_yticks([i + 0.5 for i in range(len(shown))], [str(s.name) for s in shown])
-    ax_s.set_ylim(0, max(1, len(shown)))
-    ax_s.set_xlabel("time [s]")
-    ax_s.set_title("status bits")
+    _plot_status(ax_s, trace)
 
     out = Path(path)
     fig.savefig(out, dpi=100)
     plt.close(fig)
     return out
+
+
+def _plot_status(ax: Axes, trace: np.ndarray) -> None:
+    """One row per status bit that was ever set (a bar while set, a tick where it rose, so that
+    a bit set for one tick shows), and a row with each order's end and its outcome."""
+    t = trace["t_s"]
+    status = trace["status"].astype(int)
+    shown = [s for s in Status if s.name and (status & s).any()]
+    for i, bit in enumerate(shown):
+        on = (status & bit) != 0
+        color = f"C{i}"
+        ax.fill_between(t, i + 0.1, i + 0.9, where=on, step="post", alpha=0.7, color=color)
+        rises = np.nonzero(on & ~np.concatenate(([False], on[:-1])))[0]
+        ax.plot(t[rises], np.full(len(rises), i + 0.5), "|", ms=14, mew=2, color=color)
+    ends = order_ends(trace)
+    row = len(shown)
+    for te, what in ends:
+        ax.plot(te, row + 0.5, "v", color="k", ms=7)
+        ax.annotate(
+            what,
+            (te, row + 0.5),
+            xytext=(-3, 6),
+            textcoords="offset points",
+            ha="right",
+            fontsize=8,
+        )
+    labels = [str(s.name) for s in shown] + (["order ends"] if ends else [])
+    ax.set_yticks([i + 0.5 for i in range(len(labels))], labels)
+    ax.set_ylim(0, max(1, len(labels)) + (0.4 if ends else 0))
+    ax.set_xlabel("time [s]")
+    ax.set_title("status bits (|: set) and each order's end with its outcome")
 
 
 _CONTROLLER_STYLE = {

@@ -197,9 +197,12 @@ def _words() -> list[str]:
     def walk(p: object) -> None:
         for action in getattr(p, "_actions", []):
             words.update(action.option_strings)
-            for name, sub in (getattr(action, "choices", None) or {}).items():
-                if isinstance(name, str):
-                    words.add(name)
+            choices = getattr(action, "choices", None)
+            if not isinstance(choices, dict):  # a value's choices, not subcommands
+                words.update(str(c) for c in choices or ())
+                continue
+            for name, sub in choices.items():
+                words.add(name)
                 walk(sub)
 
     walk(ap)

@@ -1,0 +1,658 @@
+"""``asserv view``: the robot on its field in the browser, live (simulator or board) or replayed.
+
+One ``websockets`` server serves the page (``view_static/``: plain canvas drawing, no library,
+nothing from the internet) and, on ``/ws``, its stream::
+
+    asserv view [--port P] [SCENARIO]      # the simulator, playing a scenario file (or idle)
+    asserv --bus 1 view                    # a real board, POSITION, DEBUG, CHECK_BUSY polled
+    asserv view --replay RUN.mcap          # a log of asserv sim run --mcap or asserv log
+
+The data comes from a ``Source`` (``SimSource``, ``BoardSource``, ``ReplaySource``): it says what
+it shows (``info()``), gives the new rows for the wall time that has passed (``advance(dt)``, rows
+of ``asserv.log.LOG_FIELDS``) and takes the page's commands (``goto``, ``pause``, ``speed``).
+``BoardSource`` runs on any smbus2-like bus, so a simulated bus served by another process is one
+more bus object, not a new source.
+
+Messages on ``/ws`` are JSON. Server to page: ``{"type": "hello", "info": {...}}`` once, then
+``{"type": "rows", "rows": [[...], ...], "state": {...}}`` about 30 times a second. Page to
+server: ``{"type": "goto", "x": mm, "y": mm}``, ``{"type": "pause", "paused": bool}``,
+``{"type": "speed", "speed": 1..50}``. The simulator's and the replay's time stands still
+while no page is open.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import dataclasses
+import json
+import math
+import queue
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from . import log
+from ._protocol import OrderState, Status
+from .field import Field
+
+if TYPE_CHECKING:
+    from .driver import Board
+    from .scenario import Scenario
+    from .sim import Simulator
+
+__all__ = ["BoardSource", "ReplaySource", "SimSource", "Source", "ViewServer"]
+
+STATIC = Path(__file__).resolve().parent / "view_static"
+SPEEDS = (1, 2, 5, 10, 20, 50)
+FRAME_S = 1 / 30  # the stream's period, wall time
+MAX_ROWS_PER_FRAME = 12  # rows sent per frame at most (the rest are skipped, not the last)
+_BUSY = int(Status.BUSY_TRAJET | Status.BUSY_GOTO_PANIER)
+_END_BITS = (Status.CHOC_PANIER, Status.CHOC_BORD, Status.PB_MOTEUR, Status.PB_GRAVE)
+_CONTENT_TYPES = {
+    ".html": "text/html; charset=utf-8",
+    ".js": "text/javascript; charset=utf-8",
+    ".css": "text/css; charset=utf-8",
+}
+
+
+def status_names(status: int) -> list[str]:
+    return [str(s.name) for s in Status if s.name and status & s]
+
+
+@dataclass
+class Outcome:
+    """Follows the status rows and says how the last order ended."""
+
+    busy: bool = False
+    last: str = ""  # "" before any order has ended
+    orders: int = 0
+
+    def update(self, status: int) -> None:
+        busy = bool(status & _BUSY)
+        if busy and not self.busy:
+            self.orders += 1
+        if self.busy and not busy:
+            bits = [str(b.name) for b in _END_BITS if status & b]
+            self.last = "|".join(bits) if bits else "done"
+        self.busy = busy
+
+
+#: A Python strategy: a generator function of the board that yields how many seconds of
+#: simulated time to wait before its next turn (0 or None: the next 10 ms).
+Strategy = Callable[["Board"], Iterator[float | None]]
+
+
+def wait_idle(board: Board, poll_s: float = 0.01) -> Iterator[float]:
+    """For strategies: ``yield from wait_idle(board)`` waits until the order is over (the
+    annex's ``while (BUSY_TRAJET)``), polling CHECK_BUSY every ``poll_s`` of simulated time."""
+    while board.check_busy() & _BUSY:
+        yield poll_s
+
+
+class StrategyError(ValueError):
+    """A strategy file that cannot be used; the message names the file."""
+
+
+def load_strategy(path: str | Path) -> Strategy:
+    """The ``strategy(board)`` generator function of a Python file."""
+    import importlib.util
+    import inspect
+
+    p = Path(path)
+    if not p.is_file():
+        raise StrategyError(f"{p}: no such strategy file")
+    spec = importlib.util.spec_from_file_location(f"asserv_strategy_{p.stem}", p)
+    if spec is None or spec.loader is None:
+        raise StrategyError(f"{p}: not a Python file")
+    module = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(module)
+    except Exception as e:
+        raise StrategyError(f"{p}: cannot load it: {type(e).__name__}: {e}") from None
+    fn = getattr(module, "strategy", None)
+    if not inspect.isgeneratorfunction(fn):
+        raise StrategyError(
+            f"{p}: needs a generator function strategy(board) that yields seconds to wait"
+        )
+    strategy: Strategy = fn
+    return strategy
+
+
+@dataclass
+class Source:
+    """What the view shows: the base of the three sources."""
+
+    field: Field
+    outline: log.Outline
+    kind: str = "sim"
+    truth: bool = True
+    can_goto: bool = True
+    paused: bool = False
+    speed: float = 1.0
+    target: tuple[float, float] | None = None
+    outcome: Outcome = dataclasses.field(default_factory=Outcome)
+    message: str = ""  # what the source is doing (the scenario's line, an error)
+
+    def info(self) -> dict[str, Any]:
+        return {
+            "kind": self.kind,
+            "field": log.field_dict(self.field),
+            "outline": self.outline.__dict__,
+            "truth": self.truth,
+            "can_goto": self.can_goto,
+            "speeds": list(SPEEDS),
+            "fields": list(log.LOG_FIELDS),
+            "status_bits": [[str(b.name), int(b)] for b in Status if b.name],
+            "order_states": {int(o): o.name for o in OrderState},
+        }
+
+    def state(self) -> dict[str, Any]:
+        return {
+            "paused": self.paused,
+            "speed": self.speed,
+            "target": self.target,
+            "outcome": self.outcome.last,
+            "orders": self.outcome.orders,
+            "message": self.message,
+        }
+
+    def advance(self, dt_s: float) -> np.ndarray:
+        """The rows for ``dt_s`` seconds of wall time (none while paused)."""
+        raise NotImplementedError
+
+    def goto(self, x_mm: float, y_mm: float) -> None:
+        raise NotImplementedError
+
+    def set_paused(self, paused: bool) -> None:
+        self.paused = paused
+
+    def set_speed(self, speed: float) -> None:
+        if not 1 <= speed <= max(SPEEDS):
+            raise ValueError(f"speed must be 1..{max(SPEEDS)}, not {speed}")
+        self.speed = speed
+
+    def close(self) -> None:
+        pass
+
+
+def _decimate(rows: np.ndarray, n: int = MAX_ROWS_PER_FRAME) -> np.ndarray:
+    """At most n rows, evenly spread, the last one kept (it is the pose shown)."""
+    if len(rows) <= n:
+        return rows
+    idx = np.linspace(0, len(rows) - 1, n).round().astype(int)
+    out: np.ndarray = rows[idx]
+    return out
+
+
+# ---- the simulator ------------------------------------------------------------------------------
+
+
+def _take_trace(sim: Simulator) -> np.ndarray:
+    """The trace rows recorded since the last call, and forget them (a long run would otherwise
+    copy its whole trace every frame)."""
+    chunks = sim._chunks  # the recorder's own list (sim.trace concatenates it)
+    if not chunks:
+        return sim.trace[:0]
+    rows = np.concatenate(chunks) if len(chunks) > 1 else chunks[0]
+    chunks.clear()
+    return rows
+
+
+class SimSource(Source):
+    """A simulated board, playing a scenario's steps (if any) as simulated time goes on; page
+    clicks send GOTOs to it. Paced by the wall clock times the speed."""
+
+    def __init__(
+        self,
+        scenario: Scenario | None = None,
+        sim: Simulator | None = None,
+        strategy: Strategy | None = None,
+    ) -> None:
+        from .driver import Board
+        from .sim import Simulator
+
+        if sim is None:
+            sim = scenario.simulator() if scenario is not None else Simulator()
+        super().__init__(sim.field, log.Outline.of(sim), kind="sim")
+        self.sim = sim
+        self.board = Board(sim.bus, pec=scenario.pec if scenario is not None else False)
+        self._steps = list(scenario.steps) if scenario is not None else []
+        self._playing = bool(self._steps)
+        self._waiting: tuple[str, float] | None = None  # ("wait" | "sleep", until sim time)
+        self._gen = strategy(self.board) if strategy is not None else None
+        self._resume = 0.0  # the strategy's next turn, simulated time
+        self._errors = log.FollowingErrors(float(sim.config.drive_track_mm))
+        self.message = f"scenario: {len(self._steps)} steps" if self._steps else "no scenario"
+        if self._gen is not None:
+            self.message = "strategy"
+
+    def goto(self, x_mm: float, y_mm: float) -> None:
+        self.board.goto(round(x_mm), round(y_mm))
+        self.target = (float(round(x_mm)), float(round(y_mm)))
+
+    def _strategy(self) -> None:
+        """Give the strategy its turn when its wait is over."""
+        if self._gen is None or self.sim.time_s < self._resume:
+            return
+        try:
+            wait = next(self._gen)
+            self._resume = self.sim.time_s + max(0.0, float(wait or 0.0))
+        except StopIteration:
+            self._gen = None
+            self.message = "strategy over"
+        except Exception as e:  # the team's code: shown on the page, the simulator goes on
+            self._gen = None
+            self.message = f"strategy stopped: {type(e).__name__}: {e}"
+
+    def _script(self) -> None:
+        """Run the scenario's steps up to its next wait or sleep, or the strategy's turn."""
+        from .driver import AsservError
+        from .scenario import BUS_COMMANDS
+
+        self._strategy()
+        if self._waiting is not None:
+            kind, until = self._waiting
+            if self.sim.time_s < until:
+                if kind == "sleep" or self.board.check_busy() & _BUSY:
+                    return
+            elif kind == "wait":
+                self.message = "wait: timed out"
+            self._waiting = None
+        while self._steps and self._waiting is None:
+            st = self._steps.pop(0)
+            self.message = f"line {st.line}: {st.text}"
+            try:
+                if st.command == "wait":
+                    timeout = st.args[0] if st.args else 30.0
+                    self._waiting = ("wait", self.sim.time_s + timeout)
+                elif st.command == "sleep":
+                    self._waiting = ("sleep", self.sim.time_s + st.args[0])
+                else:
+                    getattr(self.board, BUS_COMMANDS[st.command][0])(*st.args)
+                    if st.command == "goto":
+                        self.target = (float(st.args[0]), float(st.args[1]))
+            except AsservError as e:
+                self.message = f"line {st.line}: {e}"
+                self._steps.clear()
+        if not self._steps and self._waiting is None and self._playing:
+            self._playing = False
+            self.message += " (scenario over)"
+
+    def advance(self, dt_s: float) -> np.ndarray:
+        if self.paused:
+            return log.empty(0)
+        budget = dt_s * self.speed
+        end = self.sim.time_s + budget
+        while self.sim.time_s < end - 1e-9:
+            self._script()  # its bus transactions take simulated time too
+            left = end - self.sim.time_s
+            if left > 0:
+                self.sim.advance(min(0.01, left))
+        raw = _take_trace(self.sim)
+        rows = self._rows(raw)
+        for s in rows["status"]:
+            self.outcome.update(int(s))
+        return rows
+
+    def _rows(self, raw: np.ndarray) -> np.ndarray:
+        """Log rows, the following errors carried on from the previous chunk."""
+        rows = log.empty(len(raw))
+        for name in log.LOG_FIELDS:
+            if name in (raw.dtype.names or ()):
+                rows[name] = raw[name]
+        rows["dist_err_mm"], rows["angle_err_mm"] = self._errors.update(raw)
+        return rows
+
+
+# ---- a real board -------------------------------------------------------------------------------
+
+
+class BoardSource(Source):
+    """A board on a bus (a real one, or any smbus2-like bus), polled at ``hz`` in a thread; the
+    page's GOTOs go through the same thread. Pause freezes the view (the robot goes on)."""
+
+    def __init__(self, board: Board, hz: float = 50.0, field: Field | None = None) -> None:
+        from . import field as fieldmod
+
+        super().__init__(
+            field or fieldmod.load(), log.Outline(), kind="board", truth=False, can_goto=True
+        )
+        self.board = board
+        self.hz = hz
+        self._rows: queue.Queue[np.void] = queue.Queue()
+        self._orders: queue.Queue[tuple[int, int]] = queue.Queue()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="asserv-view-poll", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        from .driver import AsservError
+
+        try:
+            for row in log.poll_board(self.board, self.hz, until=self._stop.is_set):
+                self._rows.put(row)
+                while not self._orders.empty():
+                    x, y = self._orders.get()
+                    try:
+                        self.board.goto(x, y)
+                        self.target = (float(x), float(y))
+                    except (AsservError, ValueError) as e:  # refused: shown, polling goes on
+                        self.message = f"GOTO ({x}, {y}): {e}"
+        except AsservError as e:
+            self.message = f"the board stopped answering: {e}"
+
+    def goto(self, x_mm: float, y_mm: float) -> None:
+        """Queued for the polling thread; ``target`` shows it once the board has taken it."""
+        self._orders.put((round(x_mm), round(y_mm)))
+
+    def advance(self, dt_s: float) -> np.ndarray:
+        rows = []
+        while not self._rows.empty():
+            rows.append(self._rows.get())
+        out = np.array(rows, dtype=log.LOG_DTYPE) if rows else log.empty(0)
+        for s in out["status"]:
+            self.outcome.update(int(s))
+        return log.empty(0) if self.paused else out
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2)
+
+
+# ---- a log --------------------------------------------------------------------------------------
+
+
+class ReplaySource(Source):
+    """A log read back (``asserv.log.read_mcap``), played at the speed chosen; it pauses at its
+    end, and play starts it again. No GOTO."""
+
+    def __init__(self, path: str | Path) -> None:
+        from . import field as fieldmod
+
+        got = log.read_mcap(path)
+        if not len(got.rows):
+            raise log.LogError(f"{path}: the log has no /asserv rows to replay")
+        rows = got.rows
+        super().__init__(
+            got.field or fieldmod.load(),
+            got.outline or log.Outline(),
+            kind="replay",
+            truth=not np.isnan(rows["x_mm"]).all(),
+            can_goto=False,
+        )
+        self.rows = rows
+        self.t = float(rows["t_s"][0])
+        self._i = 0
+        self.message = f"replay of {path}: {len(rows)} rows, {rows['t_s'][-1]:.1f} s"
+
+    @property
+    def at_end(self) -> bool:
+        return self._i >= len(self.rows)
+
+    def set_paused(self, paused: bool) -> None:
+        if not paused and self.at_end:  # play at the end: from the start again
+            self._i = 0
+            self.t = float(self.rows["t_s"][0])
+            self.outcome = Outcome()
+        self.paused = paused
+
+    def advance(self, dt_s: float) -> np.ndarray:
+        if self.paused:
+            return log.empty(0)
+        self.t += dt_s * self.speed
+        j = int(np.searchsorted(self.rows["t_s"], self.t, side="right"))
+        out = self.rows[self._i : j]
+        self._i = max(self._i, j)
+        for s in out["status"]:
+            if not math.isnan(s):
+                self.outcome.update(int(s))
+        if self._i >= len(self.rows):
+            self.paused = True
+            self.message = "end of the log (play: from the start again)"
+        return out
+
+    def goto(self, x_mm: float, y_mm: float) -> None:
+        raise ValueError("a replay takes no GOTO")
+
+
+# ---- the server ---------------------------------------------------------------------------------
+
+
+def _row_list(row: np.void) -> list[float | None]:
+    return [None if math.isnan(float(v)) else round(float(v), 4) for v in row.tolist()]
+
+
+class ViewServer:
+    """The page and its stream for one source, on ``host:port`` (port 0: any free one)."""
+
+    def __init__(self, source: Source, host: str = "127.0.0.1", port: int = 8765) -> None:
+        self.source = source
+        self.host = host
+        self.port = port
+        self._clients: set[Any] = set()
+        self._commands: queue.Queue[dict[str, Any]] = queue.Queue()
+        self._server: Any = None
+        self.url = ""
+
+    def _http(self, connection: Any, request: Any) -> Any:
+        from websockets.datastructures import Headers
+        from websockets.http11 import Response
+
+        path = request.path.split("?", 1)[0]
+        if path == "/ws":
+            return None  # the websocket handshake goes on
+        name = "index.html" if path in ("/", "/index.html") else path.lstrip("/")
+        f = STATIC / name
+        if "/" in name or not f.is_file() or f.suffix not in _CONTENT_TYPES:
+            return connection.respond(404, f"no {path} here: open /\n")
+        body = f.read_bytes()
+        headers = Headers(
+            [
+                ("Content-Type", _CONTENT_TYPES[f.suffix]),
+                ("Content-Length", str(len(body))),
+                ("Cache-Control", "no-store"),
+            ]
+        )
+        return Response(200, "OK", headers, body)
+
+    async def _client(self, ws: Any) -> None:
+        self._clients.add(ws)
+        try:
+            await ws.send(json.dumps({"type": "hello", "info": self.source.info()}))
+            async for text in ws:
+                try:
+                    msg = json.loads(text)
+                except ValueError:
+                    continue
+                if isinstance(msg, dict):
+                    self._commands.put(msg)
+        except Exception:  # a page that went away
+            pass
+        finally:
+            self._clients.discard(ws)
+
+    def _apply(self, msg: dict[str, Any]) -> None:
+        src = self.source
+        try:
+            kind = msg.get("type")
+            if kind == "goto" and src.can_goto:
+                src.goto(float(msg["x"]), float(msg["y"]))
+            elif kind == "pause":
+                src.set_paused(bool(msg["paused"]))
+            elif kind == "speed":
+                src.set_speed(float(msg["speed"]))
+        except (KeyError, TypeError, ValueError) as e:
+            src.message = f"page command {msg!r}: {e}"
+        except Exception as e:  # the driver's errors: shown, the view goes on
+            src.message = f"{type(e).__name__}: {e}"
+
+    def _tick(self, dt: float) -> np.ndarray:
+        while not self._commands.empty():
+            self._apply(self._commands.get())
+        try:
+            return self.source.advance(dt)
+        except Exception as e:  # shown on the page; the view goes on
+            self.source.message = f"{type(e).__name__}: {e}"
+            self.source.paused = True
+            return log.empty(0)
+
+    async def _pump(self) -> None:
+        import websockets
+
+        last = time.monotonic()
+        while True:
+            await asyncio.sleep(FRAME_S)
+            now = time.monotonic()
+            dt, last = min(now - last, 0.2), now
+            if not self._clients and self.source.kind != "board":
+                continue  # the simulator's and the replay's time waits for a page
+            rows = await asyncio.to_thread(self._tick, dt)
+            if not self._clients:
+                continue
+            msg = json.dumps(
+                {
+                    "type": "rows",
+                    "rows": [_row_list(r) for r in _decimate(rows)],
+                    "state": self.source.state(),
+                }
+            )
+            websockets.broadcast(self._clients, msg)
+
+    async def run(self, ready: threading.Event | None = None) -> None:
+        from websockets.asyncio.server import serve
+
+        async with serve(
+            self._client, self.host, self.port, process_request=self._http, max_size=2**16
+        ) as server:
+            self._server = server
+            sock = next(iter(server.sockets))
+            self.port = int(sock.getsockname()[1])
+            host = f"[{self.host}]" if ":" in self.host else self.host
+            self.url = f"http://{host}:{self.port}/"
+            if ready is not None:
+                ready.set()
+            await self._pump()
+
+    def start_thread(self) -> threading.Thread:
+        """Run in a thread (tests, notebooks); returns once the server listens."""
+        ready = threading.Event()
+        self._loop = asyncio.new_event_loop()
+
+        def main() -> None:
+            with contextlib.suppress(asyncio.CancelledError):
+                self._loop.run_until_complete(self._task_main(ready))
+
+        th = threading.Thread(target=main, name="asserv-view", daemon=True)
+        th.start()
+        if not ready.wait(10):
+            raise RuntimeError("the view server did not start")
+        self._thread = th
+        return th
+
+    async def _task_main(self, ready: threading.Event) -> None:
+        self._task = asyncio.current_task()
+        await self.run(ready)
+
+    def stop(self) -> None:
+        """Stop a server started by ``start_thread``."""
+        loop = getattr(self, "_loop", None)
+        task = getattr(self, "_task", None)
+        if loop is not None and task is not None:
+            loop.call_soon_threadsafe(task.cancel)
+            self._thread.join(timeout=5)
+        self.source.close()
+
+
+# ---- the command line ---------------------------------------------------------------------------
+
+
+def _command(args: argparse.Namespace) -> int:
+    from . import field as fieldmod
+    from . import scenario
+
+    prog = "asserv view"
+
+    def usage(msg: str) -> int:
+        print(f"{prog}: {msg}", file=sys.stderr)
+        return 2
+
+    if not 0 <= args.port <= 65535:
+        return usage(f"--port must be 0..65535, not {args.port}")
+    real = getattr(args, "bus", None) is not None
+    if sum((real, args.replay is not None, args.scenario is not None)) > 1:
+        return usage("give one of SCENARIO, --replay FILE or --bus N")
+    if not 1 <= args.hz <= 500:
+        return usage("--hz takes 1..500 polls a second")
+    bus: Any = None
+    source: Source
+    try:
+        if args.replay is not None:
+            source = ReplaySource(args.replay)
+        elif real:
+            fld = fieldmod.load(args.field) if args.field else None
+            opened = log.open_board(args, prog)
+            if isinstance(opened, int):
+                return opened
+            board, bus = opened
+            source = BoardSource(board, args.hz, fld)
+        else:
+            if args.scenario and args.scenario.endswith(".py"):
+                source = SimSource(strategy=load_strategy(args.scenario))
+            else:
+                scn = scenario.load(args.scenario) if args.scenario else None
+                source = SimSource(scn)
+    except (log.LogError, scenario.ScenarioError, fieldmod.FieldError, StrategyError) as e:
+        return usage(str(e))
+    server = ViewServer(source, args.host, args.port)
+
+    async def main() -> None:
+        task = asyncio.create_task(server.run())
+        while not server.url and not task.done():
+            await asyncio.sleep(0.05)
+        if server.url:
+            print(f"{prog}: open {server.url}  (Ctrl-C stops)", flush=True)
+        await task
+
+    try:
+        asyncio.run(main())
+    except KeyboardInterrupt:
+        pass
+    except OSError as e:
+        print(f"{prog}: cannot listen on {args.host}:{args.port}: {e.strerror}", file=sys.stderr)
+        return 1
+    finally:
+        source.close()
+        if bus is not None and callable(getattr(bus, "close", None)):
+            bus.close()
+    return 0
+
+
+def register(sub: Any) -> None:
+    """Add ``asserv view`` to the main CLI's subcommands."""
+    p = sub.add_parser(
+        "view",
+        help="the robot on its field in the browser: simulator, --bus N or --replay RUN.mcap",
+        description="Serve a page that shows the field, the robot (estimate and, simulated, the"
+        " truth), the error radius, the path, the target, the status and scrolling plots;"
+        " play/pause, speed x1..x50, a click on the field sends a GOTO (docs/view.md).",
+    )
+    log.bus_options(p)
+    p.add_argument(
+        "scenario",
+        nargs="?",
+        help="a scenario file, or a Python file with a strategy(board) generator (simulator)",
+    )
+    p.add_argument("--replay", metavar="RUN.mcap", help="replay a log instead")
+    p.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0: any)")
+    p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
+    p.add_argument("--hz", type=float, default=50.0, help="board polls a second (default 50)")
+    p.add_argument("--field", help="field file (a real board; default field/default.toml)")
+    p.set_defaults(run=_command)

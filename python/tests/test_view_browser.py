@@ -1,0 +1,188 @@
+"""asserv view in a real browser: Debian's chromium driven by Playwright (no browser download).
+
+The page must draw the field, follow the simulated robot, send a GOTO on a click that the board
+executes, and replay a log's poses. With ASSERV_SCREENSHOTS=DIR set, the tests also save the
+screenshots of docs/view.md there (ASSERV_SCREENSHOTS=docs/img).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from asserv import log, scenario, view
+from asserv.driver import Board
+from asserv.sim import Simulator
+
+pytest.importorskip("playwright")  # the dev extra; scripts/setup.sh installs it
+from playwright.sync_api import Browser, Page, sync_playwright
+
+ROOT = Path(__file__).resolve().parents[2]
+CHROMIUM = os.environ.get("ASSERV_CHROMIUM", "/usr/bin/chromium")
+SHOTS = os.environ.get("ASSERV_SCREENSHOTS")
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Browser]:
+    if not shutil.which(CHROMIUM):
+        pytest.fail(f"{CHROMIUM} is missing: apt-get install chromium (scripts/setup.sh does)")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"])
+        yield b
+        b.close()
+
+
+@pytest.fixture
+def serve() -> Iterator[Callable[[view.Source], view.ViewServer]]:
+    servers: list[view.ViewServer] = []
+
+    def start(source: view.Source) -> view.ViewServer:
+        srv = view.ViewServer(source, "127.0.0.1", 0)
+        srv.start_thread()
+        servers.append(srv)
+        return srv
+
+    yield start
+    for s in servers:
+        s.stop()
+
+
+def _open(browser: Browser, srv: view.ViewServer) -> Page:
+    page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    page.goto(srv.url)
+    page.wait_for_function("window.asserv && window.asserv.info && window.asserv.frames > 0")
+    return page
+
+
+def _pixel(page: Page, x_mm: float, y_mm: float) -> list[int]:
+    """The field canvas's colour at a field point."""
+    px: list[int] = page.evaluate(
+        """([x, y]) => {
+            const [px, py] = window.asserv.toCanvas(x, y);
+            const c = document.getElementById('field').getContext('2d');
+            return Array.from(c.getImageData(Math.round(px), Math.round(py), 1, 1).data);
+        }""",
+        [x_mm, y_mm],
+    )
+    return px
+
+
+def _last(page: Page) -> dict[str, Any]:
+    last: dict[str, Any] = page.evaluate("window.asserv.last")
+    return last
+
+
+def _shot(page: Page, name: str) -> None:
+    if SHOTS:
+        Path(SHOTS).mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=str(Path(SHOTS) / name), full_page=True)
+
+
+def test_the_page_draws_the_field(browser: Browser, serve: Any) -> None:
+    src = view.SimSource()
+    src.set_paused(True)
+    page = _open(browser, serve(src))
+    fld = src.field
+    # The border (black, 4 px) at the middle of the right side; a basket's centre (orange); the
+    # table's green; the background outside the table (white).
+    r, g, b, _ = _pixel(page, fld.length_mm / 2, 300)
+    assert r < 60 and g < 60 and b < 60
+    bk = fld.baskets[0]
+    r, g, b, _ = _pixel(page, bk.x_mm, bk.y_mm)
+    assert r > 200 and 120 < g < 210 and b < 150
+    assert _pixel(page, 300, 300)[:3] == [232, 240, 228]
+    assert _pixel(page, fld.length_mm / 2 + 200, 0)[:3] in ([255, 255, 255], [0, 0, 0])
+    assert page.inner_text("#kind") == "simulator"
+    assert page.locator(".bit").count() == 7
+
+
+def test_the_pose_updates_while_the_simulator_runs(browser: Browser, serve: Any) -> None:
+    scn = scenario.load(ROOT / "scenarios/annex.txt")
+    srv = serve(view.SimSource(scn))
+    page = _open(browser, srv)
+    page.wait_for_function("window.asserv.last !== null")
+    first = _last(page)
+    page.click("button.speed[data-speed='5']")
+    page.wait_for_function(f"window.asserv.last.t_s > {first['t_s'] + 2.5}")
+    later = _last(page)
+    moved = math.hypot(later["est_x_mm"] - first["est_x_mm"], later["est_y_mm"] - first["est_y_mm"])
+    assert moved > 50
+    # What the page shows is what the simulator did at that time.
+    assert srv.source.sim.time_s >= later["t_s"]
+    # Paused, the time stands still; the page shows the last sample it drew.
+    page.click("#play")
+    page.wait_for_function("window.asserv.state.paused === true")
+    page.wait_for_function(
+        "document.querySelector('#ex').innerText === window.asserv.last.est_x_mm.toFixed(1)"
+    )
+    t = _last(page)["t_s"]
+    page.wait_for_timeout(500)
+    assert _last(page)["t_s"] == t
+    _shot(page, "view-sim.png")
+
+
+def test_a_click_sends_a_goto_the_board_executes(browser: Browser, serve: Any) -> None:
+    src = view.SimSource()
+    srv = serve(src)
+    page = _open(browser, srv)
+    page.click("button.speed[data-speed='20']")
+    target = (600.0, 300.0)
+    px, py = page.evaluate("([x, y]) => window.asserv.toCanvas(x, y)", list(target))
+    box = page.locator("#field").bounding_box()
+    assert box is not None
+    cw = page.evaluate("document.getElementById('field').width")
+    scale = box["width"] / cw
+    page.mouse.click(box["x"] + px * scale, box["y"] + py * scale)
+    # The target as the page first had it (it clears once the order is done: at x20 that can
+    # come before a second look).
+    sent = page.wait_for_function("window.asserv.state.target").json_value()
+    assert math.hypot(sent[0] - target[0], sent[1] - target[1]) < 10  # a pixel is ~3.3 mm
+    page.wait_for_function(
+        "window.asserv.state.outcome === 'done' && !(window.asserv.last.status & 2)",
+        timeout=30000,
+    )
+    truth = src.sim.true_pose()
+    assert math.hypot(truth.x_mm - sent[0], truth.y_mm - sent[1]) < 15
+    last = _last(page)
+    assert math.hypot(last["est_x_mm"] - sent[0], last["est_y_mm"] - sent[1]) < 3
+    _shot(page, "view-goto.png")
+
+
+def test_a_replay_shows_the_logged_poses(browser: Browser, serve: Any, tmp_path: Path) -> None:
+    sim = Simulator()
+    board = Board(sim.bus)
+    board.set_vitesse_traj(60, 100)
+    board.goto(-500, 0)
+    board.wait_idle(30)
+    rows = log.from_sim(sim)
+    path = tmp_path / "run.mcap"
+    log.save(rows, mcap=path, field=sim.field, outline=log.Outline.of(sim))
+    src = view.ReplaySource(path)
+    src.set_speed(2)
+    page = _open(browser, serve(src))
+    assert page.inner_text("#kind") == "replay"
+    page.wait_for_function("window.asserv.received > 50")
+    for _ in range(3):
+        last = _last(page)
+        i = int(np.searchsorted(rows["t_s"], last["t_s"] - 1e-9))
+        for name in ("est_x_mm", "est_y_mm", "x_mm", "y_mm", "heading_deg"):
+            assert last[name] == pytest.approx(rows[name][i], abs=1e-3), name
+        page.wait_for_timeout(300)
+    # At the end of the log the replay pauses on its last row, the robot drawn where the log
+    # says: the estimate's red reference point at its pose.
+    page.wait_for_function("window.asserv.state.paused === true", timeout=20000)
+    page.wait_for_timeout(200)
+    last = _last(page)
+    assert last["t_s"] == pytest.approx(rows["t_s"][-1])
+    assert last["est_x_mm"] == pytest.approx(rows["est_x_mm"][-1], abs=1e-3)
+    r, g, b, _ = _pixel(page, last["est_x_mm"], last["est_y_mm"])
+    assert r > 150 and g < 120 and b < 120
+    assert "end of the log" in page.inner_text("#message")
+    _shot(page, "view-replay.png")
