@@ -391,6 +391,16 @@ static void set_gains(struct board *b, const struct control_gains *g)
 	b->handover.set_gains = 1;
 }
 
+/* SET_FILTRE(_RAW): during a border push the soft gains stay, and the master's come after it
+ * (select_gains()); stiffer gains against the border would turn the contact into PB_MOTEUR. */
+static void master_gains(struct board *b, const struct control_gains *g)
+{
+	if (b->soft)
+		b->saved_gains = *g;
+	else
+		set_gains(b, g);
+}
+
 static void apply(struct board *b, const struct proto_msg *msg, struct orders_measure *m)
 {
 	const int32_t *a = msg->arg;
@@ -430,13 +440,13 @@ static void apply(struct board *b, const struct proto_msg *msg, struct orders_me
 		break;
 	case PROTO_SET_FILTRE:
 		if ((uint8_t)a[ARG_SET_FILTRE_PRESET] < CONTROL_N_PRESETS) /* by the table */
-			set_gains(b, &b->cfg.control.presets[(uint8_t)a[ARG_SET_FILTRE_PRESET]]);
+			master_gains(b, &b->cfg.control.presets[(uint8_t)a[ARG_SET_FILTRE_PRESET]]);
 		break;
 	case PROTO_SET_FILTRE_RAW:
 		g.p = (uint16_t)a[ARG_SET_FILTRE_RAW_P];
 		g.i = (uint16_t)a[ARG_SET_FILTRE_RAW_I];
 		g.d = (uint16_t)a[ARG_SET_FILTRE_RAW_D];
-		set_gains(b, &g);
+		master_gains(b, &g);
 		break;
 	case PROTO_SET_NEW_POS:
 		set_new_pos(b, msg, m);
@@ -566,6 +576,8 @@ static void finish(struct board *b, uint8_t reason, struct orders_measure *m)
 {
 	if (reason == END_REASON_BORDER)
 		b->status |= STATUS_CHOC_BORD;
+	if (reason == END_REASON_NO_BASKET) /* not a motor fault: not counted towards PB_GRAVE */
+		b->status |= STATUS_PB_MOTEUR;
 	if (reason != END_REASON_BASKET)
 		return;
 	b->status |= STATUS_CHOC_PANIER;

@@ -454,8 +454,9 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 			return END_REASON_BASKET;
 		}
 		if (profile_is_done(&o->dist)) {
-			end(o, END_REASON_DONE); /* nothing touched: no CHOC_PANIER */
-			return END_REASON_DONE;
+			/* The whole push and nothing touched: the basket was not reached. */
+			end(o, END_REASON_NO_BASKET);
+			return END_REASON_NO_BASKET;
 		}
 		break;
 	case ORDER_STATE_STOPPING:

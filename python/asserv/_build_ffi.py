@@ -292,6 +292,7 @@ struct board {
     struct orders orders;
     struct faults faults;
     uint8_t status;
+    struct control_gains gains;
     ...;
 };
 
