@@ -80,6 +80,7 @@ void board_default_config(struct board_config *c)
 	}
 	c->orders.tick_hz = 1000;
 	c->orders.jerk_um_s3 = 0;
+	c->orders.grip_um_s2 = 4709000; /* mu 0.8, 60 % of 8 kg on the drive wheels */
 
 	/* Recalibration (docs/recalibration.md). The basket switch, a 1 mm-travel microswitch at
 	 * the middle of the front edge, closes on a 125 mm circle within 16 mm of its centre. */
@@ -489,7 +490,10 @@ static void react(struct board *b, uint8_t event, const struct orders_measure *m
 		b->handover.jump = 1;
 		return;
 	}
-	orders_abort(&b->orders, m, reasons[event]);
+	if (event == FAULTS_SHOCK_BORD || event == FAULTS_SHOCK_PANIER)
+		orders_shock(&b->orders, m, reasons[event]); /* a hold that gives way */
+	else
+		orders_abort(&b->orders, m, reasons[event]);
 	b->handover.reset = 1;
 	b->handover.jump = 1;
 	b->status |= bits[event];
@@ -778,6 +782,10 @@ static void slow_steps(struct board *b)
 
 	/* 5. Orders -> profiles -> set points of both axes; the contact recalibrations. */
 	reason = orders_update(&b->orders, m);
+	if (b->orders.gave_way) { /* the hold after a shock moved away from the obstacle */
+		b->orders.gave_way = 0;
+		b->handover.reset = 1;
+	}
 	recal_border(b, m);
 	finish(b, reason, m);
 	select_gains(b);

@@ -27,7 +27,8 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	struct profile_config pc;
 
 	if (cfg->drive_track_um < 10000u || cfg->drive_track_um > 1000000u ||
-	    cfg->n_baskets > ORDERS_MAX_BASKETS || cfg->settle_ticks == 0)
+	    cfg->n_baskets > ORDERS_MAX_BASKETS || cfg->settle_ticks == 0 ||
+	    cfg->grip_um_s2 < 100000 || cfg->grip_um_s2 > 50000000)
 		return -1;
 	o->cfg = *cfg;
 	/* pi as 355/113 (8e-8 relative). */
@@ -47,6 +48,15 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	o->state = ORDER_STATE_IDLE;
 	o->end_reason = END_REASON_NONE;
 	o->ended = 0;
+	o->give_way = 0;
+	o->gave_way = 0;
+	o->braking = 0;
+	o->rest_ticks = (uint8_t)(cfg->tick_hz >= 250 ? cfg->tick_hz / 125 : 1); /* 8 ms */
+	for (uint8_t i = 0; i < 2; i++) {
+		o->shock_side[i] = 0;
+		o->still[i] = 0;
+		o->reach_um[i] = 0;
+	}
 	o->sp_dist.pos_um = dist_um;
 	o->sp_dist.vel_um_s = 0;
 	o->sp_dist.acc_um_s2 = 0;
@@ -107,6 +117,8 @@ static void begin(struct orders *o, uint8_t designation)
 	o->aim_wait = o->aim_period;
 	o->border = 0;
 	o->recal.pending = 0;
+	o->give_way = 0;
+	o->braking = 0;
 }
 
 static void end(struct orders *o, uint8_t reason)
@@ -251,6 +263,108 @@ void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_
 {
 	hold_measured(o, m);
 	end(o, end_reason);
+}
+
+/* The side an axis moved towards: its measured speed, else its set point's velocity, if either
+ * is above the arrival speed. */
+static int8_t side_of(int32_t speed_um_s, int32_t set_um_s, int32_t slow_um_s)
+{
+	if (fx_abs32(speed_um_s) < slow_um_s)
+		speed_um_s = set_um_s;
+	if (fx_abs32(speed_um_s) < slow_um_s)
+		return 0;
+	return speed_um_s > 0 ? 1 : -1;
+}
+
+/* The whole ticks braking at the grip's deceleration takes from the set point's speed, else the
+ * measured one (at low speed a tick's measure is a whole encoder count or none). */
+static uint16_t brake_ticks(const struct orders *o, int32_t set_um_s, int32_t speed_um_s)
+{
+	int32_t dv = o->cfg.grip_um_s2 / (int32_t)o->cfg.tick_hz; /* >= 50 */
+	int32_t v = fx_abs32(set_um_s) >= o->cfg.arrive_speed_um_s ? fx_abs32(set_um_s)
+								   : fx_abs32(speed_um_s);
+	int32_t n = v / dv;
+
+	return (uint16_t)(n > 0xFFFF ? 0xFFFF : n);
+}
+
+void orders_shock(struct orders *o, const struct orders_measure *m, uint8_t end_reason)
+{
+	int32_t slow = o->cfg.arrive_speed_um_s;
+
+	o->shock_side[0] = side_of(m->dist_speed_um_s, o->sp_dist.vel_um_s, slow);
+	o->shock_side[1] = side_of(m->angle_speed_um_s, o->sp_angle.vel_um_s, slow);
+	o->brake_ticks[0] = brake_ticks(o, o->sp_dist.vel_um_s, m->dist_speed_um_s);
+	o->brake_ticks[1] = brake_ticks(o, o->sp_angle.vel_um_s, m->angle_speed_um_s);
+	orders_abort(o, m, end_reason);
+	o->give_way = 1;
+	o->reach_um[0] = m->dist_um;
+	o->reach_um[1] = m->angle_um;
+	o->still[0] = 0;
+	o->still[1] = 0;
+}
+
+/* a - b, the axes' wrapping difference (the positions compared are close). */
+static int32_t wrap_sub(int32_t a, int32_t b)
+{
+	return (int32_t)((uint32_t)a - (uint32_t)b);
+}
+
+/* One axis of the stop after a shock (orders_shock()), at pos_um going towards the obstacle at
+ * speed_um_s (m's). */
+static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int32_t pos_um,
+			  int32_t speed_um_s)
+{
+	int8_t side = o->shock_side[axis];
+	uint8_t stopped = (uint8_t)(2u << axis);
+	int32_t slow = o->cfg.arrive_speed_um_s;
+	int32_t further = wrap_sub(pos_um, o->reach_um[axis]);
+	int32_t beyond = wrap_sub(p->out.pos_um, pos_um);
+
+	if (side == 0) {
+		/* Not moving at the shock: the contact moved it (a corner turned by the obstacle).
+		 * Holding that back would press the obstacle: wherever it slows down, hold it. */
+		if (beyond != 0 && fx_abs32(speed_um_s) < slow) {
+			profile_reset(p, pos_um);
+			o->gave_way = 1;
+		}
+		return;
+	}
+	if (side < 0) {
+		further = -further;
+		beyond = -beyond;
+		speed_um_s = -speed_um_s;
+	}
+	if (!(o->give_way & stopped)) {
+		/* Braking for the braking time, while it still goes towards the obstacle (it went
+		 * further within half rest_ticks, and not back this tick). */
+		if (further > 0) {
+			o->reach_um[axis] = pos_um;
+			o->still[axis] = 0;
+		} else if (speed_um_s <= -slow || ++o->still[axis] >= o->rest_ticks) {
+			/* The first stop (against the obstacle, or bouncing off it): hold there. */
+			o->give_way |= stopped;
+			o->brake_ticks[axis] = 0;
+			o->still[axis] = 0;
+			profile_reset(p, pos_um);
+			o->gave_way = 1;
+			beyond = 0;
+		}
+		if (o->brake_ticks[axis] > 0) {
+			o->brake_ticks[axis]--;
+			if (speed_um_s >= 0 &&
+			    o->still[axis] < (uint8_t)((o->rest_ticks + 1u) >> 1))
+				o->braking |= (uint8_t)(1u << axis);
+		}
+		if (!(o->give_way & stopped))
+			return;
+	}
+	/* Stopped, or bouncing off: a robot moving away is braked by the hold; once it no longer
+	 * does (slower than arrive_speed), it is held where it is. */
+	if (beyond <= 0 || speed_um_s < -slow)
+		return;
+	profile_reset(p, pos_um);
+	o->gave_way = 1;
 }
 
 static int settled(struct orders *o, const struct orders_measure *m)
@@ -478,12 +592,23 @@ static void copy_out(struct orders_axis *a, const struct profile_out *p)
 	a->acc_um_s2 = p->acc_um_s2;
 }
 
+/* The braking feed-forward of an axis, against its motion towards the obstacle. */
+static int32_t brake_acc(const struct orders *o, uint8_t axis)
+{
+	return o->shock_side[axis] > 0 ? -o->cfg.grip_um_s2 : o->cfg.grip_um_s2;
+}
+
 uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 {
 	uint8_t reason = END_REASON_NONE;
 
-	if (o->state != ORDER_STATE_IDLE)
+	if (o->state != ORDER_STATE_IDLE) {
 		reason = update_state(o, m);
+	} else if (o->give_way) {
+		o->braking = 0;
+		give_way_axis(o, 0, &o->dist, m->dist_um, m->dist_speed_um_s);
+		give_way_axis(o, 1, &o->angle, m->angle_um, m->angle_speed_um_s);
+	}
 	if (reason == END_REASON_BASKET)
 		return reason; /* setpoints already hold the contact position */
 	if (o->state == ORDER_STATE_SQUARE)
@@ -491,6 +616,12 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 			      m->angle_um); /* the heading loop relaxed: no angle error */
 	copy_out(&o->sp_dist, profile_update(&o->dist));
 	copy_out(&o->sp_angle, profile_update(&o->angle));
+	if (o->braking) { /* after a shock (give_way_axis()): against the motion */
+		if (o->braking & 1u)
+			o->sp_dist.acc_um_s2 = brake_acc(o, 0);
+		if (o->braking & 2u)
+			o->sp_angle.acc_um_s2 = brake_acc(o, 1);
+	}
 	return reason;
 }
 
