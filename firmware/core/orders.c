@@ -21,6 +21,31 @@ static struct profile_limits limits_of(uint8_t speed_cm_s, uint8_t accel_cm_s2, 
 	return l;
 }
 
+/* a / k for k in [2^-8] (k >= 1): a 2^8 / k, in 64 bits (once per setting or state). */
+static int32_t div_q8(int32_t a, uint16_t k_q8)
+{
+	return (int32_t)(((int64_t)a << 8) / k_q8);
+}
+
+/* The accelerations within the grip, whatever the master set (docs/control.md "Grip"): of 7/8
+ * of the grip (1/8 left for the loop's corrections), the distance axis gets at most 3/4, and
+ * the angle axis what the distance axis leaves, so that a turn that still brakes while the line
+ * starts, or a re-aim while accelerating, never asks the wheels for more than the grip gives. */
+static void grip_share(const struct orders *o, struct profile_limits *d, struct profile_limits *r)
+{
+	int32_t grip = o->cfg.grip_um_s2 - (o->cfg.grip_um_s2 >> 3); /* 1/8 for the loop */
+	int32_t lin_max = grip - (grip >> 2);
+	int32_t rot_max;
+
+	if (d->a_max_um_s2 > lin_max)
+		d->a_max_um_s2 = lin_max;
+	rot_max = div_q8(grip - d->a_max_um_s2, o->cfg.rot_grip_q8);
+	if (rot_max < PROFILE_A_MIN_UM_S2)
+		rot_max = PROFILE_A_MIN_UM_S2;
+	if (r->a_max_um_s2 > rot_max)
+		r->a_max_um_s2 = rot_max;
+}
+
 int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_um,
 		int32_t angle_um)
 {
@@ -28,7 +53,7 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 
 	if (cfg->drive_track_um < 10000u || cfg->drive_track_um > 1000000u ||
 	    cfg->n_baskets > ORDERS_MAX_BASKETS || cfg->settle_ticks == 0 ||
-	    cfg->grip_um_s2 < 100000 || cfg->grip_um_s2 > 50000000)
+	    cfg->grip_um_s2 < 100000 || cfg->grip_um_s2 > 50000000 || cfg->rot_grip_q8 == 0)
 		return -1;
 	o->cfg = *cfg;
 	/* pi as 355/113 (8e-8 relative). */
@@ -40,6 +65,13 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	pc.limits = o->traj;
 	if (profile_init(&o->dist, &pc, dist_um) || profile_init(&o->angle, &pc, angle_um))
 		return -1;
+	{
+		struct profile_limits d = o->traj, r = o->rot;
+
+		grip_share(o, &d, &r);
+		profile_set_limits(&o->dist, &d);
+		profile_set_limits(&o->angle, &r);
+	}
 	o->designation = 0xFFu;
 	o->aim_period = (uint8_t)(cfg->tick_hz >= 500 ? cfg->tick_hz / 250 : 1);
 	o->aim_wait = 0;
@@ -68,14 +100,15 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 
 static void apply_limits(struct orders *o)
 {
-	struct profile_limits d = o->traj;
+	struct profile_limits d = o->traj, r = o->rot;
 
 	int32_t push = o->border ? o->cfg.border_speed_um_s : o->cfg.push_speed_um_s;
 
 	if (o->state == ORDER_STATE_PUSH && d.v_max_um_s > push)
 		d.v_max_um_s = push;
+	grip_share(o, &d, &r);
 	profile_set_limits(&o->dist, &d);
-	profile_set_limits(&o->angle, &o->rot);
+	profile_set_limits(&o->angle, &r);
 }
 
 static void set_limits(struct orders *o, struct profile_limits *l, uint8_t speed_cm_s,

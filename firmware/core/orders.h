@@ -41,6 +41,10 @@ struct orders_config {
 	/* The acceleration the drive wheels' grip allows [um/s^2] (mu g times the weight's share
 	 * on the drive wheels), 100000..50000000: the braking after a shock. */
 	int32_t grip_um_s2;
+	/* The friction circle, along the wheels: a wheel pushes the body with m a / 2 for the
+	 * distance axis and 2 I a' / track^2 for the angle axis (a' its arc acceleration), so the
+	 * grip holds while a + k a' <= grip_um_s2, k = 4 I / (m track^2) [2^-8], 1..65535. */
+	uint16_t rot_grip_q8;
 
 	/* Basket recalibration: the basket switch closes only when the basket's centre is within
 	 * this of the robot's heading line (set by the switch's width; 0: no lateral constraint).

@@ -261,6 +261,7 @@ struct orders_config {
     uint16_t tick_hz;
     uint32_t jerk_um_s3;
     int32_t grip_um_s2;
+    uint16_t rot_grip_q8;
     ...;
 };
 struct board_config {
