@@ -21,29 +21,36 @@ static struct profile_limits limits_of(uint8_t speed_cm_s, uint8_t accel_cm_s2, 
 	return l;
 }
 
-/* a / k for k in [2^-8] (k >= 1): a 2^8 / k, in 64 bits (once per setting or state). */
+/* floor(a / k) for a >= 0 and k in [2^-8] (k >= 1), at most 2^23 - 1: in 32 bits (an AVR's 64-bit
+ * division is thousands of cycles; this runs at each setting and each state an order enters). */
 static int32_t div_q8(int32_t a, uint16_t k_q8)
 {
-	return (int32_t)(((int64_t)a << 8) / k_q8);
+	uint32_t q = (uint32_t)a / k_q8, r = (uint32_t)a % k_q8;
+
+	if (q >= ((uint32_t)1 << 15))
+		return ((int32_t)1 << 23) - 1;
+	return (int32_t)((q << 8) + (r << 8) / k_q8);
 }
 
 /* The accelerations within the grip, whatever the master set (docs/control.md "Grip"): of 7/8
  * of the grip (1/8 left for the loop's corrections), the distance axis gets at most 3/4, and
  * the angle axis what the distance axis leaves, so that a turn that still brakes while the line
- * starts, or a re-aim while accelerating, never asks the wheels for more than the grip gives. */
-static void grip_share(const struct orders *o, struct profile_limits *d, struct profile_limits *r)
+ * starts, or a re-aim while accelerating, never asks the wheels for more than the grip gives.
+ * Kept in o->grip_a_um_s2 at each SET_VITESSE_*: the states apply them without a division. */
+static void grip_share(struct orders *o)
 {
 	int32_t grip = o->cfg.grip_um_s2 - (o->cfg.grip_um_s2 >> 3); /* 1/8 for the loop */
-	int32_t lin_max = grip - (grip >> 2);
-	int32_t rot_max;
+	int32_t lin = grip - (grip >> 2), rot;
 
-	if (d->a_max_um_s2 > lin_max)
-		d->a_max_um_s2 = lin_max;
-	rot_max = div_q8(grip - d->a_max_um_s2, o->cfg.rot_grip_q8);
-	if (rot_max < PROFILE_A_MIN_UM_S2)
-		rot_max = PROFILE_A_MIN_UM_S2;
-	if (r->a_max_um_s2 > rot_max)
-		r->a_max_um_s2 = rot_max;
+	if (o->traj.a_max_um_s2 < lin)
+		lin = o->traj.a_max_um_s2;
+	rot = div_q8(grip - lin, o->cfg.rot_grip_q8);
+	if (rot < PROFILE_A_MIN_UM_S2)
+		rot = PROFILE_A_MIN_UM_S2;
+	if (o->rot.a_max_um_s2 < rot)
+		rot = o->rot.a_max_um_s2;
+	o->grip_a_um_s2[0] = lin;
+	o->grip_a_um_s2[1] = rot;
 }
 
 int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_um,
@@ -65,10 +72,12 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	pc.limits = o->traj;
 	if (profile_init(&o->dist, &pc, dist_um) || profile_init(&o->angle, &pc, angle_um))
 		return -1;
+	grip_share(o);
 	{
 		struct profile_limits d = o->traj, r = o->rot;
 
-		grip_share(o, &d, &r);
+		d.a_max_um_s2 = o->grip_a_um_s2[0];
+		r.a_max_um_s2 = o->grip_a_um_s2[1];
 		profile_set_limits(&o->dist, &d);
 		profile_set_limits(&o->angle, &r);
 	}
@@ -106,7 +115,8 @@ static void apply_limits(struct orders *o)
 
 	if (o->state == ORDER_STATE_PUSH && d.v_max_um_s > push)
 		d.v_max_um_s = push;
-	grip_share(o, &d, &r);
+	d.a_max_um_s2 = o->grip_a_um_s2[0];
+	r.a_max_um_s2 = o->grip_a_um_s2[1];
 	profile_set_limits(&o->dist, &d);
 	profile_set_limits(&o->angle, &r);
 }
@@ -120,6 +130,7 @@ static void set_limits(struct orders *o, struct profile_limits *l, uint8_t speed
 		l->v_max_um_s = n.v_max_um_s;
 	if (accel_cm_s2)
 		l->a_max_um_s2 = n.a_max_um_s2;
+	grip_share(o);
 	apply_limits(o);
 }
 
@@ -363,10 +374,10 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 		}
 		return;
 	}
-	if (side < 0) {
-		further = -further;
-		beyond = -beyond;
-		speed_um_s = -speed_um_s;
+	if (side < 0) { /* wrapping too (fuzzed positions may be far apart) */
+		further = wrap_sub(0, further);
+		beyond = wrap_sub(0, beyond);
+		speed_um_s = -speed_um_s; /* a product of two 16-bit values (board.c measure()) */
 	}
 	if (!(o->give_way & stopped)) {
 		/* Braking for the braking time, while it still goes towards the obstacle (it went

@@ -102,6 +102,7 @@ struct orders {
 	struct profile angle;
 	struct profile_limits traj; /* SET_VITESSE_TRAJ */
 	struct profile_limits rot;  /* SET_VITESSE_ROT */
+	int32_t grip_a_um_s2[2];    /* their accelerations within the grip (orders.c) */
 	uint8_t designation;        /* the running or last order, PROTO_NONE before the first */
 	uint8_t state;              /* ORDER_STATE_* */
 	uint8_t end_reason;         /* END_REASON_* of the last order that ended */
