@@ -170,14 +170,19 @@ class Stop:
     force_last_s: float  # the largest in the last second of the trace
 
 
-def stop_of(sim: Simulator, start: int) -> Stop:
+def stop_of(sim: Simulator, start: int, disc: tuple[float, float] | None = None) -> Stop:
+    """The stop after the first shock from trace row start on; towards the obstacle is along
+    the heading at the contact (a wall across the path), or towards the centre of disc."""
     tr = sim.trace[start:]
     shocked = np.nonzero(tr["shocks"])[0]
     assert len(shocked), "no shock switch closed"
     c = int(shocked[0])
     v = tr["v_mm_s"][c:]
-    h = math.radians(float(tr["heading_deg"][c]))
-    along = tr["x_mm"][c:] * math.cos(h) + tr["y_mm"][c:] * math.sin(h)
+    if disc is None:
+        h = math.radians(float(tr["heading_deg"][c]))
+        along = tr["x_mm"][c:] * math.cos(h) + tr["y_mm"][c:] * math.sin(h)
+    else:  # minus the distance to the disc's centre
+        along = -np.hypot(tr["x_mm"][c:] - disc[0], tr["y_mm"][c:] - disc[1])
     grip_mm_s2 = sim.board_config.orders.grip_um_s2 / 1000
     moving = np.nonzero(np.abs(v) >= REST_MM_S)[0]
     stopped = int(np.nonzero(v <= 0)[0][0])
@@ -225,7 +230,7 @@ def test_a_shock_at_1_m_s_stops_and_lets_go(seed: int, randomize: bool) -> None:
     board.goto(600, 0)
     assert board.wait_idle(20) == Status.CHOC_BORD
     sim.advance(4)
-    s = stop_of(sim, start)
+    s = stop_of(sim, start, disc=(0, 0))
     assert s.v0_mm_s > 950
     check_stop(s)
     assert s.rest_ms <= 0.6 * s.braking_ms  # measured: 88 ms for 213 (the obstacle helps)
@@ -336,3 +341,17 @@ def test_slip_up_to_10_percent_grip_is_detected_within_100_ms(
     # Any moment of the acceleration (1 m/s at 1 m/s^2: 0 to 1 s), either wheel, 0 to 10 %.
     ms = slip_latency_ms(scale, wheel, at_s, seed)
     assert ms is not None and ms <= 100
+
+
+@pytest.mark.parametrize("lateral", [-140, -120, 120, 140])
+def test_an_oblique_hit_stops_and_lets_go(lateral: int) -> None:
+    # A disc off the robot's centre line, where a corner switch meets it at 1 m/s: the contact
+    # turns the robot by about 30 degrees, and holding the heading back presses the corner into
+    # the disc (a first version of the stop, holding it: 26 N from 300 ms on, 1.1 s to rest).
+    sim = Simulator({"start": (-900, 0, 0.0)}, field=disc_field(0, lateral))
+    board = Board(sim.bus)
+    board.set_vitesse_traj(100, 150)
+    board.goto(600, 0)
+    assert board.wait_idle(20) == Status.CHOC_BORD
+    sim.advance(1.5)
+    check_stop(stop_of(sim, 0, disc=(0, lateral)))
