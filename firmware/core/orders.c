@@ -93,6 +93,7 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	o->gave_way = 0;
 	o->braking = 0;
 	o->rest_ticks = (uint8_t)(cfg->tick_hz >= 250 ? cfg->tick_hz / 125 : 1); /* 8 ms */
+	o->brake_dv_um_s = cfg->grip_um_s2 / (int32_t)cfg->tick_hz;              /* >= 50 */
 	for (uint8_t i = 0; i < 2; i++) {
 		o->shock_side[i] = 0;
 		o->still[i] = 0;
@@ -324,7 +325,7 @@ static int8_t side_of(int32_t speed_um_s, int32_t set_um_s, int32_t slow_um_s)
  * measured one (at low speed a tick's measure is a whole encoder count or none). */
 static uint16_t brake_ticks(const struct orders *o, int32_t set_um_s, int32_t speed_um_s)
 {
-	int32_t dv = o->cfg.grip_um_s2 / (int32_t)o->cfg.tick_hz; /* >= 50 */
+	int32_t dv = o->brake_dv_um_s;
 	int32_t v = fx_abs32(set_um_s) >= o->cfg.arrive_speed_um_s ? fx_abs32(set_um_s)
 								   : fx_abs32(speed_um_s);
 	int32_t n = v / dv;
@@ -403,9 +404,11 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 		if (!(o->give_way & stopped))
 			return;
 	}
-	/* Stopped, or bouncing off: a robot moving away is braked by the hold; once it no longer
-	 * does (slower than arrive_speed), it is held where it is. */
-	if (beyond <= 0 || speed_um_s < -slow)
+	/* Stopped, or bouncing off: a robot moving away is braked by the hold; once it would stop
+	 * within two ticks (the measure's and the hand-over's: slower than arrive_speed and two
+	 * ticks of braking at the grip), it is held where it is, before the hold pulls it back
+	 * (the wheels, spinning against the motion at the grip, carry it on a little). */
+	if (beyond <= 0 || speed_um_s < -(slow + 2 * o->brake_dv_um_s))
 		return;
 	profile_reset(p, pos_um);
 	o->gave_way = 1;

@@ -146,6 +146,7 @@ struct orders {
 	uint8_t braking;         /* bit axis: brake at grip_um_s2 this tick (the feed-forward) */
 	uint8_t rest_ticks;      /* an axis has stopped after this many ticks of no progress */
 	uint8_t still[2];        /* ticks since each axis last went further towards the obstacle */
+	int32_t brake_dv_um_s;   /* the speed a tick of braking at grip_um_s2 takes away */
 	uint16_t brake_ticks[2]; /* what braking at grip_um_s2 from the shock's speed takes */
 	int32_t reach_um[2];     /* how far each axis went towards the obstacle */
 };
@@ -178,9 +179,9 @@ void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_
  * deceleration as a feed-forward for as long as that takes from the set point's speed, while it
  * still goes towards the obstacle (within the last 4 ms); once it has gone no
  * further for 8 ms (rest_ticks), its hold point moves to where it stopped. From then on, a robot
- * on the far side of its hold point and no longer moving away (slower than arrive_speed) is held
- * where it is: the hold never pulls it back towards the obstacle. gave_way tells the board that
- * a hold point moved (the integrals go). Interrupt-safe: no. */
+ * on the far side of its hold point and about to stop moving away (slower than arrive_speed and
+ * two ticks of braking) is held where it is: the hold never pulls it back towards the obstacle.
+ * gave_way tells the board that a hold point moved (the integrals go). Interrupt-safe: no. */
 void orders_shock(struct orders *o, const struct orders_measure *m, uint8_t end_reason);
 
 /* A heading change [turn * 2^32] as an arc on the angle axis [um]. Interrupt-safe: yes. */

@@ -355,3 +355,25 @@ def test_an_oblique_hit_stops_and_lets_go(lateral: int) -> None:
     assert board.wait_idle(20) == Status.CHOC_BORD
     sim.advance(1.5)
     check_stop(stop_of(sim, 0, disc=(0, lateral)))
+
+
+@pytest.mark.parametrize("speed", [10, 30, 60, 100, 150])
+def test_the_stop_at_the_avr_s_rate(speed: int) -> None:
+    # The slow steps every 8th tick (slow_shift 3, the AVR board): the shock is seen up to 16 ms
+    # later, the robot meets the disc at speed and is thrown back at up to 0.5 m/s; the hold
+    # brakes that and lets go two ticks' braking before it stops (it came back 1.0 to 2.2 mm
+    # when it let go at the arrival speed). The 1 kHz board's rest bound is check_stop's.
+    sim = Simulator(
+        {"start": (-400 if speed < 20 else -900, 0, 0.0)},
+        field=disc_field(),
+        board_config={"slow_shift": 3},
+    )
+    board = Board(sim.bus)
+    board.set_vitesse_traj(speed, 150)
+    board.goto(600, 0)
+    assert board.wait_idle(40) == Status.CHOC_BORD
+    sim.advance(1.5)
+    s = stop_of(sim, 0, disc=(0, 0))
+    assert s.back_mm < BACK_MM, s
+    assert s.force_after_300_ms < 10 and s.force_last_s < 1, s
+    assert s.rest_ms <= 200, s  # measured: 34 to 160 ms
