@@ -80,6 +80,8 @@ void board_default_config(struct board_config *c)
 	}
 	c->orders.tick_hz = 1000;
 	c->orders.jerk_um_s3 = 0;
+	c->orders.grip_um_s2 = 4709000; /* mu 0.8, 60 % of 8 kg on the drive wheels */
+	c->orders.rot_grip_q8 = 500;    /* 4 x 0.10 kg m^2 / (8 kg x 0.160 m^2): 1.95 */
 
 	/* Recalibration (docs/recalibration.md). The basket switch, a 1 mm-travel microswitch at
 	 * the middle of the front edge, closes on a 125 mm circle within 16 mm of its centre. */
@@ -458,6 +460,16 @@ static void set_gains(struct board *b, const struct control_gains *g)
 	b->handover.set_gains = 1;
 }
 
+/* SET_FILTRE(_RAW): during a border push the soft gains stay, and the master's come after it
+ * (select_gains()); stiffer gains against the border would turn the contact into PB_MOTEUR. */
+static void master_gains(struct board *b, const struct control_gains *g)
+{
+	if (b->soft)
+		b->saved_gains = *g;
+	else
+		set_gains(b, g);
+}
+
 static void apply(struct board *b, const struct proto_msg *msg, struct orders_measure *m)
 {
 	const int32_t *a = msg->arg;
@@ -497,13 +509,13 @@ static void apply(struct board *b, const struct proto_msg *msg, struct orders_me
 		break;
 	case PROTO_SET_FILTRE:
 		if ((uint8_t)a[ARG_SET_FILTRE_PRESET] < CONTROL_N_PRESETS) /* by the table */
-			set_gains(b, &b->cfg.control.presets[(uint8_t)a[ARG_SET_FILTRE_PRESET]]);
+			master_gains(b, &b->cfg.control.presets[(uint8_t)a[ARG_SET_FILTRE_PRESET]]);
 		break;
 	case PROTO_SET_FILTRE_RAW:
 		g.p = (uint16_t)a[ARG_SET_FILTRE_RAW_P];
 		g.i = (uint16_t)a[ARG_SET_FILTRE_RAW_I];
 		g.d = (uint16_t)a[ARG_SET_FILTRE_RAW_D];
-		set_gains(b, &g);
+		master_gains(b, &g);
 		break;
 	case PROTO_SET_NEW_POS:
 		set_new_pos(b, msg, m);
@@ -578,7 +590,10 @@ static void react(struct board *b, uint8_t event, const struct orders_measure *m
 		return;
 	}
 	contact_slide(b, m);
-	orders_abort(&b->orders, m, reasons[event]);
+	if (event == FAULTS_SHOCK_BORD || event == FAULTS_SHOCK_PANIER)
+		orders_shock(&b->orders, m, reasons[event]); /* a hold that gives way */
+	else
+		orders_abort(&b->orders, m, reasons[event]);
 	b->handover.reset = 1;
 	b->handover.jump = 1;
 	b->status |= bits[event];
@@ -665,6 +680,8 @@ static void finish(struct board *b, uint8_t reason, struct orders_measure *m)
 {
 	if (reason == END_REASON_BORDER)
 		b->status |= STATUS_CHOC_BORD;
+	if (reason == END_REASON_NO_BASKET) /* not a motor fault: not counted towards PB_GRAVE */
+		b->status |= STATUS_PB_MOTEUR;
 	if (reason != END_REASON_BASKET)
 		return;
 	b->status |= STATUS_CHOC_PANIER;
@@ -917,6 +934,10 @@ static void slow_steps(struct board *b)
 
 	/* 5. Orders -> profiles -> set points of both axes; the contact recalibrations. */
 	reason = orders_update(&b->orders, m);
+	if (b->orders.gave_way) { /* the hold after a shock moved away from the obstacle */
+		b->orders.gave_way = 0;
+		b->handover.reset = 1;
+	}
 	recal_border(b, m);
 	finish(b, reason, m);
 	select_gains(b);

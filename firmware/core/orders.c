@@ -21,13 +21,46 @@ static struct profile_limits limits_of(uint8_t speed_cm_s, uint8_t accel_cm_s2, 
 	return l;
 }
 
+/* floor(a / k) for a >= 0 and k in [2^-8] (k >= 1), at most 2^23 - 1: in 32 bits (an AVR's 64-bit
+ * division is thousands of cycles; this runs at each setting and each state an order enters). */
+static int32_t div_q8(int32_t a, uint16_t k_q8)
+{
+	uint32_t q = (uint32_t)a / k_q8, r = (uint32_t)a % k_q8;
+
+	if (q >= ((uint32_t)1 << 15))
+		return ((int32_t)1 << 23) - 1;
+	return (int32_t)((q << 8) + (r << 8) / k_q8);
+}
+
+/* The accelerations within the grip, whatever the master set (docs/control.md "Grip"): of 7/8
+ * of the grip (1/8 left for the loop's corrections), the distance axis gets at most 3/4, and
+ * the angle axis what the distance axis leaves, so that a turn that still brakes while the line
+ * starts, or a re-aim while accelerating, never asks the wheels for more than the grip gives.
+ * Kept in o->grip_a_um_s2 at each SET_VITESSE_*: the states apply them without a division. */
+static void grip_share(struct orders *o)
+{
+	int32_t grip = o->cfg.grip_um_s2 - (o->cfg.grip_um_s2 >> 3); /* 1/8 for the loop */
+	int32_t lin = grip - (grip >> 2), rot;
+
+	if (o->traj.a_max_um_s2 < lin)
+		lin = o->traj.a_max_um_s2;
+	rot = div_q8(grip - lin, o->cfg.rot_grip_q8);
+	if (rot < PROFILE_A_MIN_UM_S2)
+		rot = PROFILE_A_MIN_UM_S2;
+	if (o->rot.a_max_um_s2 < rot)
+		rot = o->rot.a_max_um_s2;
+	o->grip_a_um_s2[0] = lin;
+	o->grip_a_um_s2[1] = rot;
+}
+
 int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_um,
 		int32_t angle_um)
 {
 	struct profile_config pc;
 
 	if (cfg->drive_track_um < 10000u || cfg->drive_track_um > 1000000u ||
-	    cfg->n_baskets > ORDERS_MAX_BASKETS || cfg->settle_ticks == 0)
+	    cfg->n_baskets > ORDERS_MAX_BASKETS || cfg->settle_ticks == 0 ||
+	    cfg->grip_um_s2 < 100000 || cfg->grip_um_s2 > 50000000 || cfg->rot_grip_q8 == 0)
 		return -1;
 	o->cfg = *cfg;
 	/* pi as 355/113 (8e-8 relative). */
@@ -39,6 +72,15 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	pc.limits = o->traj;
 	if (profile_init(&o->dist, &pc, dist_um) || profile_init(&o->angle, &pc, angle_um))
 		return -1;
+	grip_share(o);
+	{
+		struct profile_limits d = o->traj, r = o->rot;
+
+		d.a_max_um_s2 = o->grip_a_um_s2[0];
+		r.a_max_um_s2 = o->grip_a_um_s2[1];
+		profile_set_limits(&o->dist, &d);
+		profile_set_limits(&o->angle, &r);
+	}
 	o->designation = 0xFFu;
 	o->aim_period = (uint8_t)(cfg->tick_hz >= 500 ? cfg->tick_hz / 250 : 1);
 	o->aim_wait = 0;
@@ -47,6 +89,16 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	o->state = ORDER_STATE_IDLE;
 	o->end_reason = END_REASON_NONE;
 	o->ended = 0;
+	o->give_way = 0;
+	o->gave_way = 0;
+	o->braking = 0;
+	o->rest_ticks = (uint8_t)(cfg->tick_hz >= 250 ? cfg->tick_hz / 125 : 1); /* 8 ms */
+	o->brake_dv_um_s = cfg->grip_um_s2 / (int32_t)cfg->tick_hz;              /* >= 50 */
+	for (uint8_t i = 0; i < 2; i++) {
+		o->shock_side[i] = 0;
+		o->still[i] = 0;
+		o->reach_um[i] = 0;
+	}
 	o->sp_dist.pos_um = dist_um;
 	o->sp_dist.vel_um_s = 0;
 	o->sp_dist.acc_um_s2 = 0;
@@ -58,14 +110,16 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 
 static void apply_limits(struct orders *o)
 {
-	struct profile_limits d = o->traj;
+	struct profile_limits d = o->traj, r = o->rot;
 
 	int32_t push = o->border ? o->cfg.border_speed_um_s : o->cfg.push_speed_um_s;
 
 	if (o->state == ORDER_STATE_PUSH && d.v_max_um_s > push)
 		d.v_max_um_s = push;
+	d.a_max_um_s2 = o->grip_a_um_s2[0];
+	r.a_max_um_s2 = o->grip_a_um_s2[1];
 	profile_set_limits(&o->dist, &d);
-	profile_set_limits(&o->angle, &o->rot);
+	profile_set_limits(&o->angle, &r);
 }
 
 static void set_limits(struct orders *o, struct profile_limits *l, uint8_t speed_cm_s,
@@ -77,6 +131,7 @@ static void set_limits(struct orders *o, struct profile_limits *l, uint8_t speed
 		l->v_max_um_s = n.v_max_um_s;
 	if (accel_cm_s2)
 		l->a_max_um_s2 = n.a_max_um_s2;
+	grip_share(o);
 	apply_limits(o);
 }
 
@@ -107,6 +162,8 @@ static void begin(struct orders *o, uint8_t designation)
 	o->aim_wait = o->aim_period;
 	o->border = 0;
 	o->recal.pending = 0;
+	o->give_way = 0;
+	o->braking = 0;
 }
 
 static void end(struct orders *o, uint8_t reason)
@@ -251,6 +308,110 @@ void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_
 {
 	hold_measured(o, m);
 	end(o, end_reason);
+}
+
+/* The side an axis moved towards: its measured speed, else its set point's velocity, if either
+ * is above the arrival speed. */
+static int8_t side_of(int32_t speed_um_s, int32_t set_um_s, int32_t slow_um_s)
+{
+	if (fx_abs32(speed_um_s) < slow_um_s)
+		speed_um_s = set_um_s;
+	if (fx_abs32(speed_um_s) < slow_um_s)
+		return 0;
+	return speed_um_s > 0 ? 1 : -1;
+}
+
+/* The whole ticks braking at the grip's deceleration takes from the set point's speed, else the
+ * measured one (at low speed a tick's measure is a whole encoder count or none). */
+static uint16_t brake_ticks(const struct orders *o, int32_t set_um_s, int32_t speed_um_s)
+{
+	int32_t dv = o->brake_dv_um_s;
+	int32_t v = fx_abs32(set_um_s) >= o->cfg.arrive_speed_um_s ? fx_abs32(set_um_s)
+								   : fx_abs32(speed_um_s);
+	int32_t n = v / dv;
+
+	return (uint16_t)(n > 0xFFFF ? 0xFFFF : n);
+}
+
+void orders_shock(struct orders *o, const struct orders_measure *m, uint8_t end_reason)
+{
+	int32_t slow = o->cfg.arrive_speed_um_s;
+
+	o->shock_side[0] = side_of(m->dist_speed_um_s, o->sp_dist.vel_um_s, slow);
+	o->shock_side[1] = side_of(m->angle_speed_um_s, o->sp_angle.vel_um_s, slow);
+	o->brake_ticks[0] = brake_ticks(o, o->sp_dist.vel_um_s, m->dist_speed_um_s);
+	o->brake_ticks[1] = brake_ticks(o, o->sp_angle.vel_um_s, m->angle_speed_um_s);
+	orders_abort(o, m, end_reason);
+	o->give_way = 1;
+	o->reach_um[0] = m->dist_um;
+	o->reach_um[1] = m->angle_um;
+	o->still[0] = 0;
+	o->still[1] = 0;
+}
+
+/* a - b, the axes' wrapping difference (the positions compared are close). */
+static int32_t wrap_sub(int32_t a, int32_t b)
+{
+	return (int32_t)((uint32_t)a - (uint32_t)b);
+}
+
+/* One axis of the stop after a shock (orders_shock()), at pos_um going towards the obstacle at
+ * speed_um_s (m's). */
+static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int32_t pos_um,
+			  int32_t speed_um_s)
+{
+	int8_t side = o->shock_side[axis];
+	uint8_t stopped = (uint8_t)(2u << axis);
+	int32_t slow = o->cfg.arrive_speed_um_s;
+	int32_t further = wrap_sub(pos_um, o->reach_um[axis]);
+	int32_t beyond = wrap_sub(p->out.pos_um, pos_um);
+
+	if (side == 0) {
+		/* Not moving at the shock: the contact moved it (a corner turned by the obstacle).
+		 * Holding that back would press the obstacle: wherever it slows down, hold it. */
+		if (beyond != 0 && fx_abs32(speed_um_s) < slow) {
+			profile_reset(p, pos_um);
+			o->gave_way = 1;
+		}
+		return;
+	}
+	if (side < 0) { /* wrapping too (fuzzed positions may be far apart) */
+		further = wrap_sub(0, further);
+		beyond = wrap_sub(0, beyond);
+		speed_um_s = -speed_um_s; /* a product of two 16-bit values (board.c measure()) */
+	}
+	if (!(o->give_way & stopped)) {
+		/* Braking for the braking time, while it still goes towards the obstacle (it went
+		 * further within half rest_ticks, and not back this tick). */
+		if (further > 0) {
+			o->reach_um[axis] = pos_um;
+			o->still[axis] = 0;
+		} else if (speed_um_s <= -slow || ++o->still[axis] >= o->rest_ticks) {
+			/* The first stop (against the obstacle, or bouncing off it): hold there. */
+			o->give_way |= stopped;
+			o->brake_ticks[axis] = 0;
+			o->still[axis] = 0;
+			profile_reset(p, pos_um);
+			o->gave_way = 1;
+			beyond = 0;
+		}
+		if (o->brake_ticks[axis] > 0) {
+			o->brake_ticks[axis]--;
+			if (speed_um_s >= 0 &&
+			    o->still[axis] < (uint8_t)((o->rest_ticks + 1u) >> 1))
+				o->braking |= (uint8_t)(1u << axis);
+		}
+		if (!(o->give_way & stopped))
+			return;
+	}
+	/* Stopped, or bouncing off: a robot moving away is braked by the hold; once it would stop
+	 * within two ticks (the measure's and the hand-over's: slower than arrive_speed and two
+	 * ticks of braking at the grip), it is held where it is, before the hold pulls it back
+	 * (the wheels, spinning against the motion at the grip, carry it on a little). */
+	if (beyond <= 0 || speed_um_s < -(slow + 2 * o->brake_dv_um_s))
+		return;
+	profile_reset(p, pos_um);
+	o->gave_way = 1;
 }
 
 static int settled(struct orders *o, const struct orders_measure *m)
@@ -454,8 +615,9 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 			return END_REASON_BASKET;
 		}
 		if (profile_is_done(&o->dist)) {
-			end(o, END_REASON_DONE); /* nothing touched: no CHOC_PANIER */
-			return END_REASON_DONE;
+			/* The whole push and nothing touched: the basket was not reached. */
+			end(o, END_REASON_NO_BASKET);
+			return END_REASON_NO_BASKET;
 		}
 		break;
 	case ORDER_STATE_STOPPING:
@@ -477,12 +639,23 @@ static void copy_out(struct orders_axis *a, const struct profile_out *p)
 	a->acc_um_s2 = p->acc_um_s2;
 }
 
+/* The braking feed-forward of an axis, against its motion towards the obstacle. */
+static int32_t brake_acc(const struct orders *o, uint8_t axis)
+{
+	return o->shock_side[axis] > 0 ? -o->cfg.grip_um_s2 : o->cfg.grip_um_s2;
+}
+
 uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 {
 	uint8_t reason = END_REASON_NONE;
 
-	if (o->state != ORDER_STATE_IDLE)
+	if (o->state != ORDER_STATE_IDLE) {
 		reason = update_state(o, m);
+	} else if (o->give_way) {
+		o->braking = 0;
+		give_way_axis(o, 0, &o->dist, m->dist_um, m->dist_speed_um_s);
+		give_way_axis(o, 1, &o->angle, m->angle_um, m->angle_speed_um_s);
+	}
 	if (reason == END_REASON_BASKET)
 		return reason; /* setpoints already hold the contact position */
 	if (o->state == ORDER_STATE_SQUARE)
@@ -490,6 +663,12 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 			      m->angle_um); /* the heading loop relaxed: no angle error */
 	copy_out(&o->sp_dist, profile_update(&o->dist));
 	copy_out(&o->sp_angle, profile_update(&o->angle));
+	if (o->braking) { /* after a shock (give_way_axis()): against the motion */
+		if (o->braking & 1u)
+			o->sp_dist.acc_um_s2 = brake_acc(o, 0);
+		if (o->braking & 2u)
+			o->sp_angle.acc_um_s2 = brake_acc(o, 1);
+	}
 	return reason;
 }
 

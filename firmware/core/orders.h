@@ -32,12 +32,19 @@ struct orders_config {
 	uint16_t settle_ticks;          /* ... for this many consecutive ticks */
 	uint16_t settle_timeout_ticks;  /* an order ends DONE after this long in SETTLE anyway */
 	int32_t push_speed_um_s;   /* GOTO_PANIER's approach speed (capped by the traj limit) */
-	int32_t push_max_um;       /* GOTO_PANIER gives up (DONE, no CHOC_PANIER) after this */
+	int32_t push_max_um;       /* GOTO_PANIER gives up (PB_MOTEUR, NO_BASKET) after this */
 	int32_t basket_contact_um; /* from the encoder axis midpoint to the basket switch */
 	uint8_t n_baskets;
 	struct orders_basket baskets[ORDERS_MAX_BASKETS];
 	uint16_t tick_hz;
 	uint32_t jerk_um_s3; /* 0: trapezoids; else S-curves with this jerk on both axes */
+	/* The acceleration the drive wheels' grip allows [um/s^2] (mu g times the weight's share
+	 * on the drive wheels), 100000..50000000: the braking after a shock. */
+	int32_t grip_um_s2;
+	/* The friction circle, along the wheels: a wheel pushes the body with m a / 2 for the
+	 * distance axis and 2 I a' / track^2 for the angle axis (a' its arc acceleration), so the
+	 * grip holds while a + k a' <= grip_um_s2, k = 4 I / (m track^2) [2^-8], 1..65535. */
+	uint16_t rot_grip_q8;
 
 	/* Basket recalibration: the basket switch closes only when the basket's centre is within
 	 * this of the robot's heading line (set by the switch's width; 0: no lateral constraint).
@@ -95,6 +102,7 @@ struct orders {
 	struct profile angle;
 	struct profile_limits traj; /* SET_VITESSE_TRAJ */
 	struct profile_limits rot;  /* SET_VITESSE_ROT */
+	int32_t grip_a_um_s2[2];    /* their accelerations within the grip (orders.c) */
 	uint8_t designation;        /* the running or last order, PROTO_NONE before the first */
 	uint8_t state;              /* ORDER_STATE_* */
 	uint8_t end_reason;         /* END_REASON_* of the last order that ended */
@@ -129,6 +137,18 @@ struct orders {
 	uint8_t border_side;
 	uint16_t square_count;
 	struct orders_recal recal;
+	/* After a shock, until the next order: the side of the obstacle on each axis (distance,
+	 * angle: 1 ahead, -1 behind, 0 none), where the hold never pulls the robot back to
+	 * (orders_shock()); gave_way is set when a hold point moved away from it. */
+	uint8_t give_way; /* bit 0: on; bit 1 + axis: that axis has stopped */
+	int8_t shock_side[2];
+	uint8_t gave_way;
+	uint8_t braking;         /* bit axis: brake at grip_um_s2 this tick (the feed-forward) */
+	uint8_t rest_ticks;      /* an axis has stopped after this many ticks of no progress */
+	uint8_t still[2];        /* ticks since each axis last went further towards the obstacle */
+	int32_t brake_dv_um_s;   /* the speed a tick of braking at grip_um_s2 takes away */
+	uint16_t brake_ticks[2]; /* what braking at grip_um_s2 from the shock's speed takes */
+	int32_t reach_um[2];     /* how far each axis went towards the obstacle */
 };
 
 /* Power-on: no order, holding (dist_um, angle_um); limits 10 cm/s, 40 cm/s^2 on both axes.
@@ -152,6 +172,17 @@ void orders_stop(struct orders *o);
 /* End the running order at once (shock, motor fault): both setpoints jump to the measured
  * position with zero velocity, so the controller stops driving in the same tick. */
 void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_reason);
+
+/* End the running order on a shock: as orders_abort(), then, until the next order, a stop that
+ * stops (docs/control.md "After a shock"). The obstacle is on the side each axis moved towards
+ * (m's speeds, else the set points' velocities). Each such axis brakes with the grip's
+ * deceleration as a feed-forward for as long as that takes from the set point's speed, while it
+ * still goes towards the obstacle (within the last 4 ms); once it has gone no
+ * further for 8 ms (rest_ticks), its hold point moves to where it stopped. From then on, a robot
+ * on the far side of its hold point and about to stop moving away (slower than arrive_speed and
+ * two ticks of braking) is held where it is: the hold never pulls it back towards the obstacle.
+ * gave_way tells the board that a hold point moved (the integrals go). Interrupt-safe: no. */
+void orders_shock(struct orders *o, const struct orders_measure *m, uint8_t end_reason);
 
 /* A heading change [turn * 2^32] as an arc on the angle axis [um]. Interrupt-safe: yes. */
 int32_t orders_arc_um(const struct orders *o, int32_t dheading_turn32);

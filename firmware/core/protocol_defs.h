@@ -86,6 +86,7 @@
 #define END_REASON_FAULT 6 /* unrecoverable fault (PB_GRAVE) */
 #define END_REASON_BORDER 7 /* GOTO with border recalibration touched the border, recalibrated and backed off (CHOC_BORD) */
 #define END_REASON_TIMEOUT 8 /* stopped because the master went silent (SET_TIMEOUT) */
+#define END_REASON_NO_BASKET 9 /* GOTO_PANIER drove its whole push without touching a basket (PB_MOTEUR) */
 
 /* Index of each parameter in struct proto_msg.arg[]. */
 #define ARG_GOTO_X_MM 0

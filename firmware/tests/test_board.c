@@ -349,8 +349,9 @@ static void test_goto_panier(void **state)
 	assert_true(fabs(p.x_um / 1000.0 - tx) < 3.0);
 }
 
-/* GOTO_PANIER with no basket ahead: the push gives up after its maximum travel, DONE without
- * CHOC_PANIER, and the estimate is not recalibrated. */
+/* GOTO_PANIER with no basket ahead: the push gives up after its maximum travel with PB_MOTEUR
+ * (the basket was not reached: docs/protocol.md 4.3) and the end reason NO_BASKET, without
+ * CHOC_PANIER, not counted as a motor fault, and the estimate is not recalibrated. */
 static void test_goto_panier_finds_nothing(void **state)
 {
 	struct sim_field f;
@@ -363,8 +364,10 @@ static void test_goto_panier_finds_nothing(void **state)
 	send((const uint8_t[]){PROTO_GOTO_PANIER, 0}, 2);
 	run_until_idle(30000);
 	truth(&tx, &ty, &th);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
-	assert_int_equal(status() & (STATUS_CHOC_PANIER | STATUS_BUSY_TRAJET), 0);
+	assert_int_equal(h.board.orders.end_reason, END_REASON_NO_BASKET);
+	assert_int_equal(status() & (STATUS_CHOC_PANIER | STATUS_BUSY_TRAJET | STATUS_PB_MOTEUR),
+			 STATUS_PB_MOTEUR);
+	assert_int_equal(h.board.faults.n_motor_faults, 0);
 	assert_true(fabs(tx - (-1300.0 + 500.0)) < 2.0);
 }
 

@@ -264,6 +264,8 @@ struct orders_config {
     uint8_t n_baskets;
     uint16_t tick_hz;
     uint32_t jerk_um_s3;
+    int32_t grip_um_s2;
+    uint16_t rot_grip_q8;
     ...;
 };
 struct board_config {
@@ -287,7 +289,16 @@ struct faults {
     uint8_t lost_suspect;
     ...;
 };
-struct orders { uint8_t state; uint8_t end_reason; ...; };
+struct orders_axis { int32_t pos_um; int32_t vel_um_s; int32_t acc_um_s2; };
+struct orders {
+    uint8_t state;
+    uint8_t end_reason;
+    struct orders_axis sp_dist;
+    struct orders_axis sp_angle;
+    uint8_t give_way;
+    int8_t shock_side[2];
+    ...;
+};
 struct board {
     struct board_config cfg;
     struct proto proto;
@@ -296,6 +307,7 @@ struct board {
     struct orders orders;
     struct faults faults;
     uint8_t status;
+    struct control_gains gains;
     ...;
 };
 

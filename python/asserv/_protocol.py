@@ -297,3 +297,4 @@ class EndReason(enum.IntEnum):
     FAULT = 6
     BORDER = 7
     TIMEOUT = 8
+    NO_BASKET = 9

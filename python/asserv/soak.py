@@ -56,6 +56,7 @@ ENDING_BITS: dict[int, set[int]] = {
     EndReason.SHOCK: {int(Status.CHOC_BORD), int(Status.CHOC_PANIER)},
     EndReason.MOTOR: {int(Status.PB_MOTEUR)},
     EndReason.FAULT: {int(Status.PB_GRAVE), int(Status.PB_GRAVE | Status.PB_MOTEUR)},
+    EndReason.NO_BASKET: {int(Status.PB_MOTEUR)},
 }
 
 

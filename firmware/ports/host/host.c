@@ -74,6 +74,11 @@ void host_board_config(const struct sim_config *sc, const struct sim_field *f,
 		(uint32_t)lround(two_pi * sc->drive_radius_mm * 1000.0 /
 				 (sc->motor.encoder_cpr * sc->motor.gear_ratio) * 65536.0);
 	bc->orders.basket_contact_um = (int32_t)lround(sc->basket_sensor_pos.x_mm * 1000.0);
+	bc->orders.grip_um_s2 =
+		(int32_t)lround(sc->friction_coeff * sc->drive_weight_share * 9.80665 * 1e6);
+	bc->orders.rot_grip_q8 = (uint16_t)lround(
+		4.0 * sc->yaw_inertia_kg_m2 /
+		(sc->mass_kg * sc->drive_track_mm * sc->drive_track_mm * 1e-6) * 256.0);
 	for (int i = 0; i < f->obstacle_count && n < ORDERS_MAX_BASKETS; i++) {
 		const struct sim_obstacle *o = &f->obstacles[i];
 
