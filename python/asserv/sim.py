@@ -261,6 +261,9 @@ class Simulator:
         self._proto = ffi.addressof(self._h.board, "proto")
 
     # ---- time -------------------------------------------------------------------------------
+    #: Sleeping on this clock runs the simulation (asserv.bus.clock_of, Board.sleep).
+    drives_simulation = True
+
     @property
     def time_s(self) -> float:
         """Simulated time since power-on."""
