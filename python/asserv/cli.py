@@ -261,6 +261,9 @@ def main(argv: list[str] | None = None) -> int:
         metavar=("XMIN", "XMAX", "YMIN", "YMAX"),
         help="field view of the plot [mm]",
     )
+    from . import server
+
+    server.register(simsub)  # asserv sim serve (python/asserv/server.py)
     enc = sub.add_parser("encode", help="print the bytes of a write, e.g. encode GOTO 200 100 0")
     enc.add_argument("message")
     enc.add_argument("params", nargs="*")
@@ -280,6 +283,8 @@ def main(argv: list[str] | None = None) -> int:
         from . import demo
 
         return demo.run(png=None if args.no_png else args.png)
+    if args.command == "sim" and hasattr(args, "sim_handler"):
+        return int(args.sim_handler(args))
     if args.command == "sim":
         return _sim_run(args.scenario, args.png, args.zoom)
     if args.command == "calibrate":

@@ -72,6 +72,13 @@ def _bus_options(parser: argparse.ArgumentParser, *, suppress: bool) -> None:
         help="Linux I2C bus number (/dev/i2c-N; 1 on a Raspberry Pi)",
     )
     parser.add_argument(
+        "--sim",
+        dest="bus_sim",
+        metavar="HOST:PORT",
+        default=default(None),
+        help="the simulated board of `asserv sim serve` instead of an I2C bus",
+    )
+    parser.add_argument(
         "--address",
         dest="bus_address",
         metavar="ADDR",
@@ -294,6 +301,10 @@ def _action(args: argparse.Namespace) -> Action:
     raise _UsageError(f"unknown command {cmd!r}")  # add_bus_arguments and this list disagree
 
 
+def _opened(bus: ClosableBus) -> BusFactory:
+    return lambda _number: bus
+
+
 def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory = smbus2.SMBus) -> int:
     """Run a parsed bus command; return the exit code (0 done, 1 bus or board error, 2 bad
     arguments). ``bus_factory(N)`` opens bus N: ``smbus2.SMBus``, or a VirtualBus in tests."""
@@ -304,11 +315,23 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory = smbus2.S
         print(f"{prog}: {message}", file=sys.stderr)
         return code
 
+    remote = getattr(args, "bus_sim", None)
     try:
-        if getattr(args, "bus", None) is None:
+        if remote is not None:
+            from .server import parse_address
+
+            if getattr(args, "bus", None) is not None:
+                raise _UsageError("give --bus N or --sim HOST:PORT, not both")
+            try:
+                host, port = parse_address(remote)
+            except ValueError as e:
+                raise _UsageError(f"--sim {e}") from None
+            number = -1
+        elif getattr(args, "bus", None) is None:
             raise _UsageError("--bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi)")
-        number = _int("--bus", args.bus)
-        if number < 0:
+        else:
+            number = _int("--bus", args.bus)
+        if number < 0 and remote is None:
             raise _UsageError(f"--bus ({args.bus!r}) must be >= 0")
         address = _int("--address", args.bus_address)
         if not 0 <= address <= 0x7F:
@@ -317,6 +340,14 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory = smbus2.S
     except _UsageError as e:
         return fail(2, str(e))
 
+    if remote is not None:
+        from .server import RemoteBus
+
+        try:
+            bus: ClosableBus = RemoteBus(host, port)
+        except OSError as e:
+            return fail(1, str(e))
+        bus_factory = _opened(bus)
     try:
         bus = bus_factory(number)
     except OSError as e:

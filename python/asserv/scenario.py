@@ -161,6 +161,46 @@ class Scenario:
         )
 
 
+def _inside(fl: fieldmod.Field, x: float, y: float) -> str | None:
+    """What the point (x, y) is inside of that the robot cannot be: off the table, in a basket or
+    an obstacle; None if nothing."""
+    if fl.borders and not (abs(x) <= fl.length_mm / 2 and abs(y) <= fl.width_mm / 2):
+        return (
+            f"off the table (x within {-fl.length_mm / 2:g}..{fl.length_mm / 2:g},"
+            f" y within {-fl.width_mm / 2:g}..{fl.width_mm / 2:g} mm)"
+        )
+    for b in fl.baskets:
+        if math.hypot(x - b.x_mm, y - b.y_mm) < b.radius_mm:
+            return f"inside the basket at ({b.x_mm:g}, {b.y_mm:g})"
+    for o in fl.obstacles:
+        if o.shape == "circle":
+            hit = math.hypot(x - o.x_mm, y - o.y_mm) < o.radius_mm
+        else:
+            hit = abs(x - o.x_mm) < o.half_x_mm and abs(y - o.y_mm) < o.half_y_mm
+        if hit:
+            return f"inside the {o.shape} obstacle at ({o.x_mm:g}, {o.y_mm:g})"
+    return None
+
+
+def check_pose(fl: fieldmod.Field, cfg: Any, x: float, y: float, heading_deg: float) -> str | None:
+    """Whether the robot's outline (``cfg``: a ``struct sim_config``) fits at the pose (the
+    drive axis midpoint) without leaving the table or overlapping a basket or an obstacle:
+    None, or what is wrong."""
+    hl, hw = cfg.outline_length_mm / 2, cfg.outline_width_mm / 2
+    ox, oy = cfg.outline_offset_x_mm, cfg.outline_offset_y_mm
+    c, s = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
+    n = 16
+    for i in range(4 * n + 1):  # the perimeter, every 1/16 of a side, and the centre
+        k, t = divmod(i, n)
+        u = (t / n) * 2 - 1
+        px, py = [(u * hl, -hw), (hl, u * hw), (-u * hl, hw), (-hl, -u * hw), (0.0, 0.0)][k]
+        px, py = px + ox, py + oy
+        problem = _inside(fl, x + px * c - py * s, y + px * s + py * c)
+        if problem:
+            return f"the robot at ({x:g}, {y:g}, {heading_deg:g} deg) would be {problem}"
+    return None
+
+
 class _DryBus:
     """Takes every write and answers zeros: lets the driver check arguments without a board."""
 
