@@ -613,10 +613,72 @@ void sim_step(struct sim *s)
 	run_substeps(s, 1);
 }
 
+/* True if a disc of radius r [mm] at (x, y) [mm] overlaps the robot's outline. */
+static bool disc_on_robot(const struct sim *s, double x, double y, double r)
+{
+	const struct sim_config *cfg = &s->cfg;
+	double hl = 0.5 * cfg->outline_length_mm, hw = 0.5 * cfg->outline_width_mm;
+	double rx = x - 1000.0 * s->x, ry = y - 1000.0 * s->y;
+	double lx = rx * s->cos_h + ry * s->sin_h - cfg->outline_offset_x_mm;
+	double ly = -rx * s->sin_h + ry * s->cos_h - cfg->outline_offset_y_mm;
+	double dx = fabs(lx) - hl, dy = fabs(ly) - hw;
+
+	dx = dx > 0.0 ? dx : 0.0;
+	dy = dy > 0.0 ? dy : 0.0;
+	return dx * dx + dy * dy < r * r;
+}
+
+/* Moves opponent k by the distance it covers in duration_ns along its path; the robot's
+ * clearance shrinks by as much (an upper bound of the distance moved). An opponent does not
+ * move into the robot: it waits where it touched it (an immovable obstacle pressed on the
+ * robot would crush it against the border), as a robot stopped by its own shock switches. */
+static void move_opponent(struct sim *s, struct sim_opponent *p, uint64_t duration_ns)
+{
+	struct sim_obstacle *o = &s->field.obstacles[p->obstacle];
+	double left = p->speed_mm_s * (double)duration_ns * 1e-9;
+	double x = o->x_mm, y = o->y_mm;
+	int guard = 2 * SIM_MAX_PATH + 2; /* a loop of points closer than the step ends too */
+
+	while (left > 0.0 && p->n_points > 0 && guard-- > 0) {
+		double tx = p->path_mm[p->next][0], ty = p->path_mm[p->next][1];
+		double dx = tx - x, dy = ty - y, seg = sqrt(dx * dx + dy * dy);
+
+		if (seg > left) {
+			x += dx * (left / seg);
+			y += dy * (left / seg);
+			break;
+		}
+		x = tx;
+		y = ty;
+		left -= seg;
+		if (++p->next >= p->n_points) {
+			p->next = 0;
+			if (!p->loop)
+				p->n_points = 0; /* arrived: it stands there */
+		}
+	}
+	{
+		double r =
+			o->shape == SIM_SHAPE_CIRCLE
+				? o->radius_mm
+				: sqrt(o->half_x_mm * o->half_x_mm + o->half_y_mm * o->half_y_mm);
+
+		if (disc_on_robot(s, x, y, r) && !disc_on_robot(s, o->x_mm, o->y_mm, r))
+			return; /* blocked by the robot: it waits, touching it */
+	}
+	s->clearance_m -= 1e-3 * (fabs(x - o->x_mm) + fabs(y - o->y_mm));
+	o->x_mm = x;
+	o->y_mm = y;
+}
+
 void sim_advance_ns(struct sim *s, uint64_t duration_ns)
 {
 	uint64_t total = s->carry_ns + duration_ns;
 	uint64_t n;
+	int k;
+
+	for (k = 0; k < s->opponent_count; k++)
+		move_opponent(s, &s->opponents[k], duration_ns);
 
 	/* A lockstep host asks for the same period every time: the 64-bit division (some tens
 	 * of cycles before the first substep can start) is kept with the time it divided. */
@@ -670,6 +732,8 @@ void sim_read_sensors(const struct sim *s, struct sim_sensors *out)
 		out->basket = field_distance(&s->field, x, y, FIELD_BASKETS) <= cfg->shock_range_mm;
 	}
 	out->line_mask = s->line_mask; /* kept up to date by update_lines() */
+	out->shock_mask |= s->shock_forced;
+	out->basket = out->basket || s->basket_forced;
 }
 
 void sim_get_truth(const struct sim *s, struct sim_truth *out)
@@ -740,4 +804,81 @@ void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut)
 		s->motor_enc_cut[wheel] = cut;
 		derive_wheel(s, wheel);
 	}
+}
+
+void sim_force_sensors(struct sim *s, uint8_t shock_mask, bool basket)
+{
+	s->shock_forced = shock_mask;
+	s->basket_forced = basket;
+}
+
+static bool finite_nonneg(double v)
+{
+	return v >= 0.0 && v < 1e12;
+}
+
+static bool finite_coord(double v)
+{
+	return v > -1e9 && v < 1e9; /* also rejects NaN */
+}
+
+int sim_add_obstacle(struct sim *s, const struct sim_obstacle *o)
+{
+	int i = s->field.obstacle_count;
+
+	if (i >= SIM_MAX_OBSTACLES || o->shape > SIM_SHAPE_BOX || o->kind > SIM_OBSTACLE_OTHER ||
+	    !finite_nonneg(o->radius_mm) || !finite_nonneg(o->half_x_mm) ||
+	    !finite_nonneg(o->half_y_mm) || !finite_coord(o->x_mm) || !finite_coord(o->y_mm) ||
+	    !finite_coord(o->heading_rad))
+		return -SIM_EINVAL;
+	s->field.obstacles[i] = *o;
+	s->field.obstacle_count = (uint8_t)(i + 1);
+	s->clearance_m = 0.0; /* look again */
+	return i;
+}
+
+void sim_move_obstacle(struct sim *s, int i, double x_mm, double y_mm, double heading_rad)
+{
+	struct sim_obstacle *o;
+
+	if (i < 0 || i >= s->field.obstacle_count || !finite_coord(x_mm) || !finite_coord(y_mm) ||
+	    !finite_coord(heading_rad))
+		return;
+	o = &s->field.obstacles[i];
+	o->x_mm = x_mm;
+	o->y_mm = y_mm;
+	o->heading_rad = heading_rad;
+	s->clearance_m = 0.0; /* look again */
+}
+
+int sim_set_opponent_path(struct sim *s, int i, const double *path_mm, int n, double speed_mm_s,
+			  bool loop)
+{
+	struct sim_opponent *p = NULL;
+	int k;
+
+	if (i < 0 || i >= s->field.obstacle_count || n < 0 || n > SIM_MAX_PATH ||
+	    !(speed_mm_s > 0.0 && speed_mm_s < 1e6))
+		return -SIM_EINVAL;
+	for (k = 0; k < 2 * n; k++)
+		if (!finite_coord(path_mm[k]))
+			return -SIM_EINVAL;
+	for (k = 0; k < s->opponent_count; k++)
+		if (s->opponents[k].obstacle == i)
+			p = &s->opponents[k];
+	if (!p) {
+		if (s->opponent_count >= SIM_MAX_OPPONENTS)
+			return -SIM_EINVAL;
+		p = &s->opponents[s->opponent_count++];
+	}
+	memset(p, 0, sizeof(*p));
+	p->obstacle = (uint8_t)i;
+	p->n_points = (uint8_t)n;
+	p->loop = loop;
+	p->speed_mm_s = speed_mm_s;
+	for (k = 0; k < n; k++) {
+		p->path_mm[k][0] = path_mm[2 * k];
+		p->path_mm[k][1] = path_mm[2 * k + 1];
+	}
+	return 0;
 }

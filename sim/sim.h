@@ -44,6 +44,8 @@
 #define SIM_MAX_LINE_SENSORS 4
 #define SIM_MAX_OBSTACLES 16
 #define SIM_MAX_LINES 32
+#define SIM_MAX_OPPONENTS 4
+#define SIM_MAX_PATH 16
 
 /* Returned (negated) by sim_init() for an invalid or numerically unstable configuration. */
 #define SIM_EINVAL 22
@@ -54,7 +56,7 @@
 
 enum sim_shape {
 	SIM_SHAPE_CIRCLE = 0, /* uses radius_mm */
-	SIM_SHAPE_BOX = 1,    /* axis-aligned, uses half_x_mm and half_y_mm */
+	SIM_SHAPE_BOX = 1,    /* uses half_x_mm and half_y_mm, turned by heading_rad */
 };
 
 enum sim_obstacle_kind {
@@ -70,6 +72,7 @@ struct sim_obstacle {
 	double radius_mm;
 	double half_x_mm;
 	double half_y_mm;
+	double heading_rad; /* a box's x axis from the field's X, counter-clockwise; 0: aligned */
 };
 
 /* A painted line: the segment (x0, y0)-(x1, y1) widened by width_mm (rounded ends). */
@@ -218,6 +221,19 @@ struct sim_truth {
 	uint64_t time_ns;
 };
 
+/* An obstacle that moves along a path of points at a constant speed (an opponent robot seen as
+ * a disc, or as its outline): it goes from its position to path[0], then to path[1], and so
+ * on; at the end it stops, or starts again from path[0] if loop. It closes the shock switches
+ * it comes within reach of, like any obstacle; it is not pushed by the robot. */
+struct sim_opponent {
+	uint8_t obstacle; /* index in the field's obstacles */
+	uint8_t n_points; /* 0: stands still */
+	uint8_t next;     /* the point it heads for */
+	bool loop;
+	double speed_mm_s;
+	double path_mm[SIM_MAX_PATH][2];
+};
+
 /* One simulated robot on one field. Allocate it yourself; the members are private. */
 struct sim {
 	struct sim_config cfg;
@@ -250,6 +266,10 @@ struct sim {
 	double battery_V, volts_per_q15, volts[2], mu_scale[2], grip_N[2];
 	bool motor_stuck[2], enc_cut[2], motor_enc_cut[2];
 	struct sim_rng rng;
+	uint8_t opponent_count;
+	struct sim_opponent opponents[SIM_MAX_OPPONENTS];
+	uint8_t shock_forced; /* switches held closed by sim_force_sensors() */
+	bool basket_forced;
 	uint64_t time_ns, steps, carry_ns;
 	uint64_t split_ns, split_n, split_rest_ns; /* the last time sim_advance_ns() divided */
 };
@@ -286,5 +306,23 @@ void sim_set_friction_scale(struct sim *s, int wheel, double scale); /* mu * sca
 void sim_set_motor_stuck(struct sim *s, int wheel, bool stuck);      /* shaft locked */
 void sim_set_encoder_cut(struct sim *s, int wheel, bool cut);        /* free wheel stops counting */
 void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut);  /* motor encoder stops */
+
+/* Switches held closed, whatever the geometry says (a hand, a stuck bumper): bit i of shock_mask
+ * closes shock switch i; basket closes the basket switch. 0 and false release them. */
+void sim_force_sensors(struct sim *s, uint8_t shock_mask, bool basket);
+
+/* Moving obstacles. sim_add_obstacle() appends o to the field and returns its index, or
+ * -SIM_EINVAL if the field is full or o is not a valid obstacle. sim_move_obstacle() puts
+ * obstacle i at (x_mm, y_mm, heading_rad) at once (ignored for a bad i). The robot's contacts
+ * are looked at again after either. */
+int sim_add_obstacle(struct sim *s, const struct sim_obstacle *o);
+void sim_move_obstacle(struct sim *s, int i, double x_mm, double y_mm, double heading_rad);
+
+/* Makes obstacle i an opponent that follows path (n points, x y pairs in mm, n <= SIM_MAX_PATH)
+ * at speed_mm_s (> 0), from where it is, starting now; a new path replaces the old one, n = 0
+ * stops it. It moves at each sim_advance_ns() call (each control tick of a host) by the
+ * distance of the call. Returns 0, or -SIM_EINVAL (bad index or path, no opponent left). */
+int sim_set_opponent_path(struct sim *s, int i, const double *path_mm, int n, double speed_mm_s,
+			  bool loop);
 
 #endif /* ASSERV_SIM_H */
