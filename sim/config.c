@@ -60,6 +60,7 @@ void sim_config_defaults(struct sim_config *cfg)
 	cfg->wall_friction_coeff = 0.2;
 
 	cfg->substep_ns = 100000;
+	cfg->coarse_substep_ns = 1000000;
 	cfg->start.x_mm = -1300.0;
 	cfg->seed = 1;
 }

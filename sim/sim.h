@@ -13,6 +13,8 @@
  * 1 kHz control tick), semi-implicit (symplectic) Euler for the body and the wheels, exact
  * exponential update of the motor current (so the 0.1 ms L/R time constant is kept and stable at
  * any substep), a linearly implicit tyre force, and penalty spring-dampers for the walls.
+ * Away from every contact, a whole control tick is one substep of coarse_substep_ns (1 ms by
+ * default): the wall springs, the only part that needs 100 us, are not integrated then.
  *
  * Conventions:
  *   - Field frame: origin at the centre of the table, X along the long side (3000 mm), Y along the
@@ -174,9 +176,12 @@ struct sim_config {
 	double wall_friction_coeff; /* sliding friction along a border, default 0.2 (GUESS) */
 
 	/* Integration and start */
-	uint32_t substep_ns;   /* 1000..1000000, default 100000 (100 us) */
-	struct sim_pose start; /* pose of the drive axis midpoint, default (-1300, 0, 0) */
-	uint64_t seed;         /* seeds the encoder noise */
+	uint32_t substep_ns;        /* 1000..1000000, default 100000 (100 us) */
+	uint32_t coarse_substep_ns; /* the substep away from every contact, used for whole calls of
+				     * sim_advance_ns() that are a multiple of it (a control tick);
+				     * 0 or <= substep_ns: never; ignored if not stable */
+	struct sim_pose start;      /* pose of the drive axis midpoint, default (-1300, 0, 0) */
+	uint64_t seed;              /* seeds the encoder noise */
 };
 
 /* Fills cfg with the defaults listed above. */
@@ -245,6 +250,9 @@ struct sim {
 	double c_eff, inv_tyre_k, a_long[2], a_lat; /* implicit tyre force: [free, stuck wheel] */
 	double inv_den_long[2], inv_den_lat;
 	double enc_y_m[2], enc_cnt_per_m[2], motor_cnt_per_wheel_step, enc_offset_x_m;
+	double motor_cnt_per_rad, step_decay[2]; /* [short, long substep] */
+	uint32_t coarse_ns;                      /* the long substep, 0: none */
+	int coarse;                              /* the coefficients are those of the long one */
 	double corner_m[4][2], bound_radius_m, reach_m;
 	/* coefficients of a substep, from the constants above and the fault settings */
 	double cur_decay, cur_per_w, cur_in[2], px_per_tau[2], w_per_tau[2], f_per_tau[2];

@@ -163,6 +163,7 @@ struct sim_config {
     double wall_damping_N_s_m;
     double wall_friction_coeff;
     uint32_t substep_ns;
+    uint32_t coarse_substep_ns;
     struct sim_pose start;
     uint64_t seed;
 };

@@ -188,7 +188,7 @@ def _errno_name(e: int | None) -> str:
 
 T = TypeVar("T")
 
-_SLICE_S = 0.002  # how long a simulation runs under the bus lock in Board.sleep()
+_SLICE_S = 0.01  # how long a simulation runs under the bus lock in Board.sleep()
 
 # One lock per bus object, for every Board on it (weakly held: the bus may go away).
 _BUS_LOCKS: weakref.WeakKeyDictionary[Any, threading.RLock] = weakref.WeakKeyDictionary()
