@@ -7,6 +7,8 @@ line per request and one per reply (docs/simulator.md, "The simulator server"):
     hello                          ok asserv-sim 1 SPEED ADDRESS
     time                           ok T                     (simulated seconds)
     sleep S                        ok T                     (after S simulated seconds)
+    truth                          ok T X Y HEADING         (the true pose, for a live view)
+    obstacles                      ok X,Y X,Y ...           (baskets, obstacles, opponents)
     rdwr w02:0400c80064 r02:1      ok 05                    (one I2C_RDWR transaction)
     (anything wrong)               err ERRNO TEXT
 
@@ -243,6 +245,14 @@ class SimServer:
                     raise ProtocolError(f"sleep: {words[1]} is not within 0..{_MAX_SLEEP_S:g}")
                 self._sleep(s)
                 return f"ok {self.sim.time_s:.9f}"
+            if cmd == "truth":
+                with self.lock:
+                    t, pose = self.sim.time_s, self.sim.true_pose()
+                return f"ok {t:.9f} {pose.x_mm:.3f} {pose.y_mm:.3f} {pose.heading_deg:.3f}"
+            if cmd == "obstacles":
+                with self.lock:
+                    where = self.sim.obstacles()
+                return "ok" + "".join(f" {x:.3f},{y:.3f}" for x, y in where)
             if cmd == "rdwr":
                 ops = decode_rdwr(words[1:])
                 with self.lock:
@@ -251,7 +261,9 @@ class SimServer:
                     except OSError as e:
                         return f"err {e.errno or errno.EIO} {e.strerror or e}"
                 return "ok" + "".join(" " + (r.hex() or "-") for r in reads)
-            raise ProtocolError(f"unknown request {words[0]!r} (hello, time, sleep, rdwr)")
+            raise ProtocolError(
+                f"unknown request {words[0]!r} (hello, time, sleep, truth, obstacles, rdwr)"
+            )
         except ProtocolError as e:
             return f"err {errno.EINVAL} {e}"
 
@@ -329,6 +341,19 @@ class RemoteBus:
             if len(data) != int(m.len):
                 raise OSError(errno.EPROTO, "the server answered a read of the wrong length")
             ctypes.memmove(m.buf, data, len(data))
+
+    def truth(self) -> tuple[float, float, float, float]:
+        """(simulated s, x mm, y mm, heading deg): where the simulated robot truly is."""
+        t, x, y, h = (float(w) for w in self.request("truth").split())
+        return t, x, y, h
+
+    def obstacles(self) -> list[tuple[float, float]]:
+        """Where the field's baskets, obstacles and opponents are now, mm."""
+        out = []
+        for w in self.request("obstacles").split():
+            x, _, y = w.partition(",")
+            out.append((float(x), float(y)))
+        return out
 
     def close(self) -> None:
         if self.closed:

@@ -45,6 +45,17 @@ def test_a_board_on_the_server(lockstep: tuple[Simulator, RemoteBus]) -> None:
     assert board.now() - t == pytest.approx(0.5, abs=1e-6)
 
 
+def test_truth_and_obstacles_for_a_live_view(lockstep: tuple[Simulator, RemoteBus]) -> None:
+    sim, bus = lockstep
+    sim.add_opponent(500, 500, 100, path=[(600, 500)], speed_mm_s=100)
+    bus.clock.sleep(0.5)
+    t, x, y, h = bus.truth()
+    assert t == pytest.approx(sim.time_s, abs=1e-9)
+    assert (x, y, h) == pytest.approx(tuple(sim.true_pose()), abs=1e-3)
+    assert bus.obstacles()[-1] == pytest.approx((550, 500), abs=0.01)
+    assert len(bus.obstacles()) == 3  # two baskets and the opponent
+
+
 def test_nack_and_errors_cross_the_socket(lockstep: tuple[Simulator, RemoteBus]) -> None:
     _, bus = lockstep
     with pytest.raises(OSError) as e:
