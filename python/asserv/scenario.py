@@ -10,10 +10,11 @@ A scenario is a text file, one command a line, ``#`` starts a comment::
     wait                     # poll CHECK_BUSY until the order ends [timeout_s, default 30]
     goto_panier 44           # degrees, sent in 2-degree steps
 
-Setup lines come first: ``field NAME|PATH``, ``seed N``, ``randomize`` (a robot drawn from the
-seed: wheel mismatch, track error, noise, start error), ``start X_MM Y_MM HEADING_DEG`` (the
-true start pose, which the board also believes), ``config KEY VALUE...`` (a member of
-``struct sim_config``, e.g. ``config enc_radius_error 0.003 -0.003``), ``bus_hz N``, ``pec on``.
+Setup lines come first: ``field NAME|PATH``, ``robot NAME|PATH`` (robot/NAME.toml, a robot
+description), ``seed N``, ``randomize`` (a robot drawn from the seed: wheel mismatch, track
+error, noise, start error), ``start X_MM Y_MM HEADING_DEG`` (the true start pose, which the
+board also believes), ``config KEY VALUE...`` (a member of ``struct sim_config``, e.g.
+``config enc_radius_error 0.003 -0.003``), ``bus_hz N``, ``pec on``.
 Then the bus commands, one per driver method: ``goto``, ``goto_reverse``, ``goto_panier``,
 ``stop``, ``set_vitesse_traj``, ``set_vitesse_rot``, ``set_filtre`` (STD, SOUPLE, RAIDE or a
 number), ``set_filtre_raw``, ``set_new_pos``, ``declare_pose``, ``check_busy``, ``position``,
@@ -158,6 +159,7 @@ SETUP = (
     "bus_hz",
     "pec",
     "opponent",
+    "robot",
 )
 
 
@@ -221,6 +223,7 @@ class Scenario:
     pec: bool = False
     steps: list[Step] = dataclasses.field(default_factory=list)
     start_line: int = 0
+    robot: Path | None = None
     opponents: list[Opponent] = dataclasses.field(default_factory=list)
     events: list[Event] = dataclasses.field(default_factory=list)
 
@@ -232,6 +235,7 @@ class Scenario:
             config,
             self.seed,
             field=self.field,
+            robot=self.robot,
             randomize=self.randomize,
             bus_hz=self.bus_hz,
             board_start=self.board_start,
@@ -367,6 +371,22 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
                     setattr(scn, cmd, (x, y, h))
                     if cmd == "start":
                         scn.start_line = n
+                elif cmd == "robot":
+                    from . import robot as robotmod
+
+                    if len(rest) != 1:
+                        raise fail("robot takes one name or path: robot NAME|PATH")
+                    word = rest[0]
+                    p = (
+                        robotmod.ROBOT_DIR / f"{word}.toml"
+                        if "/" not in word and not (word.endswith(".toml"))
+                        else (Path(word) if Path(word).is_absolute() else base / word)
+                    )
+                    try:
+                        robotmod.load(p)
+                    except robotmod.RobotError as e:
+                        raise fail(f"bad robot file: {e}") from None
+                    scn.robot = p
                 elif cmd == "opponent":
                     usage = "opponent X_MM Y_MM RADIUS_MM SPEED_MM_S [X_MM Y_MM]... [loop]"
                     if len(rest) < 4:

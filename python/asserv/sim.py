@@ -186,6 +186,8 @@ class Simulator:
     ``seed`` seeds the encoder noise; ``randomize=True`` also draws a robot off the shelf from it
     (wheel mismatch, track error, noise, start pose error: ``sim_config_randomize``).
     ``field`` is a field file path or a ``field.Field`` (default: field/default.toml).
+    ``robot`` is a robot description file (robot/default.toml is the default robot; ``config``
+    overrides it): wheels, encoders, motor, outline (``asserv.robot``).
     ``bus_hz`` is the I2C bit rate: each byte takes 9 bit times of simulated time.
     ``board_config`` overrides members of the board's ``struct board_config`` (board.h and the
     module headers it includes) by dotted name, after ``host_board_config()`` has set it for the
@@ -198,6 +200,7 @@ class Simulator:
         seed: int = 0,
         *,
         field: str | Path | fieldmod.Field | None = None,
+        robot: str | Path | None = None,
         randomize: bool = False,
         board_start: tuple[float, float, float] | None = None,
         board_config: Mapping[str, Any] | None = None,
@@ -220,6 +223,11 @@ class Simulator:
         sc = ffi.new("struct sim_config *")
         lib.sim_config_defaults(sc)
         _set_config(sc, "start", SPEC_START)
+        if robot is not None:
+            from . import robot as robotmod
+
+            for key, value in robotmod.load(robot).sim_config().items():
+                _set_config(sc, key, value)
         for key, value in (config or {}).items():
             _set_config(sc, key, value)
         bc = ffi.new("struct board_config *")
