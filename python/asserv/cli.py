@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from typing import Any
 
@@ -232,7 +233,9 @@ def _add_bench(sub: Any) -> None:
     )
     acc.add_argument("--robots", type=int, default=200, help="how many (default 200)")
     acc.add_argument("--first-seed", type=int, default=0, help="seed of the first robot")
-    acc.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
+    acc.add_argument(
+        "--jobs", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)"
+    )
     acc.add_argument("--turns", type=int, default=10, help="calibration: full turns")
     acc.add_argument("--round-trips", type=int, default=3, help="calibration: round trips")
     acc.add_argument(
