@@ -227,7 +227,7 @@ class Scenario:
     opponents: list[Opponent] = dataclasses.field(default_factory=list)
     events: list[Event] = dataclasses.field(default_factory=list)
 
-    def simulator(self) -> Simulator:
+    def simulator(self, record: bool = True) -> Simulator:
         config = dict(self.config)
         if self.start is not None:
             config["start"] = self.start
@@ -236,6 +236,7 @@ class Scenario:
             self.seed,
             field=self.field,
             robot=self.robot,
+            record=record,
             randomize=self.randomize,
             bus_hz=self.bus_hz,
             board_start=self.board_start,
@@ -327,8 +328,12 @@ def _field_path(word: str, base: Path) -> Path:
     return p if p.is_absolute() else base / p
 
 
-def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Scenario:
-    """Check a whole scenario; ScenarioError names the first bad line."""
+def parse(
+    text: str, source: str = "<scenario>", base: Path | None = None, *, setup_only: bool = False
+) -> Scenario:
+    """Check a whole scenario; ScenarioError names the first bad line. ``setup_only``: the
+    world of a scenario without bus commands (the robot, the field, opponents, events), for
+    ``asserv sim serve --scenario``: a bus command is then refused."""
     base = base or Path.cwd()
     scn = Scenario(source, fieldmod.load())
     dry = Board(_DryBus(), check=False)
@@ -439,6 +444,11 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
                     raise
                 raise fail(f"bad {cmd} line: {e}") from None
             continue
+        if setup_only and cmd in (*BUS_COMMANDS, "expect"):
+            raise fail(
+                f"'{cmd}' is a bus command: a scenario for the server sets up the world only"
+                " (the strategy sends the orders)"
+            )
         if cmd not in BUS_COMMANDS:
             known = ", ".join([*SETUP, *BUS_COMMANDS])
             raise fail(f"unknown command {words[0]!r} (known: {known})")
@@ -463,7 +473,7 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
             if problem:
                 raise fail(f"goto: the target ({args[0]}, {args[1]}) is {problem}")
         scn.steps.append(Step(n, cmd, args, raw.strip()))
-    if not scn.steps:
+    if not scn.steps and not setup_only:
         raise ScenarioError(f"{source}: no bus command: nothing to play")
     _check_field(scn, text)
     return scn
@@ -566,7 +576,7 @@ def _parse_expect(scn: Scenario, rest: list[str], n: int, raw: str, fail: Fail) 
     raise fail(f"expect takes {usage}")
 
 
-def load(path: str | Path) -> Scenario:
+def load(path: str | Path, *, setup_only: bool = False) -> Scenario:
     p = Path(path)
     try:
         text = p.read_text()
@@ -574,7 +584,7 @@ def load(path: str | Path) -> Scenario:
         raise ScenarioError(f"{p}: cannot read the scenario: {e.strerror}") from None
     except UnicodeDecodeError:
         raise ScenarioError(f"{p}: not a text file") from None
-    return parse(text, str(p), p.parent)
+    return parse(text, str(p), p.parent, setup_only=setup_only)
 
 
 def _hex(data: bytes) -> str:

@@ -436,6 +436,11 @@ def register(simsub: Any) -> None:
     p.add_argument(
         "--start", nargs=3, metavar=("X_MM", "Y_MM", "DEG"), help="start pose of the robot"
     )
+    p.add_argument(
+        "--scenario",
+        default=None,
+        help="a scenario file without bus commands: robot, field, start, opponents, 'at' events",
+    )
     p.add_argument("--duration", default=None, help="stop after this many wall seconds")
     p.set_defaults(sim_handler=serve_main)
 
@@ -478,20 +483,32 @@ def serve_main(args: argparse.Namespace) -> int:
             return bad(f"--start {' '.join(args.start)}: three numbers X_MM Y_MM DEG")
         config["start"] = (x, y, h)
     from . import field as fieldmod
-    from .scenario import _field_path
+    from . import scenario
     from .sim import Simulator
 
     try:
-        fl = None if args.field is None else fieldmod.load(_field_path(args.field, Path.cwd()))
-        sim = Simulator(config, seed, field=fl, randomize=args.randomize, record=False)
-    except (fieldmod.FieldError, ValueError) as e:
+        if args.scenario is not None:
+            if args.field is not None or args.start is not None or args.randomize:
+                return bad(
+                    "--scenario sets the field, the start and the robot: not with"
+                    " --field, --start or --randomize"
+                )
+            scn = scenario.load(args.scenario, setup_only=True)
+            if args.seed != "0":
+                scn.seed = seed
+            sim = scn.simulator(record=False)
+            scn.prepare(sim, lambda line: print(f"{prog}: {line.strip()}", flush=True))
+        else:
+            fl = None
+            if args.field is not None:
+                fl = fieldmod.load(scenario._field_path(args.field, Path.cwd()))
+            sim = Simulator(config, seed, field=fl, randomize=args.randomize, record=False)
+            if fl is not None or config:
+                problem = scenario.check_pose(sim.field, sim.config, *sim.drive_pose())
+                if problem:
+                    return bad(f"--start: {problem}")
+    except (fieldmod.FieldError, ValueError) as e:  # ScenarioError is a ValueError
         return bad(str(e))
-    if fl is not None or config:
-        from .scenario import check_pose
-
-        problem = check_pose(sim.field, sim.config, *sim.true_pose())
-        if problem:
-            return bad(f"--start: {problem}")
     try:
         server = SimServer(sim, args.host, port, speed)
     except OSError as e:

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -237,6 +238,24 @@ def test_cli_against_the_server() -> None:
     finally:
         proc.terminate()
         proc.wait(10)
+
+
+def test_serve_a_scenario_world_with_an_opponent(tmp_path: Path) -> None:
+    world = tmp_path / "world.txt"
+    world.write_text("start -1000 -300 0\nopponent -400 500 150 400 -400 -300\nat 0.5 press 0\n")
+    proc, where = _serve("--speed", "0", "--scenario", str(world))
+    try:
+        host, port = parse_address(where)
+        with RemoteBus(host, port) as bus:
+            board = Board(bus)
+            assert board.complete(board.goto, 200, -300, timeout_s=20) is Outcome.SHOCK
+            assert bus.truth()[1] == pytest.approx(-675, abs=2)
+    finally:
+        proc.terminate()
+        proc.wait(10)
+    (tmp_path / "orders.txt").write_text("goto 0 0\n")
+    r = _asserv("sim", "serve", "--scenario", str(tmp_path / "orders.txt"))
+    assert r.returncode == 2 and "orders.txt:1: 'goto' is a bus command" in r.stderr
 
 
 def test_cli_bad_server_arguments_exit_2() -> None:
