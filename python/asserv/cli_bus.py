@@ -346,7 +346,7 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory = smbus2.S
         try:
             bus: ClosableBus = RemoteBus(host, port)
         except OSError as e:
-            return fail(1, str(e))
+            return fail(1, e.strerror or str(e))
         bus_factory = _opened(bus)
     try:
         bus = bus_factory(number)

@@ -395,9 +395,10 @@ class RemoteClock:
         """In requests of at most 10 ms, so that other threads' transactions go in between."""
         if not seconds >= 0 or seconds == math.inf:
             raise ValueError(f"sleep: seconds must be finite and >= 0, not {seconds}")
-        target = self.monotonic() + seconds
-        while (left := target - self.monotonic()) > 1e-9:
-            self.bus.request(f"sleep {min(left, 0.01):.9f}")
+        now = self.monotonic()
+        target = now + seconds
+        while (left := target - now) > 1e-9:
+            now = float(self.bus.request(f"sleep {min(left, 0.01):.9f}"))
 
 
 def parse_address(text: str, default_port: int = DEFAULT_PORT) -> tuple[str, int]:
@@ -460,9 +461,12 @@ def serve_main(args: argparse.Namespace) -> int:
         return bad(f"--speed {args.speed!r} must be 0 (lockstep) or within 0..1e6")
     try:
         port = int(args.port, 10)
+    except ValueError:
+        return bad(f"--port {args.port!r} is not an integer")
+    try:
         seed = int(args.seed, 0)
     except ValueError:
-        return bad(f"--port {args.port!r} and --seed {args.seed!r} must be integers")
+        return bad(f"--seed {args.seed!r} is not an integer")
     if not 0 <= port < 65536:
         return bad(f"--port {port} is not a TCP port (0..65535; 0: any free port)")
     if not 0 <= seed < 2**64:
