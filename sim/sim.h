@@ -274,12 +274,12 @@ struct sim {
 	double battery_V, volts_per_q15, volts[2], mu_scale[2], grip_N[2];
 	bool motor_stuck[2], enc_cut[2], motor_enc_cut[2];
 	struct sim_rng rng;
-	uint8_t opponent_count;
-	struct sim_opponent opponents[SIM_MAX_OPPONENTS];
-	uint8_t shock_forced; /* switches held closed by sim_force_sensors() */
-	bool basket_forced;
 	uint64_t time_ns, steps, carry_ns;
 	uint64_t split_ns, split_n, split_rest_ns; /* the last time sim_advance_ns() divided */
+	uint8_t shock_forced;                      /* switches held closed by sim_force_sensors() */
+	bool basket_forced;
+	uint8_t opponent_count; /* (last: the hot state above stays in fewer cache lines) */
+	struct sim_opponent opponents[SIM_MAX_OPPONENTS];
 };
 
 /* Sets up s from cfg and field (both copied) at cfg->start, at rest, duties 0, counters 0.
