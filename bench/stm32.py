@@ -29,12 +29,12 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "harness" / "stm32"))
 
-from asserv._core import ffi, lib  # noqa: E402
 from board import SYSCLK_HZ, Stm32Board, robot  # noqa: E402
 from emu import EmuError  # noqa: E402
 from unicorn.arm_const import UC_ARM_REG_LR  # noqa: E402
 
 from asserv import Board, Status  # noqa: E402
+from asserv._core import ffi, lib  # noqa: E402
 
 CPI = 1.5  # cycles per instruction assumed (see CPI_WHY)
 CPI_WHY = (

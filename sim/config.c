@@ -1,6 +1,7 @@
 /* Default settings of the simulated robot, and their random perturbation for benchmarks. */
 #include <string.h>
 
+#include "robot_default_gen.h"
 #include "sim.h"
 
 void sim_config_defaults(struct sim_config *cfg)
@@ -9,37 +10,12 @@ void sim_config_defaults(struct sim_config *cfg)
 	int i;
 
 	memset(cfg, 0, sizeof(*cfg));
-	cfg->mass_kg = 8.0;
-	/* a uniform 8 kg box of 250 x 300 mm: m (a^2 + b^2) / 12 = 0.102 kg m^2 */
-	cfg->yaw_inertia_kg_m2 = 0.10;
-	cfg->drive_weight_share = 0.6;
-	cfg->friction_coeff = 0.8;
+	/* the wheels, encoders, motor, body and outline of robot/default.toml */
+	sim_robot_default_gen(cfg);
 	cfg->tyre_stiffness_N_m = 1e5;
 	cfg->slip_damping_N_s_m = 3000.0;
-	cfg->drive_radius_mm = 32.5;
-	cfg->drive_track_mm = 160.0;
-	cfg->wheel_inertia_g_cm2 = 200.0;
-
-	/* Maxon RE25 24 V graphite brushes with a 20.25:1 gearbox (APBTeam motor model) */
-	cfg->motor.kv_rpm_per_V = 407.0;
-	cfg->motor.kt_mNm_per_A = 23.4;
-	cfg->motor.resistance_ohm = 2.32;
-	cfg->motor.inductance_mH = 0.24;
-	cfg->motor.rotor_inertia_g_cm2 = 10.3;
-	cfg->motor.friction_mNm = 0.7; /* GUESS: ~30 mA of no-load current times Kt */
-	cfg->motor.gear_ratio = 20.25;
-	cfg->motor.gear_efficiency = 0.75;
-	cfg->motor.encoder_cpr = 2048; /* 512 lines, x4 */
-	cfg->battery_V = 24.0;
 	cfg->lifted = false;
 
-	cfg->enc_radius_mm = 25.0;
-	cfg->enc_track_mm = 280.0;
-	cfg->enc_offset_x_mm = 0.0;
-	cfg->enc_cpr = 2000;
-
-	cfg->outline_length_mm = 250.0;
-	cfg->outline_width_mm = 300.0;
 	cfg->shock_count = 6;
 	for (i = 0; i < 3; i++) {
 		cfg->shock[i].x_mm = 125.0;
@@ -60,6 +36,7 @@ void sim_config_defaults(struct sim_config *cfg)
 	cfg->wall_friction_coeff = 0.2;
 
 	cfg->substep_ns = 100000;
+	cfg->coarse_substep_ns = 1000000;
 	cfg->start.x_mm = -1300.0;
 	cfg->seed = 1;
 }

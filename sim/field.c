@@ -31,12 +31,40 @@ static double clamp(double v, double lo, double hi)
 	return v < lo ? lo : (v > hi ? hi : v);
 }
 
+/* (dx, dy) from the field frame into the frame of a box turned by heading_rad (the common
+ * axis-aligned box keeps its coordinates, without a libm call). */
+static void to_box(const struct sim_obstacle *o, double *dx, double *dy)
+{
+	double c, sn, x = *dx;
+
+	if (o->heading_rad == 0.0)
+		return;
+	c = cos(o->heading_rad);
+	sn = sin(o->heading_rad);
+	*dx = c * x + sn * *dy;
+	*dy = -sn * x + c * *dy;
+}
+
+/* A direction (nx, ny) from a box's frame back into the field frame. */
+static void from_box(const struct sim_obstacle *o, double *nx, double *ny)
+{
+	double c, sn, x = *nx;
+
+	if (o->heading_rad == 0.0)
+		return;
+	c = cos(o->heading_rad);
+	sn = sin(o->heading_rad);
+	*nx = c * x - sn * *ny;
+	*ny = sn * x + c * *ny;
+}
+
 static double obstacle_distance(const struct sim_obstacle *o, double x, double y)
 {
 	double dx = x - o->x_mm, dy = y - o->y_mm;
 
 	if (o->shape == SIM_SHAPE_CIRCLE)
 		return sqrt(dx * dx + dy * dy) - o->radius_mm;
+	to_box(o, &dx, &dy);
 	dx = fabs(dx) - o->half_x_mm;
 	dy = fabs(dy) - o->half_y_mm;
 	if (dx > 0.0 || dy > 0.0) {
@@ -188,25 +216,29 @@ static int collide_box(const struct sim_obstacle *o, const struct field_rect *r,
 		       double corner[4][2], struct field_contact *out, int n)
 {
 	double hx = o->half_x_mm, hy = o->half_y_mm;
+	double ux = 1.0, uy = 0.0; /* the box's x axis in the field frame */
 	int i;
 
+	from_box(o, &ux, &uy);
 	/* corners of the robot inside the box: pushed out through the nearest face of the box */
 	for (i = 0; i < 4; i++) {
 		double x = corner[i][0] - o->x_mm, y = corner[i][1] - o->y_mm;
-		double px = hx - fabs(x), py = hy - fabs(y);
+		double px, py, nx, ny;
 
+		to_box(o, &x, &y);
+		px = hx - fabs(x);
+		py = hy - fabs(y);
 		if (px <= 0.0 || py <= 0.0)
 			continue;
-		if (px < py)
-			n = add_contact(out, n, corner[i][0], corner[i][1], x > 0.0 ? 1.0 : -1.0,
-					0.0, px);
-		else
-			n = add_contact(out, n, corner[i][0], corner[i][1], 0.0,
-					y > 0.0 ? 1.0 : -1.0, py);
+		nx = px < py ? (x > 0.0 ? 1.0 : -1.0) : 0.0;
+		ny = px < py ? 0.0 : (y > 0.0 ? 1.0 : -1.0);
+		from_box(o, &nx, &ny);
+		n = add_contact(out, n, corner[i][0], corner[i][1], nx, ny, px < py ? px : py);
 	}
 	/* corners of the box inside the robot: the robot moves away through its nearest face */
 	for (i = 0; i < 4; i++) {
-		double bx = o->x_mm + ((i & 1) ? hx : -hx), by = o->y_mm + ((i & 2) ? hy : -hy);
+		double a = (i & 1) ? hx : -hx, b = (i & 2) ? hy : -hy;
+		double bx = o->x_mm + a * ux - b * uy, by = o->y_mm + a * uy + b * ux;
 		double rx = bx - r->cx, ry = by - r->cy;
 		double lx = rx * r->ux + ry * r->uy, ly = -rx * r->uy + ry * r->ux;
 		double px = r->half_len - fabs(lx), py = r->half_wid - fabs(ly);

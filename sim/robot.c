@@ -1,6 +1,8 @@
 /* Dynamics of the simulated robot: motors, wheels on the table, body, encoders and sensors.
  *
- * Numerical method, one substep of dt (100 us by default):
+ * Numerical method, one substep of dt (100 us by default; 1 ms, cfg.coarse_substep_ns, for a
+ * whole control tick when the robot cannot reach a contact within it, sim_advance_ns(): the
+ * penalty walls are the only stiff explicit part, the others stay stable, stable_free()):
  *   1. Motor current, exact for a frozen speed: di/dt = (u - R i - Ke w) / L, so
  *      i <- i_ss + (i - i_ss) exp(-dt R / L) with i_ss = (u - Ke w) / R. Stable at any dt; with
  *      L = 0 the current is i_ss (the 0.1 ms L/R constant is below the 1 ms control period).
@@ -51,6 +53,10 @@
 #define NOISE_SHIFT 4 /* a noise draw every 16 substeps */
 /* Coulomb friction of the motor is regularised below this motor speed [rad/s] */
 #define MOTOR_FRICTION_W_EPS 2.0
+/* The long substep is used only this far from any contact [m], plus what the robot could cover
+ * in the call at its speed plus this [m/s] */
+#define COARSE_MARGIN_M 0.005
+#define COARSE_SPEED_MARGIN 1.0
 
 /* Draws the accumulated encoder noise (see add_travel()) into the encoder positions: variance
  * k |ds| [mm^2] for |ds| = noise_cnt / enc_cnt_per_m [m] rolled, noise_var_cnt * noise_cnt
@@ -135,12 +141,22 @@ static int check_config(const struct sim_config *c, const struct sim_field *f)
 	return 0;
 }
 
+/* The explicit parts away from the contacts (the motor friction, the coupling of the wheels
+ * through the yaw) are stable at the current substep s->dt_s. */
+static bool stable_free(const struct sim *s)
+{
+	double dt = s->dt_s;
+	double cross = s->inv_mass - s->half_track_m * s->half_track_m * s->inv_inertia;
+
+	return s->friction_wheel * s->inv_friction_w_eps * dt * s->inv_j_wheel <= 1.0 &&
+	       s->c_eff * dt * fabs(cross) <= 0.5;
+}
+
 /* The explicit parts must stay well inside their stability region (eigenvalue * dt < 0.5 for
  * the oscillators, < 1 for the dampers), with up to four contacts at once. */
 static int check_stability(const struct sim *s)
 {
 	double dt = s->dt_s, m_eff, k = s->cfg.wall_stiffness_N_m, r2 = 0.0;
-	double cross = s->inv_mass - s->half_track_m * s->half_track_m * s->inv_inertia;
 	int i;
 
 	for (i = 0; i < 4; i++)
@@ -151,11 +167,7 @@ static int check_stability(const struct sim *s)
 		return -SIM_EINVAL;
 	if (4.0 * s->cfg.wall_damping_N_s_m * dt / m_eff > 1.0)
 		return -SIM_EINVAL;
-	if (s->friction_wheel * s->inv_friction_w_eps * dt * s->inv_j_wheel > 1.0)
-		return -SIM_EINVAL;
-	if (s->c_eff * dt * fabs(cross) > 0.5)
-		return -SIM_EINVAL;
-	return 0;
+	return stable_free(s) ? 0 : -SIM_EINVAL;
 }
 
 /* The coefficients of one wheel in run_substeps(), from the constants of sim_init() and the
@@ -175,6 +187,36 @@ static void derive_wheel(struct sim *s, int i)
 	s->enc_cnt_per_u[i] = s->enc_cut[i] ? 0.0 : s->dt_s * s->enc_cnt_per_m[i];
 	s->enc_cnt_per_omega[i] = s->enc_cnt_per_u[i] * s->enc_y_m[i];
 	s->noise_var_cnt[i] = 1e-6 * s->cfg.enc_noise_mm2_per_m[i] * s->enc_cnt_per_m[i];
+}
+
+static void update_volts(struct sim *s);
+
+/* Every coefficient that depends on the substep, for s->dt_s and s->coarse (the implicit tyre
+ * force, the current, the body and the encoders): at init, and when run_substeps() changes
+ * between the short substep near contacts and the long one away from them. */
+static void derive_step(struct sim *s)
+{
+	const struct sim_config *cfg = &s->cfg;
+	double dt = s->dt_s;
+	int i;
+
+	s->i_decay = s->step_decay[s->coarse];
+	s->c_eff = cfg->slip_damping_N_s_m + cfg->tyre_stiffness_N_m * dt;
+	for (i = 0; i < 2; i++)
+		s->inv_den_long[i] = 1.0 / (1.0 + s->c_eff * dt * s->a_long[i]);
+	s->inv_den_lat = 1.0 / (1.0 + s->c_eff * dt * s->a_lat);
+	/* i' = i_ss + (i - i_ss) decay with i_ss = (u - Ke w) / R, as i decay + in - w per_w */
+	s->cur_decay = s->i_decay;
+	s->cur_per_w = s->ke_wheel * s->inv_resistance * (1.0 - s->i_decay);
+	s->f_per_tread_lat = cfg->tyre_stiffness_N_m * s->inv_den_lat;
+	s->f_per_slip_lat = s->c_eff * s->inv_den_lat;
+	s->v_per_f = dt * s->inv_mass;
+	s->omega_per_torque = dt * s->inv_inertia;
+	s->omega_per_dfx = s->half_track_m * s->omega_per_torque;
+	s->motor_cnt_per_wheel_step = dt * s->motor_cnt_per_rad;
+	for (i = 0; i < 2; i++)
+		derive_wheel(s, i);
+	update_volts(s);
 }
 
 int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field *field)
@@ -203,26 +245,28 @@ int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field
 	/* back-EMF per wheel speed [V s/rad]: Ke = 1 / Kv in SI, seen through the gearbox */
 	s->ke_wheel = n * 60.0 / (2.0 * PI * m->kv_rpm_per_V);
 	s->inv_resistance = 1.0 / m->resistance_ohm;
-	s->i_decay = m->inductance_mH > 0.0
-			     ? exp(-s->dt_s * m->resistance_ohm / (m->inductance_mH * 1e-3))
-			     : 0.0;
+	for (i = 0; i < 2; i++) {
+		double dt = i ? cfg->coarse_substep_ns * 1e-9 : s->dt_s;
+
+		s->step_decay[i] =
+			m->inductance_mH > 0.0
+				? exp(-dt * m->resistance_ohm / (m->inductance_mH * 1e-3))
+				: 0.0;
+	}
+	s->i_decay = s->step_decay[0];
 	s->gain_wheel = m->gear_efficiency * n * s->kt;
 	/* the friction is on the motor shaft, before the gearbox losses */
 	s->friction_wheel = m->gear_efficiency * n * m->friction_mNm * 1e-3;
 	s->inv_friction_w_eps = n / MOTOR_FRICTION_W_EPS;
 	s->inv_tyre_k = 1.0 / cfg->tyre_stiffness_N_m;
-	s->c_eff = cfg->slip_damping_N_s_m + cfg->tyre_stiffness_N_m * s->dt_s;
 	for (i = 0; i < 2; i++) {
 		double inv_j = i ? 0.0 : s->inv_j_wheel; /* a stuck wheel has no inertia to give */
 
 		s->a_long[i] = s->r_m * s->r_m * inv_j + s->inv_mass +
 			       s->half_track_m * s->half_track_m * s->inv_inertia;
-		s->inv_den_long[i] = 1.0 / (1.0 + s->c_eff * s->dt_s * s->a_long[i]);
 	}
 	/* both wheels see the same lateral slip (they are on the y axis) and push the same mass */
 	s->a_lat = 2.0 * s->inv_mass;
-	s->inv_den_lat = 1.0 / (1.0 + s->c_eff * s->dt_s * s->a_lat);
-
 	for (i = 0; i < 2; i++) {
 		double true_r = cfg->enc_radius_mm * (1.0 + cfg->enc_radius_error[i]);
 		double side = i == SIM_LEFT ? 1.0 : -1.0;
@@ -231,7 +275,7 @@ int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field
 		s->enc_cnt_per_m[i] = 1000.0 * cfg->enc_cpr / (2.0 * PI * true_r);
 		sim_set_friction_scale(s, i, 1.0);
 	}
-	s->motor_cnt_per_wheel_step = s->dt_s * n * m->encoder_cpr / (2.0 * PI);
+	s->motor_cnt_per_rad = n * m->encoder_cpr / (2.0 * PI);
 	s->enc_offset_x_m = cfg->enc_offset_x_mm * 1e-3;
 
 	field_line_boxes(&s->field, &s->line_box[0][0]);
@@ -256,21 +300,26 @@ int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field
 							   cfg->basket_sensor_pos.y_mm));
 	s->reach_m += 1e-3 * cfg->shock_range_mm;
 
+	s->friction_per_w = s->friction_wheel * s->inv_friction_w_eps;
+	derive_step(s);
 	err = check_stability(s);
 	if (err)
 		return err;
-
-	/* i' = i_ss + (i - i_ss) decay with i_ss = (u - Ke w) / R, as i decay + in - w per_w */
-	s->cur_decay = s->i_decay;
-	s->cur_per_w = s->ke_wheel * s->inv_resistance * (1.0 - s->i_decay);
-	s->f_per_tread_lat = cfg->tyre_stiffness_N_m * s->inv_den_lat;
-	s->f_per_slip_lat = s->c_eff * s->inv_den_lat;
-	s->v_per_f = s->dt_s * s->inv_mass;
-	s->omega_per_torque = s->dt_s * s->inv_inertia;
-	s->omega_per_dfx = s->half_track_m * s->omega_per_torque;
-	s->friction_per_w = s->friction_wheel * s->inv_friction_w_eps;
-	for (i = 0; i < 2; i++)
-		derive_wheel(s, i);
+	/* The long substep, away from contacts: only if its explicit parts are stable too (the
+	 * contacts are never integrated with it) */
+	s->coarse_ns = cfg->coarse_substep_ns;
+	if (s->coarse_ns > cfg->substep_ns) {
+		s->coarse = 1;
+		s->dt_s = s->coarse_ns * 1e-9;
+		derive_step(s);
+		if (!stable_free(s))
+			s->coarse_ns = 0;
+		s->coarse = 0;
+		s->dt_s = cfg->substep_ns * 1e-9;
+		derive_step(s);
+	} else {
+		s->coarse_ns = 0;
+	}
 
 	sim_set_battery_V(s, cfg->battery_V);
 	sim_rng_seed(&s->rng, cfg->seed);
@@ -599,8 +648,19 @@ static void run_ground(struct sim *s, uint64_t n)
 	update_lines(s);
 }
 
+/* Changes to the long substep (coarse = 1) or back to the short one. */
+static void set_step(struct sim *s, int coarse)
+{
+	if (s->coarse == coarse)
+		return;
+	s->coarse = coarse;
+	s->dt_s = (coarse ? s->coarse_ns : s->cfg.substep_ns) * 1e-9;
+	derive_step(s);
+}
+
 static void run_substeps(struct sim *s, uint64_t n)
 {
+	set_step(s, 0);
 	s->time_ns += n * s->cfg.substep_ns;
 	if (s->cfg.lifted)
 		run_lifted(s, n);
@@ -613,10 +673,87 @@ void sim_step(struct sim *s)
 	run_substeps(s, 1);
 }
 
+/* True if a disc of radius r [mm] at (x, y) [mm] overlaps the robot's outline. */
+static bool disc_on_robot(const struct sim *s, double x, double y, double r)
+{
+	const struct sim_config *cfg = &s->cfg;
+	double hl = 0.5 * cfg->outline_length_mm, hw = 0.5 * cfg->outline_width_mm;
+	double rx = x - 1000.0 * s->x, ry = y - 1000.0 * s->y;
+	double lx = rx * s->cos_h + ry * s->sin_h - cfg->outline_offset_x_mm;
+	double ly = -rx * s->sin_h + ry * s->cos_h - cfg->outline_offset_y_mm;
+	double dx = fabs(lx) - hl, dy = fabs(ly) - hw;
+
+	dx = dx > 0.0 ? dx : 0.0;
+	dy = dy > 0.0 ? dy : 0.0;
+	return dx * dx + dy * dy < r * r;
+}
+
+/* Moves opponent k by the distance it covers in duration_ns along its path; the robot's
+ * clearance shrinks by as much (an upper bound of the distance moved). An opponent does not
+ * move into the robot: it waits where it touched it (an immovable obstacle pressed on the
+ * robot would crush it against the border), as a robot stopped by its own shock switches. */
+static void move_opponent(struct sim *s, struct sim_opponent *p, uint64_t duration_ns)
+{
+	struct sim_obstacle *o = &s->field.obstacles[p->obstacle];
+	double left = p->speed_mm_s * (double)duration_ns * 1e-9;
+	double x = o->x_mm, y = o->y_mm;
+	int guard = 2 * SIM_MAX_PATH + 2; /* a loop of points closer than the step ends too */
+
+	while (left > 0.0 && p->n_points > 0 && guard-- > 0) {
+		double tx = p->path_mm[p->next][0], ty = p->path_mm[p->next][1];
+		double dx = tx - x, dy = ty - y, seg = sqrt(dx * dx + dy * dy);
+
+		if (seg > left) {
+			x += dx * (left / seg);
+			y += dy * (left / seg);
+			break;
+		}
+		x = tx;
+		y = ty;
+		left -= seg;
+		if (++p->next >= p->n_points) {
+			p->next = 0;
+			if (!p->loop)
+				p->n_points = 0; /* arrived: it stands there */
+		}
+	}
+	{
+		double r =
+			o->shape == SIM_SHAPE_CIRCLE
+				? o->radius_mm
+				: sqrt(o->half_x_mm * o->half_x_mm + o->half_y_mm * o->half_y_mm);
+
+		if (disc_on_robot(s, x, y, r) && !disc_on_robot(s, o->x_mm, o->y_mm, r))
+			return; /* blocked by the robot: it waits, touching it */
+	}
+	s->clearance_m -= 1e-3 * (fabs(x - o->x_mm) + fabs(y - o->y_mm));
+	o->x_mm = x;
+	o->y_mm = y;
+}
+
 void sim_advance_ns(struct sim *s, uint64_t duration_ns)
 {
 	uint64_t total = s->carry_ns + duration_ns;
 	uint64_t n;
+	int k;
+
+	for (k = 0; k < s->opponent_count; k++)
+		move_opponent(s, &s->opponents[k], duration_ns);
+	/* Away from everything, whole long substeps: the robot cannot reach a contact within the
+	 * call (its speed times the duration, plus a margin for what it may gain meanwhile) */
+	if (s->coarse_ns && s->carry_ns == 0 && duration_ns % s->coarse_ns == 0 && !s->cfg.lifted) {
+		double speed = fabs(s->vx) + fabs(s->vy) + 0.5 * s->half_track_m * fabs(s->omega);
+		double reach = (speed + COARSE_SPEED_MARGIN) * (double)duration_ns * 1e-9;
+
+		if (s->clearance_m > reach + COARSE_MARGIN_M) {
+			uint64_t m = duration_ns / s->coarse_ns;
+
+			set_step(s, 1);
+			s->time_ns += duration_ns;
+			run_ground(s, m);
+			return;
+		}
+	}
 
 	/* A lockstep host asks for the same period every time: the 64-bit division (some tens
 	 * of cycles before the first substep can start) is kept with the time it divided. */
@@ -670,6 +807,8 @@ void sim_read_sensors(const struct sim *s, struct sim_sensors *out)
 		out->basket = field_distance(&s->field, x, y, FIELD_BASKETS) <= cfg->shock_range_mm;
 	}
 	out->line_mask = s->line_mask; /* kept up to date by update_lines() */
+	out->shock_mask |= s->shock_forced;
+	out->basket = out->basket || s->basket_forced;
 }
 
 void sim_get_truth(const struct sim *s, struct sim_truth *out)
@@ -740,4 +879,81 @@ void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut)
 		s->motor_enc_cut[wheel] = cut;
 		derive_wheel(s, wheel);
 	}
+}
+
+void sim_force_sensors(struct sim *s, uint8_t shock_mask, bool basket)
+{
+	s->shock_forced = shock_mask;
+	s->basket_forced = basket;
+}
+
+static bool finite_nonneg(double v)
+{
+	return v >= 0.0 && v < 1e12;
+}
+
+static bool finite_coord(double v)
+{
+	return v > -1e9 && v < 1e9; /* also rejects NaN */
+}
+
+int sim_add_obstacle(struct sim *s, const struct sim_obstacle *o)
+{
+	int i = s->field.obstacle_count;
+
+	if (i >= SIM_MAX_OBSTACLES || o->shape > SIM_SHAPE_BOX || o->kind > SIM_OBSTACLE_OTHER ||
+	    !finite_nonneg(o->radius_mm) || !finite_nonneg(o->half_x_mm) ||
+	    !finite_nonneg(o->half_y_mm) || !finite_coord(o->x_mm) || !finite_coord(o->y_mm) ||
+	    !finite_coord(o->heading_rad))
+		return -SIM_EINVAL;
+	s->field.obstacles[i] = *o;
+	s->field.obstacle_count = (uint8_t)(i + 1);
+	s->clearance_m = 0.0; /* look again */
+	return i;
+}
+
+void sim_move_obstacle(struct sim *s, int i, double x_mm, double y_mm, double heading_rad)
+{
+	struct sim_obstacle *o;
+
+	if (i < 0 || i >= s->field.obstacle_count || !finite_coord(x_mm) || !finite_coord(y_mm) ||
+	    !finite_coord(heading_rad))
+		return;
+	o = &s->field.obstacles[i];
+	o->x_mm = x_mm;
+	o->y_mm = y_mm;
+	o->heading_rad = heading_rad;
+	s->clearance_m = 0.0; /* look again */
+}
+
+int sim_set_opponent_path(struct sim *s, int i, const double *path_mm, int n, double speed_mm_s,
+			  bool loop)
+{
+	struct sim_opponent *p = NULL;
+	int k;
+
+	if (i < 0 || i >= s->field.obstacle_count || n < 0 || n > SIM_MAX_PATH ||
+	    !(speed_mm_s > 0.0 && speed_mm_s < 1e6))
+		return -SIM_EINVAL;
+	for (k = 0; k < 2 * n; k++)
+		if (!finite_coord(path_mm[k]))
+			return -SIM_EINVAL;
+	for (k = 0; k < s->opponent_count; k++)
+		if (s->opponents[k].obstacle == i)
+			p = &s->opponents[k];
+	if (!p) {
+		if (s->opponent_count >= SIM_MAX_OPPONENTS)
+			return -SIM_EINVAL;
+		p = &s->opponents[s->opponent_count++];
+	}
+	memset(p, 0, sizeof(*p));
+	p->obstacle = (uint8_t)i;
+	p->n_points = (uint8_t)n;
+	p->loop = loop;
+	p->speed_mm_s = speed_mm_s;
+	for (k = 0; k < n; k++) {
+		p->path_mm[k][0] = path_mm[2 * k];
+		p->path_mm[k][1] = path_mm[2 * k + 1];
+	}
+	return 0;
 }

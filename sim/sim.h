@@ -13,6 +13,8 @@
  * 1 kHz control tick), semi-implicit (symplectic) Euler for the body and the wheels, exact
  * exponential update of the motor current (so the 0.1 ms L/R time constant is kept and stable at
  * any substep), a linearly implicit tyre force, and penalty spring-dampers for the walls.
+ * Away from every contact, a whole control tick is one substep of coarse_substep_ns (1 ms by
+ * default): the wall springs, the only part that needs 100 us, are not integrated then.
  *
  * Conventions:
  *   - Field frame: origin at the centre of the table, X along the long side (3000 mm), Y along the
@@ -44,6 +46,8 @@
 #define SIM_MAX_LINE_SENSORS 4
 #define SIM_MAX_OBSTACLES 16
 #define SIM_MAX_LINES 32
+#define SIM_MAX_OPPONENTS 4
+#define SIM_MAX_PATH 16
 
 /* Returned (negated) by sim_init() for an invalid or numerically unstable configuration. */
 #define SIM_EINVAL 22
@@ -54,7 +58,7 @@
 
 enum sim_shape {
 	SIM_SHAPE_CIRCLE = 0, /* uses radius_mm */
-	SIM_SHAPE_BOX = 1,    /* axis-aligned, uses half_x_mm and half_y_mm */
+	SIM_SHAPE_BOX = 1,    /* uses half_x_mm and half_y_mm, turned by heading_rad */
 };
 
 enum sim_obstacle_kind {
@@ -70,6 +74,7 @@ struct sim_obstacle {
 	double radius_mm;
 	double half_x_mm;
 	double half_y_mm;
+	double heading_rad; /* a box's x axis from the field's X, counter-clockwise; 0: aligned */
 };
 
 /* A painted line: the segment (x0, y0)-(x1, y1) widened by width_mm (rounded ends). */
@@ -171,9 +176,12 @@ struct sim_config {
 	double wall_friction_coeff; /* sliding friction along a border, default 0.2 (GUESS) */
 
 	/* Integration and start */
-	uint32_t substep_ns;   /* 1000..1000000, default 100000 (100 us) */
-	struct sim_pose start; /* pose of the drive axis midpoint, default (-1300, 0, 0) */
-	uint64_t seed;         /* seeds the encoder noise */
+	uint32_t substep_ns;        /* 1000..1000000, default 100000 (100 us) */
+	uint32_t coarse_substep_ns; /* the substep away from every contact, used for whole calls of
+				     * sim_advance_ns() that are a multiple of it (a control tick);
+				     * 0 or <= substep_ns: never; ignored if not stable */
+	struct sim_pose start;      /* pose of the drive axis midpoint, default (-1300, 0, 0) */
+	uint64_t seed;              /* seeds the encoder noise */
 };
 
 /* Fills cfg with the defaults listed above. */
@@ -218,6 +226,19 @@ struct sim_truth {
 	uint64_t time_ns;
 };
 
+/* An obstacle that moves along a path of points at a constant speed (an opponent robot seen as
+ * a disc, or as its outline): it goes from its position to path[0], then to path[1], and so
+ * on; at the end it stops, or starts again from path[0] if loop. It closes the shock switches
+ * it comes within reach of, like any obstacle; it is not pushed by the robot. */
+struct sim_opponent {
+	uint8_t obstacle; /* index in the field's obstacles */
+	uint8_t n_points; /* 0: stands still */
+	uint8_t next;     /* the point it heads for */
+	bool loop;
+	double speed_mm_s;
+	double path_mm[SIM_MAX_PATH][2];
+};
+
 /* One simulated robot on one field. Allocate it yourself; the members are private. */
 struct sim {
 	struct sim_config cfg;
@@ -229,6 +250,9 @@ struct sim {
 	double c_eff, inv_tyre_k, a_long[2], a_lat; /* implicit tyre force: [free, stuck wheel] */
 	double inv_den_long[2], inv_den_lat;
 	double enc_y_m[2], enc_cnt_per_m[2], motor_cnt_per_wheel_step, enc_offset_x_m;
+	double motor_cnt_per_rad, step_decay[2]; /* [short, long substep] */
+	uint32_t coarse_ns;                      /* the long substep, 0: none */
+	int coarse;                              /* the coefficients are those of the long one */
 	double corner_m[4][2], bound_radius_m, reach_m;
 	/* coefficients of a substep, from the constants above and the fault settings */
 	double cur_decay, cur_per_w, cur_in[2], px_per_tau[2], w_per_tau[2], f_per_tau[2];
@@ -252,6 +276,10 @@ struct sim {
 	struct sim_rng rng;
 	uint64_t time_ns, steps, carry_ns;
 	uint64_t split_ns, split_n, split_rest_ns; /* the last time sim_advance_ns() divided */
+	uint8_t shock_forced;                      /* switches held closed by sim_force_sensors() */
+	bool basket_forced;
+	uint8_t opponent_count; /* (last: the hot state above stays in fewer cache lines) */
+	struct sim_opponent opponents[SIM_MAX_OPPONENTS];
 };
 
 /* Sets up s from cfg and field (both copied) at cfg->start, at rest, duties 0, counters 0.
@@ -286,5 +314,23 @@ void sim_set_friction_scale(struct sim *s, int wheel, double scale); /* mu * sca
 void sim_set_motor_stuck(struct sim *s, int wheel, bool stuck);      /* shaft locked */
 void sim_set_encoder_cut(struct sim *s, int wheel, bool cut);        /* free wheel stops counting */
 void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut);  /* motor encoder stops */
+
+/* Switches held closed, whatever the geometry says (a hand, a stuck bumper): bit i of shock_mask
+ * closes shock switch i; basket closes the basket switch. 0 and false release them. */
+void sim_force_sensors(struct sim *s, uint8_t shock_mask, bool basket);
+
+/* Moving obstacles. sim_add_obstacle() appends o to the field and returns its index, or
+ * -SIM_EINVAL if the field is full or o is not a valid obstacle. sim_move_obstacle() puts
+ * obstacle i at (x_mm, y_mm, heading_rad) at once (ignored for a bad i). The robot's contacts
+ * are looked at again after either. */
+int sim_add_obstacle(struct sim *s, const struct sim_obstacle *o);
+void sim_move_obstacle(struct sim *s, int i, double x_mm, double y_mm, double heading_rad);
+
+/* Makes obstacle i an opponent that follows path (n points, x y pairs in mm, n <= SIM_MAX_PATH)
+ * at speed_mm_s (> 0), from where it is, starting now; a new path replaces the old one, n = 0
+ * stops it. It moves at each sim_advance_ns() call (each control tick of a host) by the
+ * distance of the call. Returns 0, or -SIM_EINVAL (bad index or path, no opponent left). */
+int sim_set_opponent_path(struct sim *s, int i, const double *path_mm, int n, double speed_mm_s,
+			  bool loop);
 
 #endif /* ASSERV_SIM_H */

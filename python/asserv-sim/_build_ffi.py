@@ -32,6 +32,8 @@ CDEF = """
 #define SIM_MAX_LINE_SENSORS ...
 #define SIM_MAX_OBSTACLES ...
 #define SIM_MAX_LINES ...
+#define SIM_MAX_OPPONENTS ...
+#define SIM_MAX_PATH ...
 #define SIM_SHAPE_CIRCLE ...
 #define SIM_SHAPE_BOX ...
 #define SIM_OBSTACLE_BASKET ...
@@ -94,6 +96,7 @@ struct sim_obstacle {
     double radius_mm;
     double half_x_mm;
     double half_y_mm;
+    double heading_rad;
 };
 
 struct sim_line {
@@ -164,6 +167,7 @@ struct sim_config {
     double wall_damping_N_s_m;
     double wall_friction_coeff;
     uint32_t substep_ns;
+    uint32_t coarse_substep_ns;
     struct sim_pose start;
     uint64_t seed;
 };
@@ -183,7 +187,7 @@ struct sim_truth {
     uint64_t time_ns;
 };
 
-struct sim { ...; };
+struct sim { struct sim_config cfg; struct sim_field field; ...; };
 
 struct sim_sensors {
     uint16_t enc_count[2];
@@ -207,6 +211,11 @@ void sim_set_friction_scale(struct sim *s, int wheel, double scale);
 void sim_set_motor_stuck(struct sim *s, int wheel, bool stuck);
 void sim_set_encoder_cut(struct sim *s, int wheel, bool cut);
 void sim_set_motor_encoder_cut(struct sim *s, int wheel, bool cut);
+void sim_force_sensors(struct sim *s, uint8_t shock_mask, bool basket);
+int sim_add_obstacle(struct sim *s, const struct sim_obstacle *o);
+void sim_move_obstacle(struct sim *s, int i, double x_mm, double y_mm, double heading_rad);
+int sim_set_opponent_path(struct sim *s, int i, const double *path_mm, int n, double speed_mm_s,
+                          bool loop);
 
 /* ---- the board on the simulator (firmware/ports/host/host.h) ---- */
 struct odometry_pose { int32_t x_um; int32_t y_um; uint32_t heading_turn32; };

@@ -77,13 +77,42 @@ class Clock(Protocol):
 
 
 class SystemClock:
-    """The ``time`` module as a Clock."""
+    """The ``time`` module as a Clock: what a real bus (``smbus2.SMBus``) gets."""
+
+    drives_simulation = False
 
     def monotonic(self) -> float:
         return time.monotonic()
 
     def sleep(self, seconds: float) -> None:
         time.sleep(seconds)
+
+
+class _BusMethodsClock:
+    """A bus's own ``monotonic()`` and ``sleep()`` as a Clock."""
+
+    def __init__(self, bus: object) -> None:
+        self._bus = bus
+        self.drives_simulation = bool(getattr(bus, "drives_simulation", False))
+
+    def monotonic(self) -> float:
+        return float(self._bus.monotonic())  # type: ignore[attr-defined]
+
+    def sleep(self, seconds: float) -> None:
+        self._bus.sleep(seconds)  # type: ignore[attr-defined]
+
+
+def clock_of(bus: object) -> Clock:
+    """The clock of a bus: its ``clock`` attribute (VirtualBus: the simulator's time on a
+    simulated bus; RemoteBus: the server's), else its own ``monotonic()`` and ``sleep()``, else
+    the wall clock (``smbus2.SMBus``). A clock with ``drives_simulation`` true runs a simulation
+    in this process when slept on (``Simulator``)."""
+    clock = getattr(bus, "clock", None)
+    if callable(getattr(clock, "monotonic", None)) and callable(getattr(clock, "sleep", None)):
+        return clock  # type: ignore[return-value]
+    if callable(getattr(bus, "monotonic", None)) and callable(getattr(bus, "sleep", None)):
+        return _BusMethodsClock(bus)
+    return SystemClock()
 
 
 def _nack(address: int) -> OSError:

@@ -280,12 +280,22 @@ class _Procedure:
         self.speeds(self.p.push_speed_cm_s, self.p.push_accel_cm_s2)
         self.b.set_filtre_raw(*_PUSH_GAINS)
         d = round(max(gap_mm - 10.0, 5.0))  # the approach, which should stop short of it
-        for _ in range(20):
-            if self._push_order(side, d) is None:
+        # A push that ends on a shock sensor touched the border: after a shock the board holds
+        # the robot and never drives it back towards the obstacle (docs/failure-model.md), so
+        # squaring up takes a push per switch that closes, up to 60 of them. One that ends
+        # without a contact did not reach the border: 20 of those (380 mm) and it is not there.
+        misses = contacts = 0
+        while True:
+            status = self._push_order(side, d)
+            if status is None:
                 break  # held still against the border by a running push: flat
+            if status & (Status.CHOC_BORD | Status.CHOC_PANIER):
+                contacts += 1
+            else:
+                misses += 1
+            if misses >= 20 or contacts >= 60:
+                raise CalibrationError(f"the {wall} border was not found behind the {side}")
             d = round(_PUSH_MM)  # ended (a sensor, or not there yet): push again
-        else:
-            raise CalibrationError(f"the {wall} border was not found behind the {side}")
         x, y, h = self.pose()
         contact = Contact(wall, side, x, y, round(h * 100))
         self.log(f"  {side} flat on the {wall} border: x {x} mm, y {y} mm, heading {h:.2f} deg")

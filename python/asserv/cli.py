@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -193,6 +194,9 @@ def _add_sim(sub: Subparsers) -> None:
     p.add_argument("--mcap", metavar="FILE", help="also record the run as MCAP (docs/view.md)")
     p.add_argument("--csv", metavar="FILE", help="also record the run as CSV")
     p.set_defaults(func=_sim_run)
+    from . import server
+
+    server.register(simsub)  # asserv sim serve (python/asserv/server.py): sets sim_handler
 
 
 # calibrate -----------------------------------------------------------------------------------
@@ -371,7 +375,12 @@ def _add_bench(sub: Subparsers) -> None:
     )
     acc.add_argument("--robots", type=at_least(1), default=200, help="how many (default 200)")
     acc.add_argument("--first-seed", type=natural, default=0, help="seed of the first robot")
-    acc.add_argument("--jobs", type=at_least(1, 256), default=1, help="processes (default 1)")
+    acc.add_argument(
+        "--jobs",
+        type=at_least(1, 256),
+        default=min(os.cpu_count() or 1, 256),
+        help="processes (default: all cores)",
+    )
     acc.add_argument("--turns", type=at_least(1), default=10, help="calibration: full turns")
     acc.add_argument("--round-trips", type=at_least(2), default=3, help="calibration: round trips")
     acc.add_argument(
@@ -446,7 +455,7 @@ def main(argv: list[str] | None = None) -> int:
         return cli_bus.run_bus_command(args)
     prog = _prog(args)
     try:
-        handler = getattr(args, "func", None) or args.run
+        handler = getattr(args, "func", None) or getattr(args, "run", None) or args.sim_handler
         code: int = handler(args)
     except UsageError as e:
         print(cli_args.one_line(f"{prog}: {e}"), file=sys.stderr)

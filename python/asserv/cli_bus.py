@@ -80,6 +80,13 @@ def _bus_options(parser: argparse.ArgumentParser, *, suppress: bool) -> None:
         help="Linux I2C bus number (/dev/i2c-N; 1 on a Raspberry Pi)",
     )
     parser.add_argument(
+        "--sim",
+        dest="bus_sim",
+        metavar="HOST:PORT",
+        default=default(None),
+        help="the simulated board of `asserv sim serve` instead of an I2C bus",
+    )
+    parser.add_argument(
         "--address",
         dest="bus_address",
         metavar="ADDR",
@@ -347,6 +354,10 @@ def open_error(number: int, e: OSError) -> str:
     return f"cannot open /dev/i2c-{number}: {reason}{hint}"
 
 
+def _opened(bus: ClosableBus) -> BusFactory:
+    return lambda _number: bus
+
+
 def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = None) -> int:
     """Run a parsed bus command; return the exit code (0 done, 1 bus or board error, 2 bad
     arguments). ``bus_factory(N)`` opens bus N: ``smbus2.SMBus`` (looked up at each call), or a
@@ -358,10 +369,22 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = N
         print(one_line(f"{prog}: {message}"), file=sys.stderr)
         return code
 
+    remote = getattr(args, "bus_sim", None)
     try:
-        if getattr(args, "bus", None) is None:
+        if remote is not None:
+            from .server import parse_address as parse_sim_address
+
+            if getattr(args, "bus", None) is not None:
+                raise _UsageError("give --bus N or --sim HOST:PORT, not both")
+            try:
+                host, port = parse_sim_address(remote)
+            except ValueError as e:
+                raise _UsageError(f"--sim {e}") from None
+            number = -1
+        elif getattr(args, "bus", None) is None:
             raise _UsageError("--bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi)")
-        number = parse_bus(args.bus)
+        else:
+            number = parse_bus(args.bus)
         address = parse_address(args.bus_address)
         action = _action(args)
     except _UsageError as e:
@@ -369,6 +392,14 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = N
     except codec.FrameError as e:  # out of range: reported as the board would, nothing opened
         return fail(2, str(e))
 
+    if remote is not None:
+        from .server import RemoteBus
+
+        try:
+            bus: ClosableBus = RemoteBus(host, port)
+        except OSError as e:
+            return fail(1, e.strerror or str(e))
+        bus_factory = _opened(bus)
     try:
         bus = (bus_factory or smbus2.SMBus)(number)
     except OSError as e:

@@ -24,14 +24,17 @@ import errno
 import math
 import operator
 import os
-import time
-from collections.abc import Callable
-from typing import Protocol, SupportsIndex, TypeVar
+import threading
+import weakref
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import Any, Protocol, SupportsIndex, TypeVar
 
 from smbus2 import i2c_msg
 
 from . import codec
-from ._protocol import ADDRESS, Filtre, Reject, Status
+from ._protocol import ADDRESS, EndReason, Filtre, Reject, Status
+from .bus import Clock, clock_of
 from .codec import Debug, LastReject, Pose, Version
 
 __all__ = [
@@ -40,17 +43,22 @@ __all__ = [
     "BoardTimeout",
     "BusError",
     "GotoOption",
+    "MatchOver",
     "NoAcknowledge",
     "OrderRejected",
+    "Outcome",
     "PecMismatch",
+    "bus_lock",
 ]
 
 
 class SMBusLike(Protocol):
     """What the driver needs of a bus: ``smbus2.SMBus`` and ``asserv.bus.VirtualBus`` have it.
 
-    A bus that also has ``monotonic()`` and ``sleep(s)`` (VirtualBus) gives ``wait_idle`` its
-    clock, so that polling a simulated board advances simulated time."""
+    A bus that also has a ``clock`` (VirtualBus, RemoteBus), or ``monotonic()`` and
+    ``sleep(s)``, gives the board its clock (``Board.now()``, ``Board.sleep()``), so that polling
+    a simulated board advances simulated time; any other bus gets the wall clock
+    (``asserv.bus.clock_of``)."""
 
     def i2c_rdwr(self, *i2c_msgs: i2c_msg) -> None: ...
 
@@ -60,6 +68,36 @@ class GotoOption(enum.IntFlag):
 
     RECALAGE_LIGNE = 1  # recalibration on floor lines
     RECALAGE_BORD = 2  # recalibration by contact with the field border
+
+
+class Outcome(enum.Enum):
+    """How an order ended, as ``Board.complete`` tells it (docs/strategy.md)."""
+
+    DONE = "done"  # the robot settled at the target (end_reason DONE)
+    BORDER_RECALIBRATED = "border recalibrated"  # CHOC_BORD with end_reason BORDER
+    BASKET_REACHED = "basket reached"  # CHOC_PANIER with end_reason BASKET
+    SHOCK = "shock"  # CHOC_BORD or CHOC_PANIER from a shock sensor (end_reason SHOCK)
+    MOTOR_PROBLEM = "motor problem"  # PB_MOTEUR
+    GRAVE_FAULT = "grave fault"  # PB_GRAVE: the board refuses orders until reset
+    TIMEOUT = "timeout"  # still busy after timeout_s: the driver sent STOP
+    STOPPED = "stopped"  # ended by a STOP (another thread, the match timer) or SET_TIMEOUT
+
+
+def outcome_of(status: Status, end_reason: EndReason) -> Outcome:
+    """The outcome of an order from the final status byte (not busy) and DEBUG's end_reason:
+    CHOC_BORD is a border recalibration when end_reason is BORDER and a collision otherwise;
+    CHOC_PANIER is the basket when end_reason is BASKET and a shock otherwise."""
+    if status & Status.PB_GRAVE:
+        return Outcome.GRAVE_FAULT
+    if status & Status.PB_MOTEUR:
+        return Outcome.MOTOR_PROBLEM
+    if status & Status.CHOC_BORD:
+        return Outcome.BORDER_RECALIBRATED if end_reason == EndReason.BORDER else Outcome.SHOCK
+    if status & Status.CHOC_PANIER:
+        return Outcome.BASKET_REACHED if end_reason == EndReason.BASKET else Outcome.SHOCK
+    if end_reason in (EndReason.STOPPED, EndReason.TIMEOUT):
+        return Outcome.STOPPED
+    return Outcome.DONE
 
 
 # Errors ------------------------------------------------------------------------------------------
@@ -111,6 +149,11 @@ class BoardTimeout(AsservError):  # noqa: N818 (names of the driver's API)
         self.status = status
 
 
+class MatchOver(Exception):  # noqa: N818 (names of the driver's API)
+    """The match time is over (``asserv.match.MatchTimer``): the robot was sent STOP, and the
+    board refuses every other transaction from this driver."""
+
+
 # errno values with which Linux adapters report a NACK of the address: ENXIO is the kernel's
 # documented code; i2c-bcm2835 (Raspberry Pi) gives EREMOTEIO; some give EIO (on i2c-bcm2835, EIO
 # is a clock-stretching timeout instead).
@@ -145,6 +188,25 @@ def _errno_name(e: int | None) -> str:
 
 T = TypeVar("T")
 
+_SLICE_S = 0.01  # how long a simulation runs under the bus lock in Board.sleep()
+
+# One lock per bus object, for every Board on it (weakly held: the bus may go away).
+_BUS_LOCKS: weakref.WeakKeyDictionary[Any, threading.RLock] = weakref.WeakKeyDictionary()
+_BUS_LOCKS_LOCK = threading.Lock()
+
+
+def bus_lock(bus: object) -> threading.RLock:
+    """The lock that makes each transaction on ``bus`` atomic: the same for every Board on the
+    same bus object (a bus that cannot be weakly referenced gets one per call)."""
+    with _BUS_LOCKS_LOCK:
+        try:
+            lock = _BUS_LOCKS.get(bus)
+            if lock is None:
+                lock = _BUS_LOCKS[bus] = threading.RLock()
+        except TypeError:
+            lock = threading.RLock()
+        return lock
+
 
 class Board:
     """The asserv board at ``address`` on ``bus`` (an ``smbus2.SMBus`` or a ``VirtualBus``).
@@ -157,6 +219,14 @@ class Board:
     Arguments outside the protocol's ranges raise ``ValueError`` (``codec.FrameError``) before
     anything is sent; non-integers raise ``TypeError``. Bus problems raise ``NoAcknowledge`` or
     ``BusError``, corrupted replies ``PecMismatch``.
+
+    Time: ``now()`` and ``sleep(s)`` are the bus's clock, the simulated time on a simulated bus
+    (``Simulator.bus``, ``asserv.server.RemoteBus``) and the wall clock on a real one: a strategy
+    that waits with them runs unchanged on both.
+
+    Threads: every transaction holds a lock shared by all the Boards on the same bus object, so
+    threads can share a Board (or a bus); ``with board.exclusive():`` holds it over several
+    calls. ``complete()`` reads the final status and DEBUG under it.
     """
 
     def __init__(
@@ -168,19 +238,66 @@ class Board:
         self.address = address
         self.pec = pec
         self.check = check
-        monotonic = getattr(bus, "monotonic", None)
-        sleep = getattr(bus, "sleep", None)
-        if callable(monotonic) and callable(sleep):
-            self._monotonic: Callable[[], float] = monotonic
-            self._sleep: Callable[[float], None] = sleep
-        else:
-            self._monotonic, self._sleep = time.monotonic, time.sleep
+        self.clock: Clock = clock_of(bus)
+        # A clock whose sleep runs a simulation in this process must not run while another
+        # thread's transaction is half-way through the simulated board: it is slept in slices
+        # under the bus lock.
+        self._drives = bool(getattr(self.clock, "drives_simulation", False))
+        self._lock = bus_lock(bus)
+        #: The end of the match on ``clock`` (``asserv.match.MatchTimer``), or None. Once
+        #: passed, the next transaction or sleep sends STOP and raises MatchOver.
+        self.deadline: float | None = None
+        self._match_stopped = False
 
     def __repr__(self) -> str:
         return (
             f"Board(address=0x{self.address:02x}, pec={self.pec}, check={self.check},"
             f" bus={self.bus!r})"
         )
+
+    # Time and sharing ---------------------------------------------------------------------
+
+    def now(self) -> float:
+        """Seconds on the bus's clock: simulated time on a simulated bus, the wall clock
+        (``time.monotonic``) on a real one."""
+        return self.clock.monotonic()
+
+    def sleep(self, seconds: float) -> None:
+        """Let ``seconds`` pass on the bus's clock (on a simulated bus, the simulation runs).
+
+        After the match deadline (``asserv.match.MatchTimer``) the sleep is cut there, STOP is
+        sent and MatchOver raised."""
+        if not seconds >= 0 or seconds == math.inf:
+            raise ValueError(f"sleep: seconds must be finite and >= 0, not {seconds}")
+        self._check_deadline("sleep")
+        now = self.now()
+        target = now + seconds
+        if self.deadline is not None and target > self.deadline:
+            seconds, target = max(0.0, self.deadline - now), self.deadline
+        if not self._drives:
+            self.clock.sleep(seconds)
+        else:
+            while (left := target - self.now()) > 1e-9:
+                with self._lock:  # slices, so that other threads' transactions go in between
+                    self.clock.sleep(min(left, _SLICE_S))
+        if self.deadline is not None and target >= self.deadline:
+            self._check_deadline("sleep")
+
+    @contextmanager
+    def exclusive(self) -> Iterator[Board]:
+        """Hold the bus lock over several calls (no other thread's transaction in between)."""
+        with self._lock:
+            yield self
+
+    def _check_deadline(self, name: str) -> None:
+        if self.deadline is None or self.now() < self.deadline - 1e-6:
+            return
+        with self._lock:
+            if not self._match_stopped:
+                self._match_stopped = True
+                frame = codec.encode("STOP", pec=self.pec, address=self.address)
+                self._rdwr("STOP", i2c_msg.write(self.address, frame), at_deadline=True)
+        raise MatchOver(f"{name}: the match is over (the robot was sent STOP)")
 
     # ORDRE ---------------------------------------------------------------------------------
 
@@ -274,10 +391,11 @@ class Board:
         DEBUG's fine heading, and send their difference with the truth as SET_NEW_POS
         (docs/protocol.md, 5.5). The robot should stand still between the reads and the write."""
         x, y, a = _integer("x_mm", x_mm), _integer("y_mm", y_mm), _integer("angle_deg", angle_deg)
-        pose = self.position()
-        heading_deg = round(self.debug().heading_cdeg / 100)
-        err_angle = (heading_deg - a + 180) % 360 - 180
-        self.set_new_pos(pose.x_mm - x, pose.y_mm - y, err_angle)
+        with self._lock:
+            pose = self.position()
+            heading_deg = round(self.debug().heading_cdeg / 100)
+            err_angle = (heading_deg - a + 180) % 360 - 180
+            self.set_new_pos(pose.x_mm - x, pose.y_mm - y, err_angle)
 
     # ETAT ----------------------------------------------------------------------------------
 
@@ -318,19 +436,53 @@ class Board:
         if not poll_s > 0:
             raise ValueError(f"poll_s={poll_s} must be > 0")
         busy = Status.BUSY_TRAJET | Status.BUSY_GOTO_PANIER
-        start = self._monotonic()
+        start = self.now()
         while True:
             status = self.check_busy()
             if not status & busy:
                 return status
-            remaining = timeout_s - (self._monotonic() - start)
+            remaining = timeout_s - (self.now() - start)
             if remaining <= 1e-9:  # not a sleep of rounding errors more
                 raise BoardTimeout(
                     f"the board at 0x{self.address:02x} is still busy after {timeout_s:g} s"
                     f" (status 0x{int(status):02x}: {_flag_names(status)})",
                     status,
                 )
-            self._sleep(min(poll_s, remaining))
+            self.sleep(min(poll_s, remaining))
+
+    def complete(
+        self,
+        order: Callable[..., object],
+        *args: Any,
+        timeout_s: float = 30.0,
+        poll_s: float = 0.01,
+    ) -> Outcome:
+        """Send an order, wait for its end and say how it ended::
+
+            outcome = board.complete(board.goto, 600, 0, GotoOption.RECALAGE_BORD, timeout_s=10)
+            if outcome is Outcome.BORDER_RECALIBRATED: ...
+
+        ``order(*args)`` sends it (a method of this board, or any callable that sends one);
+        OrderRejected and the bus errors are raised as they are. The final status and DEBUG's
+        end_reason are read together under the bus lock and told apart by ``outcome_of``. After
+        ``timeout_s`` on the board's clock the robot is sent STOP and the outcome is TIMEOUT."""
+        if not timeout_s >= 0 or timeout_s == math.inf:
+            raise ValueError(f"timeout_s={timeout_s} must be finite and >= 0")
+        if not poll_s > 0:
+            raise ValueError(f"poll_s={poll_s} must be > 0")
+        order(*args)
+        busy = Status.BUSY_TRAJET | Status.BUSY_GOTO_PANIER
+        start = self.now()
+        while True:
+            with self._lock:
+                status = self.check_busy()
+                if not status & busy:
+                    return outcome_of(status, self.debug().end_reason)
+            remaining = timeout_s - (self.now() - start)
+            if remaining <= 1e-9:
+                self.stop()
+                return Outcome.TIMEOUT
+            self.sleep(min(poll_s, remaining))
 
     # Transactions --------------------------------------------------------------------------
 
@@ -346,9 +498,12 @@ class Board:
         else:
             self._command(name, _integer("speed_cm_s", speed), _integer("accel_cm_s2", accel))
 
-    def _rdwr(self, name: str, *msgs: i2c_msg) -> None:
+    def _rdwr(self, name: str, *msgs: i2c_msg, at_deadline: bool = False) -> None:
+        if not at_deadline and name != "STOP":  # STOP is always let through
+            self._check_deadline(name)
         try:
-            self.bus.i2c_rdwr(*msgs)
+            with self._lock:
+                self.bus.i2c_rdwr(*msgs)
         except OSError as e:
             if e.errno in _NACK_ERRNOS:
                 what = (
@@ -392,7 +547,8 @@ class Board:
     def _query(self, name: str, kind: type[T]) -> T:
         frame = codec.encode(name, pec=self.pec, address=self.address)
         try:
-            reply = self._write_read(name, frame, name)
+            with self._lock:
+                reply = self._write_read(name, frame, name)
         except PecMismatch as e:
             raise PecMismatch(
                 f"{e}; if the designation itself was corrupted, the board sent its status byte"
@@ -401,8 +557,14 @@ class Board:
         return _expect(name, reply, kind)
 
     def _command(self, name: str, *args: int) -> None:
-        """An ORDRE or SET; with ``check``, confirm in the same transaction that it was taken."""
+        """An ORDRE or SET; with ``check``, confirm in the same transaction that it was taken
+        (the write, the status and LAST_REJECT under the bus lock: no other thread's write
+        in between)."""
         frame = codec.encode(name, *args, pec=self.pec, address=self.address)
+        with self._lock:
+            self._command_locked(name, frame, args)
+
+    def _command_locked(self, name: str, frame: bytes, args: tuple[int, ...]) -> None:
         if not self.check:
             self._rdwr(name, i2c_msg.write(self.address, frame))
             return

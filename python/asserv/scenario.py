@@ -10,18 +10,34 @@ A scenario is a text file, one command a line, ``#`` starts a comment::
     wait                     # poll CHECK_BUSY until the order ends [timeout_s, default 30]
     goto_panier 44           # degrees, sent in 2-degree steps
 
-Setup lines come first: ``field NAME|PATH``, ``seed N``, ``randomize`` (a robot drawn from the
-seed: wheel mismatch, track error, noise, start error), ``start X_MM Y_MM HEADING_DEG`` (the
-true start pose, which the board also believes), ``config KEY VALUE...`` (a member of
-``struct sim_config``, e.g. ``config enc_radius_error 0.003 -0.003``), ``bus_hz N``, ``pec on``.
+Setup lines come first: ``field NAME|PATH``, ``robot NAME|PATH`` (robot/NAME.toml, a robot
+description), ``seed N``, ``randomize`` (a robot drawn from the seed: wheel mismatch, track
+error, noise, start error), ``start X_MM Y_MM HEADING_DEG`` (the true start pose, which the
+board also believes), ``config KEY VALUE...`` (a member of ``struct sim_config``, e.g.
+``config enc_radius_error 0.003 -0.003``), ``bus_hz N``, ``pec on``.
 Then the bus commands, one per driver method: ``goto``, ``goto_reverse``, ``goto_panier``,
 ``stop``, ``set_vitesse_traj``, ``set_vitesse_rot``, ``set_filtre`` (STD, SOUPLE, RAIDE or a
 number), ``set_filtre_raw``, ``set_new_pos``, ``declare_pose``, ``check_busy``, ``position``,
 ``info_choc``, ``version``, ``last_reject``, ``debug``; and ``wait [TIMEOUT_S]``,
 ``sleep SECONDS``.
 
-The whole file is checked before anything runs: a malformed line is reported with its file
-and line number, and nothing is played.
+Opponents and timed events (docs/simulator.md, "Scenario files")::
+
+    opponent -400 500 150 300 -400 -300     # X Y RADIUS_MM SPEED_MM_S, then its path [loop]
+    at 2.5 press 1                          # at T (simulated s): press MASK, release,
+                                            # cut_encoder L|R, restore_encoder L|R,
+                                            # stick_motor L|R, free_motor L|R, battery VOLTS,
+                                            # move_obstacle I X Y, opponent_path I SPEED X Y...
+
+Assertions, after a ``wait``: ``expect OUTCOME`` (done, border, basket, shock, motor, grave,
+stopped) and ``expect pose X_MM Y_MM WITHIN_MM`` (the true position). A scenario passes when
+every expectation holds and no order ends in a fault (motor, grave) that an ``expect`` does not
+name; ``asserv sim run`` exits 1 otherwise, and warns when the scenario ends with the robot
+still busy.
+
+The whole file is checked before anything runs: a malformed line, a start pose where the
+robot does not fit on the table, or a target off the table or inside an obstacle is reported
+with its file and line number (exit 2), and nothing is played.
 """
 
 from __future__ import annotations
@@ -36,8 +52,8 @@ from typing import Any
 
 from . import codec
 from . import field as fieldmod
-from ._protocol import Filtre, Status
-from .driver import AsservError, Board, GotoOption
+from ._protocol import EndReason, Filtre, Status
+from .driver import AsservError, Board, GotoOption, Outcome, outcome_of
 from .sim import Frame, Simulator
 
 SCENARIO_DIR = fieldmod.data_dir("scenarios")
@@ -108,6 +124,29 @@ BUS_COMMANDS: dict[str, tuple[str, list[Parser], list[Parser], str]] = {
     "wait": ("", [], [_num], "wait [TIMEOUT_S]"),
     "sleep": ("", [_num], [], "sleep SECONDS"),
 }
+#: The names of ``expect OUTCOME``.
+OUTCOMES: dict[str, Outcome] = {
+    "done": Outcome.DONE,
+    "border": Outcome.BORDER_RECALIBRATED,
+    "basket": Outcome.BASKET_REACHED,
+    "shock": Outcome.SHOCK,
+    "motor": Outcome.MOTOR_PROBLEM,
+    "grave": Outcome.GRAVE_FAULT,
+    "stopped": Outcome.STOPPED,
+}
+_FAULTS = (Outcome.MOTOR_PROBLEM, Outcome.GRAVE_FAULT)
+# at T EVENT ...: the number of arguments, and their usage
+EVENTS: dict[str, str] = {
+    "press": "press MASK (bit n: CAPTEUR_n)",
+    "release": "release",
+    "cut_encoder": "cut_encoder left|right",
+    "restore_encoder": "restore_encoder left|right",
+    "stick_motor": "stick_motor left|right",
+    "free_motor": "free_motor left|right",
+    "battery": "battery VOLTS",
+    "move_obstacle": "move_obstacle INDEX X_MM Y_MM",
+    "opponent_path": "opponent_path INDEX SPEED_MM_S X_MM Y_MM ... [loop]",
+}
 SETUP = (
     "field",
     "seed",
@@ -119,7 +158,46 @@ SETUP = (
     "board",
     "bus_hz",
     "pec",
+    "opponent",
+    "robot",
 )
+
+
+def _wheel(word: str) -> int:
+    w = word.lower()
+    if w in ("left", "l", "0"):
+        return 0
+    if w in ("right", "r", "1"):
+        return 1
+    raise ValueError(word)
+
+
+def _path(words: list[str]) -> tuple[list[tuple[float, float]], bool]:
+    loop = bool(words) and words[-1].lower() == "loop"
+    nums = [_num(w) for w in (words[:-1] if loop else words)]
+    if len(nums) % 2:
+        raise ValueError("a path is pairs of numbers X_MM Y_MM")
+    return [(nums[i], nums[i + 1]) for i in range(0, len(nums), 2)], loop
+
+
+@dataclass
+class Opponent:
+    line: int
+    x_mm: float
+    y_mm: float
+    radius_mm: float
+    speed_mm_s: float
+    path: list[tuple[float, float]]
+    loop: bool
+
+
+@dataclass
+class Event:
+    line: int
+    t_s: float
+    kind: str
+    args: list[Any]
+    text: str
 
 
 @dataclass
@@ -144,8 +222,12 @@ class Scenario:
     bus_hz: int = 100_000
     pec: bool = False
     steps: list[Step] = dataclasses.field(default_factory=list)
+    start_line: int = 0
+    robot: Path | None = None
+    opponents: list[Opponent] = dataclasses.field(default_factory=list)
+    events: list[Event] = dataclasses.field(default_factory=list)
 
-    def simulator(self) -> Simulator:
+    def simulator(self, record: bool = True) -> Simulator:
         config = dict(self.config)
         if self.start is not None:
             config["start"] = self.start
@@ -153,12 +235,83 @@ class Scenario:
             config,
             self.seed,
             field=self.field,
+            robot=self.robot,
+            record=record,
             randomize=self.randomize,
             bus_hz=self.bus_hz,
             board_start=self.board_start,
             start_uncertainty=self.start_uncertainty,
             board_config=self.board,
         )
+
+    def prepare(self, sim: Simulator, out: Callable[[str], None] = print) -> None:
+        """Put the opponents on ``sim``'s field and schedule the timed events."""
+        for o in self.opponents:
+            sim.add_opponent(o.x_mm, o.y_mm, o.radius_mm, o.path, o.speed_mm_s, o.loop)
+        for ev in self.events:
+            sim.at(ev.t_s, _event_action(ev, out))
+
+
+def _event_action(ev: Event, out: Callable[[str], None]) -> Callable[[Simulator], None]:
+    def run(sim: Simulator) -> None:
+        out(f"{sim.time_s:8.3f}  {'':34}  event (line {ev.line}): {ev.text}")
+        a = ev.args
+        if ev.kind == "press":
+            sim.press(a[0])
+        elif ev.kind == "release":
+            sim.press(0)
+        elif ev.kind in ("cut_encoder", "restore_encoder"):
+            sim.set_encoder_cut(a[0], ev.kind == "cut_encoder")
+        elif ev.kind in ("stick_motor", "free_motor"):
+            sim.set_motor_stuck(a[0], ev.kind == "stick_motor")
+        elif ev.kind == "battery":
+            sim.set_battery_volts(a[0])
+        elif ev.kind == "move_obstacle":
+            sim.move_obstacle(a[0], a[1], a[2])
+        elif ev.kind == "opponent_path":
+            sim.set_opponent_path(a[0], a[2], a[1], a[3])
+
+    return run
+
+
+def _inside(fl: fieldmod.Field, x: float, y: float) -> str | None:
+    """What the point (x, y) is inside of that the robot cannot be: off the table, in a basket or
+    an obstacle; None if nothing."""
+    if fl.borders and not (abs(x) <= fl.length_mm / 2 and abs(y) <= fl.width_mm / 2):
+        return (
+            f"off the table (x within {-fl.length_mm / 2:g}..{fl.length_mm / 2:g},"
+            f" y within {-fl.width_mm / 2:g}..{fl.width_mm / 2:g} mm)"
+        )
+    for b in fl.baskets:
+        if math.hypot(x - b.x_mm, y - b.y_mm) < b.radius_mm:
+            return f"inside the basket at ({b.x_mm:g}, {b.y_mm:g})"
+    for o in fl.obstacles:
+        if o.shape == "circle":
+            hit = math.hypot(x - o.x_mm, y - o.y_mm) < o.radius_mm
+        else:
+            hit = abs(x - o.x_mm) < o.half_x_mm and abs(y - o.y_mm) < o.half_y_mm
+        if hit:
+            return f"inside the {o.shape} obstacle at ({o.x_mm:g}, {o.y_mm:g})"
+    return None
+
+
+def check_pose(fl: fieldmod.Field, cfg: Any, x: float, y: float, heading_deg: float) -> str | None:
+    """Whether the robot's outline (``cfg``: a ``struct sim_config``) fits at the pose (the
+    drive axis midpoint) without leaving the table or overlapping a basket or an obstacle:
+    None, or what is wrong."""
+    hl, hw = cfg.outline_length_mm / 2, cfg.outline_width_mm / 2
+    ox, oy = cfg.outline_offset_x_mm, cfg.outline_offset_y_mm
+    c, s = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
+    n = 16
+    for i in range(4 * n + 1):  # the perimeter, every 1/16 of a side, and the centre
+        k, t = divmod(i, n)
+        u = (t / n) * 2 - 1
+        px, py = [(u * hl, -hw), (hl, u * hw), (-u * hl, hw), (-hl, -u * hw), (0.0, 0.0)][k]
+        px, py = px + ox, py + oy
+        problem = _inside(fl, x + px * c - py * s, y + px * s + py * c)
+        if problem:
+            return f"the robot at ({x:g}, {y:g}, {heading_deg:g} deg) would be {problem}"
+    return None
 
 
 class _DryBus:
@@ -175,8 +328,12 @@ def _field_path(word: str, base: Path) -> Path:
     return p if p.is_absolute() else base / p
 
 
-def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Scenario:
-    """Check a whole scenario; ScenarioError names the first bad line."""
+def parse(
+    text: str, source: str = "<scenario>", base: Path | None = None, *, setup_only: bool = False
+) -> Scenario:
+    """Check a whole scenario; ScenarioError names the first bad line. ``setup_only``: the
+    world of a scenario without bus commands (the robot, the field, opponents, events), for
+    ``asserv sim serve --scenario``: a bus command is then refused."""
     base = base or Path.cwd()
     scn = Scenario(source, fieldmod.load())
     dry = Board(_DryBus(), check=False)
@@ -190,6 +347,12 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
         def fail(what: str, where: str = where, raw: str = raw) -> ScenarioError:
             return ScenarioError(f"{where}: {what} (line: {raw.strip()!r})")
 
+        if cmd == "at":
+            scn.events.append(_parse_event(rest, n, raw, fail))
+            continue
+        if cmd == "expect":
+            scn.steps.append(_parse_expect(scn, rest, n, raw, fail))
+            continue
         if cmd in SETUP:
             if scn.steps:
                 raise fail(f"'{cmd}' is a setup line: put it before the first bus command")
@@ -211,6 +374,39 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
                         raise fail(f"{cmd} takes three numbers: {cmd} X_MM Y_MM HEADING_DEG")
                     x, y, h = (_num(w) for w in rest)
                     setattr(scn, cmd, (x, y, h))
+                    if cmd == "start":
+                        scn.start_line = n
+                elif cmd == "robot":
+                    from . import robot as robotmod
+
+                    if len(rest) != 1:
+                        raise fail("robot takes one name or path: robot NAME|PATH")
+                    word = rest[0]
+                    p = (
+                        robotmod.ROBOT_DIR / f"{word}.toml"
+                        if "/" not in word and not (word.endswith(".toml"))
+                        else (Path(word) if Path(word).is_absolute() else base / word)
+                    )
+                    try:
+                        robotmod.load(p)
+                    except robotmod.RobotError as e:
+                        raise fail(f"bad robot file: {e}") from None
+                    scn.robot = p
+                elif cmd == "opponent":
+                    usage = "opponent X_MM Y_MM RADIUS_MM SPEED_MM_S [X_MM Y_MM]... [loop]"
+                    if len(rest) < 4:
+                        raise fail(f"opponent takes {usage}")
+                    x, y, r, v = (_num(w) for w in rest[:4])
+                    if not (r > 0 and v > 0):
+                        raise fail(f"opponent: the radius and the speed must be > 0 ({usage})")
+                    path, loop = _path(rest[4:])
+                    if len(path) > 16:
+                        raise fail("opponent: a path has at most 16 points")
+                    for px, py in [(x, y), *path]:
+                        where_ = _inside(scn.field, px, py) if scn.field.borders else None
+                        if where_ and where_.startswith("off"):
+                            raise fail(f"opponent: ({px:g}, {py:g}) is {where_}")
+                    scn.opponents.append(Opponent(n, x, y, r, v, path, loop))
                 elif cmd == "start_uncertainty":
                     if len(rest) != 2:
                         raise fail(
@@ -248,6 +444,11 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
                     raise
                 raise fail(f"bad {cmd} line: {e}") from None
             continue
+        if setup_only and cmd in (*BUS_COMMANDS, "expect"):
+            raise fail(
+                f"'{cmd}' is a bus command: a scenario for the server sets up the world only"
+                " (the strategy sends the orders)"
+            )
         if cmd not in BUS_COMMANDS:
             known = ", ".join([*SETUP, *BUS_COMMANDS])
             raise fail(f"unknown command {words[0]!r} (known: {known})")
@@ -267,13 +468,115 @@ def parse(text: str, source: str = "<scenario>", base: Path | None = None) -> Sc
                 getattr(dry, method)(*args)
             except (ValueError, TypeError) as e:
                 raise fail(f"{cmd}: {e}") from None
+        if cmd == "goto":
+            problem = _inside(scn.field, args[0], args[1])
+            if problem:
+                raise fail(f"goto: the target ({args[0]}, {args[1]}) is {problem}")
         scn.steps.append(Step(n, cmd, args, raw.strip()))
-    if not scn.steps:
+    if not scn.steps and not setup_only:
         raise ScenarioError(f"{source}: no bus command: nothing to play")
+    _check_field(scn, text)
     return scn
 
 
-def load(path: str | Path) -> Scenario:
+def _check_field(scn: Scenario, text: str) -> None:
+    """The start pose against the field (with the robot's outline), and the obstacles the
+    events name."""
+    lines = text.splitlines()
+
+    def fail(line: int, what: str) -> ScenarioError:
+        raw = lines[line - 1].strip() if 0 < line <= len(lines) else ""
+        where = f"{scn.source}:{line}" if line else scn.source
+        return ScenarioError(f"{where}: {what}" + (f" (line: {raw!r})" if raw else ""))
+
+    sim = scn.simulator()
+    x, y, h = scn.start if scn.start is not None else sim.drive_pose()
+    problem = check_pose(scn.field, sim.config, x, y, h)
+    if problem:
+        raise fail(scn.start_line, f"start: {problem}")
+    n_obstacles = len(scn.field.baskets) + len(scn.field.obstacles) + len(scn.opponents)
+    for ev in scn.events:
+        if ev.kind in ("move_obstacle", "opponent_path") and not 0 <= ev.args[0] < n_obstacles:
+            raise fail(
+                ev.line,
+                f"{ev.kind}: no obstacle {ev.args[0]} (the field's baskets, obstacles and"
+                f" opponents are 0..{n_obstacles - 1})",
+            )
+        if ev.kind == "move_obstacle":
+            problem = _inside(scn.field, ev.args[1], ev.args[2])
+            if problem and problem.startswith("off"):
+                raise fail(ev.line, f"move_obstacle: ({ev.args[1]}, {ev.args[2]}) is {problem}")
+
+
+Fail = Callable[[str], ScenarioError]
+
+
+def _parse_event(rest: list[str], n: int, raw: str, fail: Fail) -> Event:
+    if len(rest) < 2:
+        raise fail(f"at takes a time and an event: at T_S EVENT ... ({', '.join(EVENTS)})")
+    try:
+        t = _num(rest[0])
+    except ValueError:
+        raise fail(f"at: the time {rest[0]!r} is not a number of seconds") from None
+    if t < 0:
+        raise fail(f"at: the time {t:g} is before the start (0 s)")
+    kind, words = rest[1].lower(), rest[2:]
+    if kind not in EVENTS:
+        raise fail(f"at: unknown event {rest[1]!r} (known: {', '.join(EVENTS)})")
+    usage = EVENTS[kind]
+    try:
+        args: list[Any]
+        if kind == "press":
+            if len(words) != 1 or not 0 <= _int(words[0]) <= 0xFF:
+                raise ValueError
+            args = [_int(words[0])]
+        elif kind == "release":
+            if words:
+                raise ValueError
+            args = []
+        elif kind == "battery":
+            if len(words) != 1 or not 0 <= _num(words[0]) <= 60:
+                raise ValueError
+            args = [_num(words[0])]
+        elif kind == "move_obstacle":
+            if len(words) != 3:
+                raise ValueError
+            args = [_int(words[0]), _num(words[1]), _num(words[2])]
+        elif kind == "opponent_path":
+            if len(words) < 2:
+                raise ValueError
+            path, loop = _path(words[2:])
+            speed = _num(words[1])
+            if not speed > 0 or len(path) > 16:
+                raise ValueError
+            args = [_int(words[0]), speed, path, loop]
+        else:
+            if len(words) != 1:
+                raise ValueError
+            args = [_wheel(words[0])]
+    except ValueError:
+        raise fail(f"at {rest[0]} {kind} takes {usage}") from None
+    return Event(n, t, kind, args, " ".join([kind, *words]))
+
+
+def _parse_expect(scn: Scenario, rest: list[str], n: int, raw: str, fail: Fail) -> Step:
+    usage = f"expect {'|'.join(OUTCOMES)}, or expect pose X_MM Y_MM WITHIN_MM"
+    if not scn.steps or scn.steps[-1].command not in ("wait", "expect"):
+        raise fail(f"expect follows a wait (it checks how the order waited for ended): {usage}")
+    if len(rest) == 1 and rest[0].lower() in OUTCOMES:
+        return Step(n, "expect", [OUTCOMES[rest[0].lower()]], raw.strip())
+    if len(rest) == 4 and rest[0].lower() == "pose":
+        try:
+            x, y, tol = (_num(w) for w in rest[1:])
+        except ValueError:
+            raise fail(f"expect pose takes three numbers: {usage}") from None
+        if not tol > 0:
+            raise fail("expect pose: WITHIN_MM must be > 0")
+        return Step(n, "expect_pose", [x, y, tol], raw.strip())
+    raise fail(f"expect takes {usage}")
+
+
+def load(path: str | Path, *, setup_only: bool = False) -> Scenario:
     p = Path(path)
     try:
         text = p.read_text()
@@ -281,7 +584,7 @@ def load(path: str | Path) -> Scenario:
         raise ScenarioError(f"{p}: cannot read the scenario: {e.strerror}") from None
     except UnicodeDecodeError:
         raise ScenarioError(f"{p}: not a text file") from None
-    return parse(text, str(p), p.parent)
+    return parse(text, str(p), p.parent, setup_only=setup_only)
 
 
 def _hex(data: bytes) -> str:
@@ -379,10 +682,13 @@ class Result:
 
 
 def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
-    """Play a checked scenario on a new simulated board, printing every frame."""
+    """Play a checked scenario on a new simulated board, printing every frame. The result is
+    not ``ok`` when a bus call fails, an expectation does not hold, or an order ends in a fault
+    that no ``expect`` names."""
     sim = scn.simulator()
     board = Board(sim.bus, pec=scn.pec)
     printer = FramePrinter(out)
+    scn.prepare(sim, out)
     sim.on_frame.append(printer)
     out(f"robot: {sim.describe_robot()}")
     out("")
@@ -390,14 +696,55 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
     targets: list[tuple[float, float]] = []
     ok = True
     status = 0
+    outcome: Outcome | None = None
     t0 = time.perf_counter()
-    for step in scn.steps:
+    steps = scn.steps
+    for k, step in enumerate(steps):
+        nxt = steps[k + 1] if k + 1 < len(steps) else None
         try:
             if step.command == "wait":
                 timeout = step.args[0] if step.args else 30.0
-                status = int(board.wait_idle(timeout))
+                st = board.wait_idle(timeout)
+                status = int(st)
+                ends = Status.CHOC_BORD | Status.CHOC_PANIER
+                expects = nxt is not None and nxt.command == "expect"
+                reason = board.debug().end_reason if st & ends or expects else None
+                ended = outcome_of(st, EndReason.DONE if reason is None else reason)
+                outcome = ended
                 printer.end_run()
-                out(f"{sim.time_s:8.3f}  {'':34}  order ended: {_flags(status)}")
+                out(f"{sim.time_s:8.3f}  {'':34}  order ended: {_flags(status)} ({ended.value})")
+                if ended in _FAULTS and not _expected_later(steps, k, ended):
+                    out(
+                        f"{scn.source}:{step.line}: the order ended in a fault the scenario"
+                        f" does not expect: {ended.value} ({_flags(status)}); add"
+                        f" 'expect {_outcome_name(ended)}' after this wait if it is meant"
+                    )
+                    ok = False
+                    break
+            elif step.command == "expect":
+                want: Outcome = step.args[0]
+                if outcome is not want:
+                    got = outcome.value if outcome else "no order waited for"
+                    out(
+                        f"{scn.source}:{step.line}: expectation failed: expected"
+                        f" {want.value}, the order ended: {got}"
+                    )
+                    ok = False
+                else:
+                    out(f"{'':8}  {'':34}  expect {want.value}: ok")
+            elif step.command == "expect_pose":
+                x, y, tol = step.args
+                truth = sim.true_pose()
+                d = math.hypot(truth.x_mm - x, truth.y_mm - y)
+                if d > tol:
+                    out(
+                        f"{scn.source}:{step.line}: expectation failed: the robot is at"
+                        f" ({truth.x_mm:.1f}, {truth.y_mm:.1f}), {d:.1f} mm from ({x:g}, {y:g}),"
+                        f" not within {tol:g} mm"
+                    )
+                    ok = False
+                else:
+                    out(f"{'':8}  {'':34}  expect pose within {tol:g} mm: ok ({d:.1f} mm)")
             elif step.command == "sleep":
                 sim.advance(step.args[0])
             else:
@@ -414,7 +761,32 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
             break
     printer.flush()
     sim.on_frame.remove(printer)
+    try:
+        busy = board.check_busy() & (Status.BUSY_TRAJET | Status.BUSY_GOTO_PANIER)
+    except AsservError:
+        busy = Status(0)
+    if busy:
+        out(
+            f"warning: {scn.source}: the scenario ended with the robot still busy"
+            f" ({_flags(int(busy))}): end it with a 'wait' to see how the order ends"
+        )
     return Result(sim, board, status, time.perf_counter() - t0, targets, ok)
+
+
+def _outcome_name(outcome: Outcome) -> str:
+    return next(k for k, v in OUTCOMES.items() if v is outcome)
+
+
+def _expected_later(steps: list[Step], k: int, outcome: Outcome) -> bool:
+    """Whether the expect lines right after step k name ``outcome``."""
+    for s in steps[k + 1 :]:
+        if s.command == "expect_pose":
+            continue
+        if s.command != "expect":
+            return False
+        if s.args[0] is outcome:
+            return True
+    return False
 
 
 def summary(res: Result, out: Callable[[str], None] = print) -> float:

@@ -15,8 +15,10 @@ set-points, duties, currents, status) are kept as a numpy structured array.
 
 from __future__ import annotations
 
+import heapq
+import itertools
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -184,6 +186,8 @@ class Simulator:
     ``seed`` seeds the encoder noise; ``randomize=True`` also draws a robot off the shelf from it
     (wheel mismatch, track error, noise, start pose error: ``sim_config_randomize``).
     ``field`` is a field file path or a ``field.Field`` (default: field/default.toml).
+    ``robot`` is a robot description file (robot/default.toml is the default robot; ``config``
+    overrides it): wheels, encoders, motor, outline (``asserv.robot``).
     ``bus_hz`` is the I2C bit rate: each byte takes 9 bit times of simulated time.
     ``board_config`` overrides members of the board's ``struct board_config`` (board.h and the
     module headers it includes) by dotted name, after ``host_board_config()`` has set it for the
@@ -196,6 +200,7 @@ class Simulator:
         seed: int = 0,
         *,
         field: str | Path | fieldmod.Field | None = None,
+        robot: str | Path | None = None,
         randomize: bool = False,
         board_start: tuple[float, float, float] | None = None,
         board_config: Mapping[str, Any] | None = None,
@@ -218,6 +223,11 @@ class Simulator:
         sc = ffi.new("struct sim_config *")
         lib.sim_config_defaults(sc)
         _set_config(sc, "start", SPEC_START)
+        if robot is not None:
+            from . import robot as robotmod
+
+            for key, value in robotmod.load(robot).sim_config().items():
+                _set_config(sc, key, value)
         for key, value in (config or {}).items():
             _set_config(sc, key, value)
         bc = ffi.new("struct board_config *")
@@ -257,10 +267,15 @@ class Simulator:
         self._chunks: list[np.ndarray] = []
         self.frames: list[Frame] = []
         self.on_frame: list[Callable[[Frame], None]] = []
+        self._events: list[tuple[int, int, Callable[[Simulator], None]]] = []
+        self._event_seq = itertools.count()
         self.bus = VirtualBus({address: self}, clock=self)
         self._proto = ffi.addressof(self._h.board, "proto")
 
     # ---- time -------------------------------------------------------------------------------
+    #: Sleeping on this clock runs the simulation (asserv.bus.clock_of, Board.sleep).
+    drives_simulation = True
+
     @property
     def time_s(self) -> float:
         """Simulated time since power-on."""
@@ -281,6 +296,25 @@ class Simulator:
         self._advance_ns(round(seconds * 1e9))
 
     def _advance_ns(self, ns: int) -> None:
+        # Timed events (at()) split the run: each runs at its time, between two calls into C.
+        while self._events and self._events[0][0] <= int(self._h.now_ns) + ns:
+            t_ns, _, fn = heapq.heappop(self._events)
+            step = max(0, t_ns - int(self._h.now_ns))
+            self._run_ns(step)
+            ns -= step
+            fn(self)
+        self._run_ns(ns)
+
+    def at(self, t_s: float, fn: Callable[[Simulator], None]) -> None:
+        """Run ``fn(sim)`` when the simulated time reaches ``t_s`` (seconds since power-on; at
+        once on the next advance if it has passed), e.g.
+        ``sim.at(3.0, lambda s: s.set_motor_stuck(0, True))``. Events at the same time run in
+        the order they were given."""
+        if not math.isfinite(t_s) or t_s < 0:
+            raise ValueError(f"at: t_s must be a finite time >= 0, not {t_s}")
+        heapq.heappush(self._events, (round(t_s * 1e9), next(self._event_seq), fn))
+
+    def _run_ns(self, ns: int) -> None:
         while ns > 0:
             if self._record:
                 done = lib.host_advance_ns(self._h, ns, self._buf, _CHUNK, self._n)
@@ -375,6 +409,13 @@ class Simulator:
         lib.sim_get_truth(ffi.addressof(self._h, "sim"), t)
         return TruePose(t.odo_pose.x_mm, t.odo_pose.y_mm, math.degrees(t.odo_pose.heading_rad))
 
+    def drive_pose(self) -> TruePose:
+        """Where the drive axis midpoint truly is (the simulator's own reference point, that of
+        ``place`` and of the start pose), heading in degrees."""
+        t = ffi.new("struct sim_truth *")
+        lib.sim_get_truth(ffi.addressof(self._h, "sim"), t)
+        return TruePose(t.pose.x_mm, t.pose.y_mm, math.degrees(t.pose.heading_rad))
+
     @property
     def config(self) -> Any:
         """The simulated robot's ``struct sim_config`` (sim/sim.h), as drawn: read it only
@@ -428,6 +469,99 @@ class Simulator:
 
     def set_motor_encoder_cut(self, wheel: int, cut: bool) -> None:
         lib.sim_set_motor_encoder_cut(ffi.addressof(self._h, "sim"), wheel, cut)
+
+    def press(self, shock_mask: int = 0, basket: bool = False) -> None:
+        """Hold shock switches closed (bit i: CAPTEUR_i), and the basket switch if ``basket``,
+        whatever touches them; ``press(0)`` releases them (sim_force_sensors)."""
+        if not 0 <= shock_mask <= 0xFF:
+            raise ValueError(f"press: shock_mask must be 0..0xff, not {shock_mask}")
+        lib.sim_force_sensors(self._sim, shock_mask, bool(basket))
+
+    # ---- moving obstacles and opponents (sim/sim.h) --------------------------------------------
+    @property
+    def _sim(self) -> Any:
+        return ffi.addressof(self._h, "sim")
+
+    def add_obstacle(
+        self,
+        x_mm: float,
+        y_mm: float,
+        *,
+        radius_mm: float = 0.0,
+        half_x_mm: float = 0.0,
+        half_y_mm: float = 0.0,
+        heading_deg: float = 0.0,
+        basket: bool = False,
+    ) -> int:
+        """Add an obstacle now: a disc of ``radius_mm``, or a box of half sizes ``half_x_mm``,
+        ``half_y_mm`` turned by ``heading_deg``; returns its index (for ``move_obstacle``)."""
+        box = half_x_mm > 0 or half_y_mm > 0
+        if box == (radius_mm > 0):
+            raise ValueError("add_obstacle: give radius_mm (a disc) or half_x_mm, half_y_mm")
+        o = ffi.new("struct sim_obstacle *")
+        o.shape = lib.SIM_SHAPE_BOX if box else lib.SIM_SHAPE_CIRCLE
+        o.kind = lib.SIM_OBSTACLE_BASKET if basket else lib.SIM_OBSTACLE_OTHER
+        o.x_mm, o.y_mm, o.radius_mm = x_mm, y_mm, radius_mm
+        o.half_x_mm, o.half_y_mm, o.heading_rad = half_x_mm, half_y_mm, math.radians(heading_deg)
+        i = int(lib.sim_add_obstacle(self._sim, o))
+        if i < 0:
+            raise ValueError(
+                f"add_obstacle: the field is full ({lib.SIM_MAX_OBSTACLES} obstacles) or a value"
+                " is out of range"
+            )
+        return i
+
+    def move_obstacle(self, i: int, x_mm: float, y_mm: float, heading_deg: float = 0.0) -> None:
+        """Put obstacle ``i`` (the field's baskets and obstacles come first) somewhere now."""
+        self._obstacle_index(i)
+        lib.sim_move_obstacle(self._sim, i, x_mm, y_mm, math.radians(heading_deg))
+
+    def obstacles(self) -> list[tuple[float, float]]:
+        """Where every obstacle is now (x_mm, y_mm), baskets first, as in the field file."""
+        f = self._h.sim.field
+        return [(f.obstacles[i].x_mm, f.obstacles[i].y_mm) for i in range(f.obstacle_count)]
+
+    def add_opponent(
+        self,
+        x_mm: float,
+        y_mm: float,
+        radius_mm: float = 150.0,
+        path: Sequence[tuple[float, float]] = (),
+        speed_mm_s: float = 300.0,
+        loop: bool = False,
+    ) -> int:
+        """An opponent robot seen as a disc, at (x, y), following ``path`` (see
+        ``set_opponent_path``); returns its obstacle index. Touching it closes the shock
+        switches it reaches; it is not pushed."""
+        i = self.add_obstacle(x_mm, y_mm, radius_mm=radius_mm)
+        self.set_opponent_path(i, path, speed_mm_s, loop)
+        return i
+
+    def set_opponent_path(
+        self,
+        i: int,
+        path: Sequence[tuple[float, float]],
+        speed_mm_s: float = 300.0,
+        loop: bool = False,
+    ) -> None:
+        """Make obstacle ``i`` go through the points of ``path`` at ``speed_mm_s`` from now on
+        (an empty path: stand still); with ``loop`` it goes round again. A script drives it by
+        calling this again, e.g. from ``at()``."""
+        self._obstacle_index(i)
+        points = [(float(x), float(y)) for x, y in path]
+        if len(points) > lib.SIM_MAX_PATH:
+            raise ValueError(f"an opponent's path has at most {lib.SIM_MAX_PATH} points")
+        flat = ffi.new("double[]", [v for p in points for v in p] or [0.0])
+        if lib.sim_set_opponent_path(self._sim, i, flat, len(points), speed_mm_s, loop) != 0:
+            raise ValueError(
+                f"set_opponent_path: speed {speed_mm_s} must be > 0 and the points finite"
+                f" (and at most {lib.SIM_MAX_OPPONENTS} opponents)"
+            )
+
+    def _obstacle_index(self, i: int) -> None:
+        n = int(self._h.sim.field.obstacle_count)
+        if not isinstance(i, int) or not 0 <= i < n:
+            raise ValueError(f"no obstacle {i!r}: there are {n} (0..{n - 1})")
 
     def place(self, x_mm: float, y_mm: float, heading_deg: float) -> None:
         """Put the robot somewhere by hand (at rest); the board is not told."""

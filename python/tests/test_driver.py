@@ -453,11 +453,11 @@ def test_wait_idle_returns_the_final_status_when_the_motion_ends() -> None:
 def test_wait_idle_uses_the_system_clock_without_a_bus_clock(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import asserv.driver as driver
+    import asserv.bus as busmod
 
     clock = FakeClock()
-    monkeypatch.setattr(driver.time, "monotonic", clock.monotonic)
-    monkeypatch.setattr(driver.time, "sleep", clock.sleep)
+    monkeypatch.setattr(busmod.time, "monotonic", clock.monotonic)
+    monkeypatch.setattr(busmod.time, "sleep", clock.sleep)
 
     class NoClockBus:
         def __init__(self, bus: VirtualBus) -> None:
