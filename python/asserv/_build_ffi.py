@@ -15,6 +15,8 @@ SOURCES = [
     *sorted(CORE.glob("*.c")),
     *(SIM / n for n in ("config.c", "field.c", "rng.c", "robot.c")),
     PORTS / "common" / "port.c",
+    PORTS / "common" / "port_nvm.c",
+    PORTS / "common" / "calib_store.c",
     PORTS / "host" / "host.c",
 ]
 INCLUDES = [CORE, ROOT / "firmware" / "hal", PORTS / "common", PORTS / "host", SIM]
@@ -63,6 +65,7 @@ struct proto_snapshot {
     uint8_t radius_mm;
     uint8_t status;
     uint8_t sensors;
+    uint8_t calibrated;
     struct proto_debug debug;
 };
 
@@ -284,6 +287,7 @@ struct faults {
     ...;
 };
 struct orders { uint8_t state; uint8_t end_reason; ...; };
+struct board_calibration { int32_t ratio_ppm; int32_t scale_ppm; uint16_t track_10um; };
 struct board {
     struct board_config cfg;
     struct proto proto;
@@ -292,15 +296,19 @@ struct board {
     struct orders orders;
     struct faults faults;
     uint8_t status;
+    uint8_t calibrated;
+    struct board_calibration calibration;
     ...;
 };
 
+#define HOST_NVM_SIZE ...
 struct host {
     struct sim sim;
     struct board board;
     uint64_t tick_ns;
     uint64_t ticks;
     uint64_t now_ns;
+    uint8_t nvm[...];
     ...;
 };
 
@@ -328,6 +336,8 @@ void host_board_config(const struct sim_config *sc, const struct sim_field *f,
                        struct board_config *bc);
 int host_init(struct host *h, const struct board_config *bc, const struct sim_config *sc,
               const struct sim_field *f);
+int host_nvm_set(struct host *h, const uint8_t *data, uint16_t n);
+int host_power_cycle(struct host *h);
 uint64_t host_advance_ns(struct host *h, uint64_t duration_ns, struct host_sample *buf,
                          uint32_t cap, uint32_t *n_out);
 """
