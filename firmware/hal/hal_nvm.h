@@ -23,9 +23,9 @@ uint8_t hal_nvm_busy(void);
 /* Start writing one byte and return at once, without waiting for it: the write takes up to
  * 3.4 ms on the AVR (an EEPROM byte, erase and write), during which hal_nvm_busy() is 1; a host
  * port's is done on return. A power-off during a write may leave that byte anything. Returns 0,
- * -1 when offset is outside the storage, or -2 when busy (nothing written). Never called from
- * the control interrupt: the common port layer calls it from the main loop (ports/common/
- * port_nvm.h). May be called from an interrupt: no. */
+ * -1 when offset is outside the storage, or -2 when busy (nothing written). The common port
+ * layer (port_nvm.h) calls it from the main loop, never from the control interrupt.
+ * May be called from an interrupt: no. */
 int hal_nvm_write_byte(uint16_t offset, uint8_t value);
 
 #endif

@@ -143,7 +143,7 @@ calibrations = st.tuples(
 )
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(calibrations)
 def test_stored_calibration_gives_set_odometries_factors(cal: tuple[int, int, int]) -> None:
     """For any valid calibration: store, power cycle, and the board's odometry factors are those

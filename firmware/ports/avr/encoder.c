@@ -64,7 +64,9 @@ static uint8_t swapped_levels(uint8_t pins, uint8_t mask)
 
 void avr_encoder_init(void)
 {
-	TCCR0B = 0; /* Timer0 stopped (its reset state), and TCCR0A's outputs off: kept so */
+	/* Timer0 as at reset, written all the same: no clock, normal mode, no output, no
+	 * interrupt, so that OCR0A and OCR0B hold the states as plain bytes. */
+	TCCR0B = 0;
 	TCCR0A = 0;
 	TIMSK0 = 0;
 	OCR0A = swapped_levels(PIN_FREE_LEFT_PORT, PIN_FREE_LEFT_MASK);
