@@ -306,6 +306,7 @@ static int robot_init(struct robot *r, int seed, struct record *rec, struct mix 
 {
 	sim_field_defaults(&r->field);
 	sim_config_defaults(&r->sc);
+	r->sc.coarse_substep_ns = 1000000; /* the speed runs' 1 ms substep away from contacts */
 	/* the board believes the nominal robot at the nominal start; the truth is perturbed */
 	host_board_config(&r->sc, &r->field, &r->bc);
 	sim_config_randomize(&r->sc, (uint64_t)seed);

@@ -34,7 +34,7 @@ def one(job: tuple[int, bool, bool]) -> Run:
     from asserv.sim import Simulator
 
     seed, record, fine = job
-    config = {"start": (0, -850, 0), **({"coarse_substep_ns": 0} if fine else {})}
+    config = {"start": (0, -850, 0), "coarse_substep_ns": 0 if fine else 1_000_000}
     sim = Simulator(config, seed, randomize=True, record=record)
     board = Board(sim.bus)
     board.set_vitesse_traj(100, 100)

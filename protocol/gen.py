@@ -127,8 +127,8 @@ def gen_header(t: dict[str, Any]) -> str:
     out += ["", "/* Bits of VERSION's capabilities. */"]
     for b in t["capability"]:
         out.append(f"#define CAP_{b['name']} (1u << {b['bit']}) /* {b['doc']} */")
-    caps = " | ".join(f"CAP_{b['name']}" for b in t["capability"])
-    out.append(f"#define CAP_ALL ({caps})")
+    caps = " | ".join(f"CAP_{b['name']}" for b in t["capability"] if not b.get("state"))
+    out.append(f"#define CAP_ALL ({caps}) /* the features; a state bit is set while it holds */")
     for e in ENUMS:
         out += ["", f"/* {e} codes. */"]
         prefix = {"filter": ""}.get(e, e.upper() + "_")

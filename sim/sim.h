@@ -13,8 +13,9 @@
  * 1 kHz control tick), semi-implicit (symplectic) Euler for the body and the wheels, exact
  * exponential update of the motor current (so the 0.1 ms L/R time constant is kept and stable at
  * any substep), a linearly implicit tyre force, and penalty spring-dampers for the walls.
- * Away from every contact, a whole control tick is one substep of coarse_substep_ns (1 ms by
- * default): the wall springs, the only part that needs 100 us, are not integrated then.
+ * Away from every contact, a whole control tick may be one substep of coarse_substep_ns (off by
+ * default; 1 ms for speed runs): the wall springs, the only part that needs 100 us, are not
+ * integrated then.
  *
  * Conventions:
  *   - Field frame: origin at the centre of the table, X along the long side (3000 mm), Y along the
@@ -179,7 +180,8 @@ struct sim_config {
 	uint32_t substep_ns;        /* 1000..1000000, default 100000 (100 us) */
 	uint32_t coarse_substep_ns; /* the substep away from every contact, used for whole calls of
 				     * sim_advance_ns() that are a multiple of it (a control tick);
-				     * 0 or <= substep_ns: never; ignored if not stable */
+				     * 0 (the default) or <= substep_ns: never; ignored if not
+				     * stable */
 	struct sim_pose start;      /* pose of the drive axis midpoint, default (-1300, 0, 0) */
 	uint64_t seed;              /* seeds the encoder noise */
 };

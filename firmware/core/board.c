@@ -759,6 +759,7 @@ static void publish(struct board *b)
 	s->radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
 	s->status = b->status;
 	s->sensors = p->in.shocks;
+	s->calibrated = b->calibrated;
 	s->debug.tick = p->tick;
 	s->debug.heading_cdeg = (int16_t)cdeg;
 	s->debug.speed_mm_s = mm_of(m->dist_speed_um_s);

@@ -92,7 +92,7 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 	case PROTO_VERSION:
 		out[n++] = PROTO_VERSION_MAJOR;
 		out[n++] = PROTO_VERSION_MINOR;
-		n += put_u16(&out[n], CAP_ALL);
+		n += put_u16(&out[n], (uint16_t)(CAP_ALL | (s->calibrated ? CAP_CALIBRATED : 0u)));
 		break;
 	case PROTO_LAST_REJECT:
 		out[n++] = p->last_reject;

@@ -48,6 +48,8 @@ struct proto_snapshot {
 	uint8_t radius_mm; /* error radius, saturated at 255 */
 	uint8_t status;    /* STATUS_* bits owned by the core (not COMMANDE_REJETEE) */
 	uint8_t sensors;   /* shock sensor bits */
+	/* An odometry calibration is installed: VERSION's CAP_CALIBRATED. */
+	uint8_t calibrated;
 	struct proto_debug debug;
 };
 

@@ -48,7 +48,8 @@
 #define CAP_LAST_REJECT (1u << 2) /* the LAST_REJECT reply */
 #define CAP_DEBUG (1u << 3) /* the DEBUG telemetry frame */
 #define CAP_TIMEOUT (1u << 4) /* the SET_TIMEOUT setting: the robot stops when the master goes silent */
-#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT)
+#define CAP_CALIBRATED (1u << 5) /* an odometry calibration is installed (SET_ODOMETRIE, or the one the board kept: docs/calibration.md) */
+#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT) /* the features; a state bit is set while it holds */
 
 /* reject codes. */
 #define REJECT_NONE 0 /* no write rejected since reset */

@@ -3,7 +3,8 @@
  * The core itself never calls these: a port's control interrupt samples the inputs into a
  * struct board_inputs, calls board_tick() (core/board.h), and applies struct board_outputs.
  * Keeping the core a pure function of its inputs lets one process run many simulated boards and
- * lets the tests feed it any sequence. Sides are HAL_LEFT and HAL_RIGHT.
+ * lets the tests feed it any sequence. Sides are HAL_LEFT and HAL_RIGHT. The storage (hal_nvm.h)
+ * is the common port layer's (ports/common/port_nvm.h), from the main loop only.
  */
 #ifndef ASSERV_HAL_H
 #define ASSERV_HAL_H
@@ -11,6 +12,7 @@
 #include "hal_encoder.h"
 #include "hal_i2c.h"
 #include "hal_motor.h"
+#include "hal_nvm.h"
 #include "hal_sensors.h"
 #include "hal_tick.h"
 

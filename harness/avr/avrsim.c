@@ -20,6 +20,7 @@
 #include <sim_io.h>
 #include <sim_irq.h>
 #include <avr_adc.h>
+#include <avr_eeprom.h>
 #include <avr_extint.h>
 #include <avr_ioport.h>
 
@@ -83,6 +84,8 @@ struct frame {
 
 struct avrsim {
 	avr_t *avr;
+	char *elf_path; /* for avrsim_power_cycle() */
+	uint32_t i2c_hz;
 	elf_firmware_t fw;
 	uint32_t text_size, data_size, bss_size;
 	uint16_t board_addr;
@@ -1312,6 +1315,8 @@ struct avrsim *avrsim_open(const char *elf_path, uint32_t i2c_hz)
 		avrsim_close(h);
 		return NULL;
 	}
+	h->elf_path = strdup(elf_path);
+	h->i2c_hz = i2c_hz;
 	snprintf(h->fw.mmcu, sizeof(h->fw.mmcu), "atmega1284p");
 	h->fw.frequency = AVRSIM_F_CPU;
 	avr = avr_make_mcu_by_name(h->fw.mmcu);
@@ -1439,7 +1444,61 @@ void avrsim_close(struct avrsim *h)
 	free(h->func_of_word);
 	free(h->q);
 	free(h->sim);
+	free(h->elf_path);
 	free(h);
+}
+
+/* simavr's EEPROM bytes. Its ioctl hands out the array itself when given no buffer (and reports
+ * -1 whatever happens: the pointer tells). */
+static uint8_t *eeprom_bytes(const struct avrsim *h)
+{
+	avr_eeprom_desc_t d = {.ee = NULL, .offset = 0, .size = 1};
+
+	avr_ioctl(h->avr, AVR_IOCTL_EEPROM_GET, &d);
+	return d.ee;
+}
+
+int avrsim_eeprom_read(const struct avrsim *h, uint16_t offset, uint8_t *buf, uint16_t n)
+{
+	uint8_t *ee = eeprom_bytes(h);
+
+	if (!ee || (uint32_t)offset + n > AVRSIM_EEPROM_SIZE)
+		return -1;
+	memcpy(buf, ee + offset, n);
+	return 0;
+}
+
+int avrsim_eeprom_write(struct avrsim *h, uint16_t offset, const uint8_t *buf, uint16_t n)
+{
+	uint8_t *ee = eeprom_bytes(h);
+
+	if (!ee || (uint32_t)offset + n > AVRSIM_EEPROM_SIZE)
+		return -1;
+	memcpy(ee + offset, buf, n);
+	return 0;
+}
+
+struct avrsim *avrsim_power_cycle(struct avrsim *h)
+{
+	static uint8_t kept[AVRSIM_EEPROM_SIZE];
+	char *path = strdup(h->elf_path);
+	uint32_t i2c_hz = h->i2c_hz;
+	struct avrsim *n = NULL;
+
+	if (path && avrsim_eeprom_read(h, 0, kept, sizeof(kept)) == 0) {
+		avrsim_close(h);
+		h = NULL;
+		n = avrsim_open(path, i2c_hz);
+		if (n && avrsim_eeprom_write(n, 0, kept, sizeof(kept)) != 0) {
+			avrsim_close(n);
+			n = NULL;
+		}
+	}
+	if (!n)
+		fprintf(stderr, "avrsim: the power cycle failed\n");
+	avrsim_close(h);
+	free(path);
+	return n;
 }
 
 /* ---------------------------------------------------------------------------------------------

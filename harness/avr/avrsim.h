@@ -81,6 +81,20 @@ struct avrsim;
 struct avrsim *avrsim_open(const char *elf_path, uint32_t i2c_hz);
 void avrsim_close(struct avrsim *h);
 
+/* The EEPROM (AVRSIM_EEPROM_SIZE bytes, 0xFF after avrsim_open(), as a new chip), read or
+ * written as a programmer would, between two runs: n bytes from offset. Return 0, or -1 when the
+ * range leaves the EEPROM (nothing done). The firmware's own writes go through simavr's EEPROM
+ * model (its EEPE clears at once: a write is never seen in progress). */
+#define AVRSIM_EEPROM_SIZE 4096u
+int avrsim_eeprom_read(const struct avrsim *h, uint16_t offset, uint8_t *buf, uint16_t n);
+int avrsim_eeprom_write(struct avrsim *h, uint16_t offset, const uint8_t *buf, uint16_t n);
+
+/* A power cycle: the same binary starts again from reset in a new simulated chip (RAM,
+ * registers, cycle count and statistics lost, the inputs at rest, the bus idle, no physics)
+ * that keeps the EEPROM's contents. h is closed. Returns the new harness, or NULL with a
+ * message on stderr. */
+struct avrsim *avrsim_power_cycle(struct avrsim *h);
+
 /* Attaches the physics before the first control period (the robot at rest: the board's counts
  * at reset are the simulator's). sc, f are copied. Returns 0 or -1. */
 int avrsim_physics(struct avrsim *h, const struct sim_config *sc, const struct sim_field *f,

@@ -19,6 +19,8 @@ SOURCES = [
     *sorted(CORE.glob("*.c")),
     *(SIM / n for n in ("config.c", "field.c", "rng.c", "robot.c")),
     PORTS / "common" / "port.c",
+    PORTS / "common" / "port_nvm.c",
+    PORTS / "common" / "calib_store.c",
     PORTS / "host" / "host.c",
 ]
 INCLUDES = [CORE, ROOT / "firmware" / "hal", PORTS / "common", PORTS / "host", SIM]
@@ -69,6 +71,7 @@ struct proto_snapshot {
     uint8_t radius_mm;
     uint8_t status;
     uint8_t sensors;
+    uint8_t calibrated;
     struct proto_debug debug;
 };
 
@@ -308,6 +311,7 @@ struct orders {
     int8_t shock_side[2];
     ...;
 };
+struct board_calibration { int32_t ratio_ppm; int32_t scale_ppm; uint16_t track_10um; };
 struct board {
     struct board_config cfg;
     struct proto proto;
@@ -317,15 +321,19 @@ struct board {
     struct faults faults;
     uint8_t status;
     struct control_gains gains;
+    uint8_t calibrated;
+    struct board_calibration calibration;
     ...;
 };
 
+#define HOST_NVM_SIZE ...
 struct host {
     struct sim sim;
     struct board board;
     uint64_t tick_ns;
     uint64_t ticks;
     uint64_t now_ns;
+    uint8_t nvm[...];
     ...;
 };
 
@@ -353,6 +361,8 @@ void host_board_config(const struct sim_config *sc, const struct sim_field *f,
                        struct board_config *bc);
 int host_init(struct host *h, const struct board_config *bc, const struct sim_config *sc,
               const struct sim_field *f);
+int host_nvm_set(struct host *h, const uint8_t *data, uint16_t n);
+int host_power_cycle(struct host *h);
 uint64_t host_advance_ns(struct host *h, uint64_t duration_ns, struct host_sample *buf,
                          uint32_t cap, uint32_t *n_out);
 

@@ -248,6 +248,7 @@ class Capability(enum.IntFlag):
     LAST_REJECT = 4
     DEBUG = 8
     TIMEOUT = 16
+    CALIBRATED = 32
 
 
 class Reject(enum.IntEnum):

@@ -99,6 +99,18 @@ class OdometryErrors(NamedTuple):
     track_mm: float  # configured track minus the true track in the odometry's length unit
 
 
+class Calibration(NamedTuple):
+    """An odometry calibration as the board holds it (SET_ODOMETRIE's values)."""
+
+    ratio_ppm: int
+    track_10um: int
+    scale_ppm: int
+
+
+#: Bytes of the simulated board's storage (firmware/ports/host/host.h).
+NVM_SIZE = int(lib.HOST_NVM_SIZE)
+
+
 @dataclass(frozen=True)
 class Frame:
     """One I2C transaction as the simulated board saw it (for logs and demos)."""
@@ -192,6 +204,9 @@ class Simulator:
     ``board_config`` overrides members of the board's ``struct board_config`` (board.h and the
     module headers it includes) by dotted name, after ``host_board_config()`` has set it for the
     nominal robot, e.g. ``{"control.ff_speed_q15_per_m_s": 0, "orders.settle_ticks": 1}``.
+    ``nvm`` is the board's storage at power-on (at most ``NVM_SIZE`` bytes, the rest erased;
+    default: all erased): what ``Simulator.nvm`` read from an earlier board, so that the
+    calibration it kept is installed at start (docs/calibration.md).
     """
 
     def __init__(
@@ -208,7 +223,14 @@ class Simulator:
         address: int = 2,
         bus_hz: int = 100_000,
         record: bool = True,
+        nvm: bytes | None = None,
     ) -> None:
+        if nvm is not None:
+            if not isinstance(nvm, bytes | bytearray | memoryview):
+                raise ValueError(f"nvm must be bytes, not {type(nvm).__name__}")
+            nvm = bytes(nvm)
+            if len(nvm) > NVM_SIZE:
+                raise ValueError(f"nvm holds at most {NVM_SIZE} bytes, not {len(nvm)}")
         if not 1_000 <= bus_hz <= 1_000_000:
             raise ValueError(f"bus_hz must be 1000..1000000, not {bus_hz}")
         if not 0 <= seed < 2**64:
@@ -259,6 +281,10 @@ class Simulator:
                 f"the simulator refused this configuration (host_init returned {err}): "
                 "a value is out of range (sim/sim.h, firmware/core/board.h)"
             )
+        if nvm is not None:
+            # Powered on with that storage: the same as a power cycle before the first tick.
+            lib.host_nvm_set(self._h, nvm, len(nvm))
+            lib.host_power_cycle(self._h)
         self.address = address
         self._byte_ns = round(9 * 1e9 / bus_hz)
         self._record = record
@@ -325,6 +351,30 @@ class Simulator:
             else:
                 done = lib.host_advance_ns(self._h, ns, ffi.NULL, 0, ffi.NULL)
             ns -= int(done)
+
+    # ---- power and storage ----------------------------------------------------------------------
+    def power_cycle(self) -> None:
+        """Switch the board off and on between two ticks: it starts again as at power-on (its
+        configuration, the start pose it believes, an empty queue, the motors off), then
+        installs the calibration its storage kept. The robot stays where it is and the clock
+        goes on; a calibration whose record was not completely written yet (16 bytes, all at
+        the first tick after SET_ODOMETRIE's slow steps on the simulator) is lost."""
+        lib.host_power_cycle(self._h)
+
+    @property
+    def nvm(self) -> bytes:
+        """The board's storage (``NVM_SIZE`` bytes, 0xFF where erased): give it to a new
+        ``Simulator(nvm=...)`` to power on a board that kept its calibration."""
+        return bytes(ffi.buffer(self._h.nvm))
+
+    @property
+    def calibration(self) -> Calibration | None:
+        """The odometry calibration the board has installed, or None (uncalibrated)."""
+        b = self._h.board
+        if not b.calibrated:
+            return None
+        c = b.calibration
+        return Calibration(int(c.ratio_ppm), int(c.track_10um), int(c.scale_ppm))
 
     # ---- I2C device (asserv.bus.I2CDevice) ----------------------------------------------------
     def i2c_write(self, data: bytes, stop: bool) -> None:

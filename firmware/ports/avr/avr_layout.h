@@ -2,7 +2,7 @@
  * the port stores one struct avr_layout in flash under the symbol avr_layout, so that the simavr
  * harness (harness/avr) reads the board's estimate and protocol state from the running binary's
  * RAM without assuming the AVR's struct layout. Every member is a uint16_t, so the host reads the
- * record with the same declaration (little-endian on both). Costs 66 bytes of flash. */
+ * record with the same declaration (little-endian on both). Costs 76 bytes of flash. */
 #ifndef ASSERV_AVR_LAYOUT_H
 #define ASSERV_AVR_LAYOUT_H
 
@@ -52,6 +52,12 @@ struct avr_layout {
 	uint16_t snap_radius_mm;
 	uint16_t snap_status;
 	uint16_t snap_sensors;
+	/* The odometry's configuration and the calibration installed (ports/common/port_nvm.h). */
+	uint16_t odo_left_factor;  /* uint32, odometry.cfg.left_um_per_count_q16 */
+	uint16_t odo_right_factor; /* uint32, odometry.cfg.right_um_per_count_q16 */
+	uint16_t odo_track;        /* uint32, odometry.cfg.track_um */
+	uint16_t calibrated;       /* uint8 */
+	uint16_t calibration;      /* struct board_calibration: int32 ratio, int32 scale, uint16 */
 };
 
 #endif

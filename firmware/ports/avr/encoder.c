@@ -41,9 +41,11 @@ const int8_t quad_step[2][256] PROGMEM
  * and its high byte by the same step when the low byte overflows as a signed byte (0x7F <-> 0x80,
  * which is count's 0xFF <-> 0x00), so the interrupt needs no 16-bit addition. A state is its
  * port's last levels of the encoder pins, swapped (see quad_step): the motors' in RAM, the free
- * wheels' (the most frequent edges) in the EEPROM's address and data registers, EEARL the left,
- * EEDR the right, which in and out reach in a cycle where lds and sts take two (the firmware
- * keeps nothing in EEPROM; a port that does must move these states back to RAM). */
+ * wheels' (the most frequent edges) in Timer0's compare registers, OCR0A the left, OCR0B the
+ * right, which in and out reach in a cycle where lds and sts take two. Timer0 is never started
+ * (no clock, normal mode, no output, no interrupt): its compare registers are then plain bytes,
+ * written at once (buffered only in the PWM modes) and never compared. They used to be EEARL and
+ * EEDR, which the calibration's EEPROM writes now need (nvm.c). */
 volatile uint16_t avr_free_count[2];
 volatile uint16_t avr_motor_count[2];
 uint8_t avr_motor_state[2];
@@ -62,8 +64,13 @@ static uint8_t swapped_levels(uint8_t pins, uint8_t mask)
 
 void avr_encoder_init(void)
 {
-	EEARL = swapped_levels(PIN_FREE_LEFT_PORT, PIN_FREE_LEFT_MASK);
-	EEDR = swapped_levels(PIN_FREE_RIGHT_PORT, PIN_FREE_RIGHT_MASK);
+	/* Timer0 as at reset, written all the same: no clock, normal mode, no output, no
+	 * interrupt, so that OCR0A and OCR0B hold the states as plain bytes. */
+	TCCR0B = 0;
+	TCCR0A = 0;
+	TIMSK0 = 0;
+	OCR0A = swapped_levels(PIN_FREE_LEFT_PORT, PIN_FREE_LEFT_MASK);
+	OCR0B = swapped_levels(PIN_FREE_RIGHT_PORT, PIN_FREE_RIGHT_MASK);
 	avr_motor_state[0] = swapped_levels(PIN_MOTOR_LEFT_PORT, PIN_MOTOR_LEFT_MASK);
 	avr_motor_state[1] = swapped_levels(PIN_MOTOR_RIGHT_PORT, PIN_MOTOR_RIGHT_MASK);
 	for (uint8_t s = 0; s < 2; s++)

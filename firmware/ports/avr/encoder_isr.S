@@ -65,5 +65,5 @@
 
 	quad_isr PCINT0_vect, PINA, 0x0C, 0, avr_motor_state, avr_motor_count, 0
 	quad_isr PCINT1_vect, PINB, 0x0C, 0, avr_motor_state + 1, avr_motor_count + 2, 0
-	quad_isr PCINT2_vect, PINC, 0x0C, 0, EEARL, avr_free_count, 1
-	quad_isr PCINT3_vect, PIND, 0xC0, 1, EEDR, avr_free_count + 2, 1
+	quad_isr PCINT2_vect, PINC, 0x0C, 0, OCR0A, avr_free_count, 1
+	quad_isr PCINT3_vect, PIND, 0xC0, 1, OCR0B, avr_free_count + 2, 1

@@ -43,4 +43,9 @@ const struct avr_layout avr_layout PROGMEM = {
 	.snap_radius_mm = offsetof(struct proto_snapshot, radius_mm),
 	.snap_status = offsetof(struct proto_snapshot, status),
 	.snap_sensors = offsetof(struct proto_snapshot, sensors),
+	.odo_left_factor = AT(odometry.cfg.left_um_per_count_q16),
+	.odo_right_factor = AT(odometry.cfg.right_um_per_count_q16),
+	.odo_track = AT(odometry.cfg.track_um),
+	.calibrated = AT(calibrated),
+	.calibration = AT(calibration),
 };

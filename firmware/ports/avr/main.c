@@ -9,8 +9,12 @@
 #include "hal.h"
 #include "pinmap.h"
 #include "port.h"
+#include "port_nvm.h"
 
 struct board asserv_board;
+
+/* The calibration's record in the EEPROM (nvm.c): loaded at start, written by the main loop. */
+static struct port_nvm avr_nvm;
 
 /* Periods the tick missed because the previous one ran over (a debugger reads it): counted by
  * the main loop (one rate) or by the timer's interrupt (two rates, tick_isr.S). */
@@ -44,6 +48,8 @@ int main(void)
 		for (;;)
 			;
 	}
+	/* A blank or corrupt record leaves the board uncalibrated: it runs all the same. */
+	port_nvm_load(&avr_nvm, &asserv_board);
 	hal_i2c_slave_init(PROTO_ADDRESS);
 	hal_tick_start(cfg.tick_hz);
 	wdt_enable(WDTO_60MS);
@@ -58,6 +64,7 @@ int main(void)
 		avr_motor_sense();
 		port_control_tick(&asserv_board);
 		PORTD &= (uint8_t)~_BV(PIN_TICK_BIT);
+		port_nvm_poll(&avr_nvm, &asserv_board); /* a byte at most, never waited for */
 		wdt_reset();
 	}
 #else
@@ -66,6 +73,7 @@ int main(void)
 		PORTD |= _BV(PIN_SLOW_BIT);
 		port_slow(&asserv_board);
 		PORTD &= (uint8_t)~_BV(PIN_SLOW_BIT);
+		port_nvm_poll(&avr_nvm, &asserv_board); /* a byte at most, never waited for */
 		/* Fed only here, and only if the servo has run since: a main loop stuck in the slow
 		 * steps, and a servo that stopped (the slow steps then never fall due), both let
 		 * the watchdog stop the motors. */

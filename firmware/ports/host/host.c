@@ -2,6 +2,7 @@
 #include "host.h"
 
 #include <math.h>
+#include <string.h>
 
 #include "hal.h"
 #include "port.h"
@@ -10,6 +11,7 @@
  * answers for the host whose tick runs: read_sensors() fills it, host_tick() applies the duties. */
 static struct sim_sensors sensors;
 static int16_t duty[2];
+static struct host *current; /* whose storage hal_nvm_*() answer for */
 
 uint16_t hal_encoder_free(enum hal_side side)
 {
@@ -46,6 +48,32 @@ uint8_t hal_basket_contact(void)
 uint8_t hal_line_read(void)
 {
 	return sensors.line_mask;
+}
+
+uint16_t hal_nvm_size(void)
+{
+	return HOST_NVM_SIZE;
+}
+
+int hal_nvm_read(uint16_t offset, uint8_t *buf, uint16_t n)
+{
+	if ((uint32_t)offset + n > HOST_NVM_SIZE)
+		return -1;
+	memcpy(buf, &current->nvm[offset], n);
+	return 0;
+}
+
+uint8_t hal_nvm_busy(void)
+{
+	return 0;
+}
+
+int hal_nvm_write_byte(uint16_t offset, uint8_t value)
+{
+	if (offset >= HOST_NVM_SIZE)
+		return -1;
+	current->nvm[offset] = value;
+	return 0;
 }
 
 void hal_i2c_slave_init(uint8_t address)
@@ -144,10 +172,45 @@ int host_init(struct host *h, const struct board_config *bc, const struct sim_co
 	h->tick_ns = 1000000000u / bc->tick_hz;
 	h->ticks = 0;
 	h->now_ns = 0;
+	memset(h->nvm, 0xFF, sizeof(h->nvm));
 	read_sensors(h);
 	port_sample(&in);
 	port_sample_period(&in); /* the motor counts and currents to start from, as the AVR's */
-	return board_init(&h->board, bc, &in);
+	err = board_init(&h->board, bc, &in);
+	if (err)
+		return err;
+	current = h;
+	port_nvm_load(&h->store, &h->board); /* erased: uncalibrated */
+	return 0;
+}
+
+int host_nvm_set(struct host *h, const uint8_t *data, uint16_t n)
+{
+	if (n > HOST_NVM_SIZE)
+		return -1;
+	memset(h->nvm, 0xFF, sizeof(h->nvm));
+	if (n)
+		memcpy(h->nvm, data, n);
+	return 0;
+}
+
+int host_power_cycle(struct host *h)
+{
+	struct board_config cfg = h->board.cfg;
+	struct board_inputs in;
+	int err;
+
+	read_sensors(h);
+	port_sample(&in);
+	port_sample_period(&in);
+	err = board_init(&h->board, &cfg, &in);
+	duty[HAL_LEFT] = duty[HAL_RIGHT] = 0;
+	sim_set_duty(&h->sim, 0, 0);
+	if (err)
+		return err;
+	current = h;
+	port_nvm_load(&h->store, &h->board);
+	return 0;
 }
 
 /* The control tick at the current instant: sensors, board_tick(), the new duties held by the
@@ -157,6 +220,8 @@ static void control_tick(struct host *h)
 	read_sensors(h);
 	port_control_tick(&h->board);
 	port_slow(&h->board);
+	current = h;
+	port_nvm_poll(&h->store, &h->board);
 	sim_set_duty(&h->sim, duty[HAL_LEFT], duty[HAL_RIGHT]);
 	h->ticks++;
 }

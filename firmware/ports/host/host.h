@@ -6,7 +6,11 @@
 #include <stdint.h>
 
 #include "board.h"
+#include "port_nvm.h"
 #include "sim.h"
+
+/* The simulated board's storage (hal_nvm.h) [bytes]: RAM, erased to 0xFF, written at once. */
+#define HOST_NVM_SIZE 64u
 
 struct host {
 	struct sim sim;
@@ -14,6 +18,8 @@ struct host {
 	uint64_t tick_ns; /* control period */
 	uint64_t ticks;   /* control periods run */
 	uint64_t now_ns;  /* host_advance_ns()'s clock: control tick k runs at k * tick_ns */
+	uint8_t nvm[HOST_NVM_SIZE]; /* the board's storage: kept by host_power_cycle() */
+	struct port_nvm store;      /* the calibration's record in it (port_nvm.h) */
 };
 
 /* The board configuration that matches a simulated robot: encoder wheels, tracks, motor
@@ -27,6 +33,17 @@ void host_board_config(const struct sim_config *sc, const struct sim_field *f,
  * simulator's error. Interrupt-safe: no (there are none on the host). */
 int host_init(struct host *h, const struct board_config *bc, const struct sim_config *sc,
 	      const struct sim_field *f);
+
+/* The storage as a board finds it at power-on: n bytes of data (n <= HOST_NVM_SIZE; data may be
+ * NULL with n 0), the rest erased (0xFF). Takes effect at the next host_power_cycle(): host_init()
+ * starts with an erased storage. Returns 0, or -1 if n is too large (nothing changes). */
+int host_nvm_set(struct host *h, const uint8_t *data, uint16_t n);
+
+/* A power cycle between two ticks: the board starts again as at power-on (board_init() with the
+ * configuration it was started with, on the sensors of now, then the calibration its storage
+ * holds, port_nvm_load()), the motors off, the I2C transaction in progress lost. The robot stays
+ * where it is, the clock and the storage go on. Returns host_init()'s board result: 0 or -1. */
+int host_power_cycle(struct host *h);
 
 /* One control period: the board's tick on the current sensors, then the physics over the
  * period with the new duties. */

@@ -1,0 +1,213 @@
+/* The odometry calibration across a power cycle on the AVR binary in simavr, against the host
+ * port (firmware/ports/host) doing the same: SET_ODOMETRIE, then the EEPROM holds the record the
+ * host port's storage holds, byte for byte; after a power cycle (a new chip, the same EEPROM:
+ * avrsim_power_cycle()) VERSION says CALIBRATED and the odometry's factors in the AVR's RAM are
+ * the host's after its own power cycle, bit for bit, and those SET_ODOMETRIE had installed. A
+ * corrupt record leaves the board uncalibrated, on the nominal factors, answering. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "avrsim.h"
+#include "calib_store.h"
+#include "host.h"
+#include "protocol.h"
+#include "robot.h"
+
+static const char *elf_path;
+
+/* SET_ODOMETRIE ratio 1500 ppm, track 280.37 mm, scale -700 ppm (big-endian s16, u16, s16). */
+static const uint8_t set_odometrie[] = {PROTO_SET_ODOMETRIE, 0x05, 0xdc, 0x6d, 0x85, 0xfd, 0x44};
+static const struct board_calibration cal = {1500, -700, 28037};
+
+struct factors {
+	uint32_t left, right, track;
+};
+
+static void run_ticks(struct avrsim *h, unsigned n)
+{
+	for (unsigned t = 0; t < n; t++)
+		assert_int_equal(avrsim_run_to_tick_end(h), 0);
+}
+
+static uint16_t version_caps(struct avrsim *h)
+{
+	uint8_t d = PROTO_VERSION, r[4];
+
+	assert_int_equal(avrsim_i2c_write(h, &d, 1, 0), 0);
+	assert_int_equal(avrsim_i2c_read(h, r, sizeof(r)), 0);
+	assert_int_equal(r[0], PROTO_VERSION_MAJOR);
+	return (uint16_t)(r[2] << 8 | r[3]);
+}
+
+static uint32_t peek32(const struct avrsim *h, uint16_t offset)
+{
+	uint32_t v;
+
+	avrsim_peek(h, (uint16_t)(avrsim_board(h) + offset), &v, sizeof(v));
+	return v;
+}
+
+static struct factors avr_factors(const struct avrsim *h)
+{
+	const struct avr_layout *l = avrsim_layout(h);
+	struct factors f = {peek32(h, l->odo_left_factor), peek32(h, l->odo_right_factor),
+			    peek32(h, l->odo_track)};
+
+	return f;
+}
+
+static uint8_t avr_calibrated(const struct avrsim *h, struct board_calibration *c)
+{
+	const struct avr_layout *l = avrsim_layout(h);
+	uint8_t on;
+	uint16_t track;
+
+	avrsim_peek(h, (uint16_t)(avrsim_board(h) + l->calibrated), &on, 1);
+	c->ratio_ppm = (int32_t)peek32(h, l->calibration);
+	c->scale_ppm = (int32_t)peek32(h, (uint16_t)(l->calibration + 4u));
+	avrsim_peek(h, (uint16_t)(avrsim_board(h) + l->calibration + 8u), &track, 2);
+	c->track_10um = track;
+	return on;
+}
+
+static struct factors host_factors(const struct host *h)
+{
+	const struct odometry_config *c = &h->board.odometry.cfg;
+	struct factors f = {c->left_um_per_count_q16, c->right_um_per_count_q16, c->track_um};
+
+	return f;
+}
+
+static void assert_factors_equal(struct factors a, struct factors b)
+{
+	assert_int_equal(a.left, b.left);
+	assert_int_equal(a.right, b.right);
+	assert_int_equal(a.track, b.track);
+}
+
+/* The host port on the AVR build's configuration (robot.c), the robot at rest. */
+static void host_start(struct host *h)
+{
+	struct board_config bc;
+	struct sim_config sc;
+	struct sim_field f;
+
+	avr_robot_config(&bc);
+	sim_config_defaults(&sc);
+	sim_field_defaults(&f);
+	assert_int_equal(host_init(h, &bc, &sc, &f), 0);
+}
+
+static void test_calibration_survives_power_cycle(void **state)
+{
+	static struct host host;
+	struct avrsim *h = avrsim_open(elf_path, 100000);
+	uint8_t ee[CALIB_STORE_SIZE], blank[CALIB_STORE_SIZE];
+	struct factors nominal, installed;
+	struct board_calibration c;
+
+	(void)state;
+	assert_non_null(h);
+	host_start(&host);
+	memset(blank, 0xFF, sizeof(blank));
+
+	/* A new chip: blank EEPROM, uncalibrated. */
+	run_ticks(h, 20);
+	assert_int_equal(avrsim_eeprom_read(h, 0, ee, sizeof(ee)), 0);
+	assert_memory_equal(ee, blank, sizeof(ee));
+	assert_int_equal(version_caps(h), CAP_ALL);
+	assert_int_equal(avr_calibrated(h, &c), 0);
+	nominal = avr_factors(h);
+	assert_factors_equal(nominal, host_factors(&host));
+
+	/* SET_ODOMETRIE on both; the record is written within 16 slow periods (one byte a pass of
+	 * the main loop at most). */
+	assert_int_equal(avrsim_i2c_write(h, set_odometrie, sizeof(set_odometrie), 1), 0);
+	host_i2c_write(&host, set_odometrie, sizeof(set_odometrie), 1);
+	run_ticks(h, 200);
+	for (int t = 0; t < 200; t++)
+		host_tick(&host);
+	assert_int_equal(version_caps(h), CAP_ALL | CAP_CALIBRATED);
+	installed = avr_factors(h);
+	assert_factors_equal(installed, host_factors(&host));
+	assert_true(installed.left != nominal.left && installed.track != nominal.track);
+	assert_int_equal(avrsim_eeprom_read(h, 0, ee, sizeof(ee)), 0);
+	assert_memory_equal(ee, host.nvm, sizeof(ee));
+	assert_int_equal(calib_store_decode(ee, &c), 0);
+	assert_int_equal(c.ratio_ppm, cal.ratio_ppm);
+	assert_int_equal(c.scale_ppm, cal.scale_ppm);
+	assert_int_equal(c.track_10um, cal.track_10um);
+
+	/* Power cycle both: calibrated again, on the same factors, bit for bit. */
+	h = avrsim_power_cycle(h);
+	assert_non_null(h);
+	assert_int_equal(host_power_cycle(&host), 0);
+	run_ticks(h, 20);
+	for (int t = 0; t < 20; t++)
+		host_tick(&host);
+	assert_int_equal(version_caps(h), CAP_ALL | CAP_CALIBRATED);
+	assert_int_equal(avr_calibrated(h, &c), 1);
+	assert_int_equal(c.ratio_ppm, cal.ratio_ppm);
+	assert_int_equal(c.scale_ppm, cal.scale_ppm);
+	assert_int_equal(c.track_10um, cal.track_10um);
+	assert_int_equal(host.board.calibrated, 1);
+	assert_factors_equal(avr_factors(h), installed);
+	assert_factors_equal(avr_factors(h), host_factors(&host));
+	/* Nothing written again: the record is the one loaded. */
+	assert_int_equal(avrsim_eeprom_read(h, 0, ee, sizeof(ee)), 0);
+	assert_memory_equal(ee, host.nvm, sizeof(ee));
+	avrsim_close(h);
+}
+
+static void test_corrupt_record_uncalibrated(void **state)
+{
+	struct avrsim *h = avrsim_open(elf_path, 100000);
+	uint8_t rec[CALIB_STORE_SIZE];
+	struct factors nominal;
+	struct board_calibration c;
+
+	(void)state;
+	assert_non_null(h);
+	run_ticks(h, 20);
+	nominal = avr_factors(h);
+	for (unsigned bit = 0; bit < 8 * CALIB_STORE_SIZE; bit += 37) {
+		calib_store_encode(&cal, rec);
+		rec[bit / 8] ^= (uint8_t)(1u << (bit % 8));
+		assert_int_equal(avrsim_eeprom_write(h, 0, rec, sizeof(rec)), 0);
+		h = avrsim_power_cycle(h);
+		assert_non_null(h);
+		run_ticks(h, 20);
+		assert_int_equal(version_caps(h), CAP_ALL);
+		assert_int_equal(avr_calibrated(h, &c), 0);
+		assert_factors_equal(avr_factors(h), nominal);
+	}
+	/* The same record intact: installed. */
+	calib_store_encode(&cal, rec);
+	assert_int_equal(avrsim_eeprom_write(h, 0, rec, sizeof(rec)), 0);
+	h = avrsim_power_cycle(h);
+	assert_non_null(h);
+	run_ticks(h, 20);
+	assert_int_equal(version_caps(h), CAP_ALL | CAP_CALIBRATED);
+	avrsim_close(h);
+}
+
+int main(int argc, char **argv)
+{
+	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_calibration_survives_power_cycle),
+		cmocka_unit_test(test_corrupt_record_uncalibrated),
+	};
+
+	if (argc != 2) {
+		fprintf(stderr, "usage: %s asserv_avr.elf\n", argv[0]);
+		return 2;
+	}
+	elf_path = argv[1];
+	return cmocka_run_group_tests(tests, NULL, NULL);
+}
