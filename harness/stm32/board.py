@@ -22,12 +22,12 @@ import hashlib
 from pathlib import Path
 from typing import Any
 
-from asserv._core import ffi, lib
 from emu import IRQ0, SYSTICK, Cpu, EmuError, struct_padding
 from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Scs, Timer
 from unicorn import UC_HOOK_CODE
 from unicorn.arm_const import UC_ARM_REG_R1
 
+from asserv._core import ffi, lib
 from asserv.bus import VirtualBus
 
 IRQ_I2C1_EV, IRQ_I2C1_ER = 31, 32

@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from asserv._core import ffi
 from board import Stm32Board, robot
 from emu import FLASH_BASE, IRQ0, SYSTICK, Cpu, EmuError, thumb_insn_count
 from unicorn import UC_ERR_EXCEPTION
@@ -22,6 +21,8 @@ from unicorn.arm_const import (
     UC_ARM_REG_SP,
 )
 from unicorn.unicorn_py3.unicorn import UcError
+
+from asserv._core import ffi
 
 REGS = (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12)
 

@@ -6,13 +6,13 @@ board, padding aside) after every tick and every byte the master reads are bit-i
 
 from typing import Any
 
-from asserv._core import lib
 from board import Reference, Stm32Board, of_simulator
 from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from asserv import Board
+from asserv._core import lib
 from asserv.scenario import BUS_COMMANDS, load
 
 FAULT_ENCODER_LOST = 4  # FAULTS_CAUSE_ENCODER_LOST, firmware/core/faults.h

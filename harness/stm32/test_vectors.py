@@ -9,11 +9,11 @@ import tomllib
 from typing import Any
 
 import pytest
-from asserv._core import ffi, lib
 from board import TICK_NS, Reference, Stm32Board, robot
 from conftest import ROOT
 
 from asserv import Reject, codec
+from asserv._core import ffi, lib
 
 with (ROOT / "protocol" / "vectors.toml").open("rb") as _f:
     VECTORS: dict[str, Any] = tomllib.load(_f)
