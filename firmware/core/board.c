@@ -80,7 +80,7 @@ void board_default_config(struct board_config *c)
 	}
 	c->orders.tick_hz = 1000;
 	c->orders.jerk_um_s3 = 0;
-	c->orders.grip_um_s2 = 4709000; /* mu 0.8, 60 % of 8 kg on the drive wheels */
+	c->orders.grip_um_s2 = 4707192; /* mu 0.8 x 60 % of the weight x g (as host.c derives it) */
 	c->orders.rot_grip_q8 = 500;    /* 4 x 0.10 kg m^2 / (8 kg x 0.160 m^2): 1.95 */
 
 	/* Recalibration (docs/recalibration.md). The basket switch, a 1 mm-travel microswitch at
