@@ -72,7 +72,6 @@ class MatchResult:
     order_ends: int = 0
     ends_covered: int = 0
     worst_end: tuple[float, int] = (0.0, 0)  # (error mm, radius mm) of the worst end
-    endings_checked: int = 0
     bad_endings: list[str] = field(default_factory=list)
     events: list[str] = field(default_factory=list)
 
@@ -269,7 +268,6 @@ def _check(sim: Simulator, ends: list[tuple[int, int, int]], r: MatchResult) -> 
             r.ends_covered += 1
         if e - rad > r.worst_end[0] - r.worst_end[1]:
             r.worst_end = (e, rad)
-        r.endings_checked += 1
         allowed = ENDING_BITS.get(reason)
         # PB_GRAVE latches: once set it stays with every later ending.
         if allowed is None or (bits & ~int(Status.PB_GRAVE)) not in {
