@@ -165,7 +165,9 @@ def test_a_display_thread_and_a_strategy_thread_share_a_board() -> None:
     assert outcomes == [Outcome.DONE] * 4
     assert board.last_reject().count == 0  # no BAD_PEC, nothing rejected
     assert not any(s & Status.PB_GRAVE for s in seen)
-    assert len(seen) > 20  # the display did run meanwhile
+    # The display did run while the robot moved. How many samples it took depends on how the
+    # OS schedules the two threads, so only its having sampled a move is asserted.
+    assert any(s & Status.BUSY_TRAJET for s in seen)
 
 
 Op = Callable[[Board], object]
