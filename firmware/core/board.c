@@ -701,26 +701,6 @@ static void update_status(struct board *b)
 	b->status = s;
 }
 
-/* floor(u / 1000) for u < 2^25: q = floor(u 33555 / 2^25) (33555 = ceil(2^25 / 1000)) is the
- * quotient or one more (the excess u 0.568 / 2^25 stays below 1), which the remainder settles.
- * Three 16 x 16-bit products: the replies' millimetres cost no division. avr-gcc shifts a
- * uint32_t by 9 or 20 bits one bit a turn: here a byte move and a bit, in angle_2deg_of()
- * fx_shr_u32. */
-static uint16_t div1000(uint32_t u)
-{
-	/* x = u 33555 / 2^16 is below 2^25, q = x / 2^9 below 2^16: a byte move, then one bit
-	 * (hidden from avr-gcc, which would shift by 9 in a loop of 9 turns). */
-	uint32_t x =
-		(fx_mul_u16(fx_hi16(u), 33555u) + fx_hi16(fx_mul_u16(fx_lo16(u), 33555u))) >> 8;
-	uint16_t q;
-
-	FX_HIDE(x);
-	q = (uint16_t)(x >> 1);
-	if (fx_mul_u16(q, UM_PER_MM) > u)
-		q--;
-	return q;
-}
-
 /* round(um / 1000) saturated to 16 bits (ties away from zero). */
 static int16_t mm_of(int32_t um)
 {
@@ -730,7 +710,7 @@ static int16_t mm_of(int32_t um)
 		return INT16_MAX;
 	if (um <= -32768500)
 		return INT16_MIN;
-	q = div1000(fx_mag32(um) + UM_PER_MM / 2u);
+	q = fx_udiv1000(fx_mag32(um) + UM_PER_MM / 2u);
 	return um >= 0 ? (int16_t)q : (int16_t) - (int32_t)q;
 }
 
@@ -776,32 +756,13 @@ static void publish(struct board *b)
 									 : b->orders.end_reason;
 }
 
-/* v / 2^shift rounded down, shift 0..3 (board_init()): by 2 and by 1 bit, which avr-gcc shifts
- * in a few instructions, where a variable count takes a loop of 8 cycles a bit. */
-static int32_t floor_shr(int32_t v, uint8_t shift)
-{
-	if (shift & 2u)
-		v >>= 2;
-	if (shift & 1u)
-		v >>= 1;
-	return v;
-}
-
 /* (end - from) / 2^shift, rounded down: a tick's share of a period's change. */
 static void sp_step(struct orders_axis *step, const struct orders_axis *from,
 		    const struct orders_axis *end, uint8_t shift)
 {
-	step->pos_um = floor_shr(end->pos_um - from->pos_um, shift);
-	step->vel_um_s = floor_shr(end->vel_um_s - from->vel_um_s, shift);
+	step->pos_um = fx_floor_shr(end->pos_um - from->pos_um, shift);
+	step->vel_um_s = fx_floor_shr(end->vel_um_s - from->vel_um_s, shift);
 	step->acc_um_s2 = 0;
-}
-
-/* *to = *from field by field: avr-gcc copies a whole struct byte by byte in a loop. */
-static void axis_copy(struct orders_axis *to, const struct orders_axis *from)
-{
-	to->pos_um = from->pos_um;
-	to->vel_um_s = from->vel_um_s;
-	to->acc_um_s2 = from->acc_um_s2;
 }
 
 /* A free wheel that does not count while its motor turns (a wire cut, a wheel lifted, whether an
@@ -956,8 +917,8 @@ static void slow_steps(struct board *b)
 		const struct board_setpoints *now = &b->setpoints[b->setpoints_index];
 		struct board_setpoints *next = &b->setpoints[b->setpoints_index ^ 1u];
 
-		axis_copy(&next->dist, &b->orders.sp_dist);
-		axis_copy(&next->angle, &b->orders.sp_angle);
+		next->dist = b->orders.sp_dist;
+		next->angle = b->orders.sp_angle;
 		/* From the last ones, where the servo is at the hand-over (it gets there at the
 		 * period's last tick, or at once by a jump). */
 		sp_step(&next->dist_step, &now->dist, &next->dist, b->cfg.slow_shift);
@@ -990,7 +951,7 @@ void board_slow(struct board *b)
 static void sp_advance(struct orders_axis *sp, const struct orders_axis *step,
 		       const struct orders_axis *end, int last)
 {
-	if (last) { /* field by field: avr-gcc copies a whole struct byte by byte in a loop */
+	if (last) { /* the acceleration stays the handed-over one */
 		sp->pos_um = end->pos_um;
 		sp->vel_um_s = end->vel_um_s;
 		return;
@@ -1057,8 +1018,7 @@ static void take_snapshot(struct board *b, const struct board_inputs *in, int32_
 {
 	struct board_snapshot *p = &b->period[b->period_index];
 
-	/* The tick's inputs but the switches (the period's): field by field, which avr-gcc does
-	 * in 13 loads and stores where it copies a struct byte by byte in a loop. */
+	/* The tick's inputs but the switches, which are the period's. */
 	p->in.free_count[0] = in->free_count[0];
 	p->in.free_count[1] = in->free_count[1];
 	p->in.motor_count[0] = in->motor_count[0];

@@ -91,7 +91,7 @@ static int32_t ff_term_c(int32_t v, int32_t k)
 }
 
 /* v clipped to +-lim, for a lim in 0..32767. */
-FX_INLINE int16_t clip16(int32_t v, int16_t lim)
+static inline int16_t clip16(int32_t v, int16_t lim)
 {
 	if (v > lim)
 		return lim;
@@ -100,123 +100,13 @@ FX_INLINE int16_t clip16(int32_t v, int16_t lim)
 	return (int16_t)v;
 }
 
-#if FX_AVR_MUL
-/* One term of the feed-forward, round(v k / 2^20) into P2..P5 (r16 is zero): r18..r21 = v (read
- * at Z + VOFF); 0 if v is; else v k in 48 bits (r26, r27, P2..P5) from eight MULs, v taken as
- * unsigned and then corrected by -k 2^32 when negative; + 2^19, less 1 below zero (ties away from
- * zero); >> 20, arithmetic. */
-#define FF_TERM(VOFF, K0, K1, P2, P3, P4, P5)                                                      \
-	"ldd r18,Z+" VOFF "\n\t"                                                                   \
-	"ldd r19,Z+" VOFF "+1\n\t"                                                                 \
-	"ldd r20,Z+" VOFF "+2\n\t"                                                                 \
-	"ldd r21,Z+" VOFF "+3\n\t"                                                                 \
-	"mov r26,r18\n\t"                                                                          \
-	"or r26,r19\n\t"                                                                           \
-	"or r26,r20\n\t"                                                                           \
-	"or r26,r21\n\t"                                                                           \
-	"brne 3f\n\t"                                                                              \
-	"clr " P2 "\n\t"                                                                           \
-	"clr " P3 "\n\t"                                                                           \
-	"movw " P4 "," P2 "\n\t"                                                                   \
-	"rjmp 4f\n"                                                                                \
-	"3:\n\t"                                                                                   \
-	"mul r18," K0 "\n\t"                                                                       \
-	"movw r26,r0\n\t"                                                                          \
-	"mul r19," K1 "\n\t"                                                                       \
-	"movw " P2 ",r0\n\t"                                                                       \
-	"mul r21," K1 "\n\t"                                                                       \
-	"movw " P4 ",r0\n\t"                                                                       \
-	"mul r18," K1 "\n\t"                                                                       \
-	"add r27,r0\n\t"                                                                           \
-	"adc " P2 ",r1\n\t"                                                                        \
-	"adc " P3 ",r16\n\t"                                                                       \
-	"adc " P4 ",r16\n\t"                                                                       \
-	"adc " P5 ",r16\n\t"                                                                       \
-	"mul r19," K0 "\n\t"                                                                       \
-	"add r27,r0\n\t"                                                                           \
-	"adc " P2 ",r1\n\t"                                                                        \
-	"adc " P3 ",r16\n\t"                                                                       \
-	"adc " P4 ",r16\n\t"                                                                       \
-	"adc " P5 ",r16\n\t"                                                                       \
-	"mul r20," K0 "\n\t"                                                                       \
-	"add " P2 ",r0\n\t"                                                                        \
-	"adc " P3 ",r1\n\t"                                                                        \
-	"adc " P4 ",r16\n\t"                                                                       \
-	"adc " P5 ",r16\n\t"                                                                       \
-	"mul r20," K1 "\n\t"                                                                       \
-	"add " P3 ",r0\n\t"                                                                        \
-	"adc " P4 ",r1\n\t"                                                                        \
-	"adc " P5 ",r16\n\t"                                                                       \
-	"mul r21," K0 "\n\t"                                                                       \
-	"add " P3 ",r0\n\t"                                                                        \
-	"adc " P4 ",r1\n\t"                                                                        \
-	"adc " P5 ",r16\n\t"                                                                       \
-	"sbrs r21,7\n\t"                                                                           \
-	"rjmp 1f\n\t"                                                                              \
-	"sub " P4 "," K0 "\n\t"                                                                    \
-	"sbc " P5 "," K1 "\n\t"                                                                    \
-	"or r26,r27\n\t"                                                                           \
-	"ldi r27,7\n\t"                                                                            \
-	"breq 2f\n"                                                                                \
-	"1:\n\t"                                                                                   \
-	"ldi r27,8\n"                                                                              \
-	"2:\n\t"                                                                                   \
-	"add " P2 ",r27\n\t"                                                                       \
-	"adc " P3 ",r16\n\t"                                                                       \
-	"adc " P4 ",r16\n\t"                                                                       \
-	"adc " P5 ",r16\n\t"                                                                       \
-	"asr " P5 "\n\t"                                                                           \
-	"ror " P4 "\n\t"                                                                           \
-	"ror " P3 "\n\t"                                                                           \
-	"ror " P2 "\n\t"                                                                           \
-	"asr " P5 "\n\t"                                                                           \
-	"ror " P4 "\n\t"                                                                           \
-	"ror " P3 "\n\t"                                                                           \
-	"ror " P2 "\n\t"                                                                           \
-	"asr " P5 "\n\t"                                                                           \
-	"ror " P4 "\n\t"                                                                           \
-	"ror " P3 "\n\t"                                                                           \
-	"ror " P2 "\n\t"                                                                           \
-	"asr " P5 "\n\t"                                                                           \
-	"ror " P4 "\n\t"                                                                           \
-	"ror " P3 "\n\t"                                                                           \
-	"ror " P2 "\n"                                                                             \
-	"4:\n\t"
-
-/* round(*v k / 2^20) for a coefficient below 2^16, in AVR assembly: avr-gcc calls a library
- * routine for each of the C version's 16 x 16 products and keeps few of its 32-bit values in
- * registers: about 200 cycles a term where this takes 70, and 10 for a zero v. round(v k / 2^20)
- * with ties away from zero is floor((v k + 2^19 - [v < 0]) / 2^20) on the signed product, for
- * any v. */
-FX_INLINE int32_t ff_term_avr(const int32_t *v, uint16_t k)
+/* round(v k / 2^20): by the architecture's kernel for the coefficients below 2^16, which the
+ * reference robot's are (ff_narrow, control_init). */
+static inline int32_t ff_term(const struct control *c, int32_t v, int32_t k)
 {
-	register int32_t r __asm__("r22");
-
-	__asm__("clr r16\n\t" FF_TERM("0", "%A[k]", "%B[k]", "r22", "r23", "r24", "r25") "clr r1"
-		: "=&r"(r)
-		: "z"(v), [k] "r"(k)
-		: "r0", "r16", "r18", "r19", "r20", "r21", "r26", "r27");
-	return r;
-}
-
-/* Out of line: its registers would burden the common case. */
-static FX_NOINLINE int32_t ff_term_wide(int32_t v, int32_t k)
-{
-	return ff_term_c(v, k);
-}
-#endif
-
-/* round(*v k / 2^20), by the build's fastest means for the coefficients configured. */
-FX_INLINE int32_t ff_term(const struct control *c, const int32_t *v, int32_t k)
-{
-#if FX_AVR_MUL
 	if (c->ff_narrow)
-		return ff_term_avr(v, fx_lo16((uint32_t)k));
-	return ff_term_wide(*v, k);
-#else
-	(void)c;
-	return ff_term_c(*v, k);
-#endif
+		return fx_mul_q20_u16(v, fx_lo16((uint32_t)k));
+	return ff_term_c(v, k);
 }
 
 /* Feed-forward of one axis [duty_q15]: the velocity's term, and the acceleration's (k_accel,
@@ -224,14 +114,14 @@ FX_INLINE int32_t ff_term(const struct control *c, const int32_t *v, int32_t k)
  * servo steps their position and velocity towards the slow steps' next ones, not their
  * acceleration), so its term is computed once a period, when the acceleration changes: one
  * product a tick where it took two, accelerating. */
-FX_INLINE int32_t feed_forward(const struct control *c, struct control_ff_memo *m, int32_t k_accel,
-			       const struct orders_axis *sp)
+static inline int32_t feed_forward(const struct control *c, struct control_ff_memo *m,
+				   int32_t k_accel, const struct orders_axis *sp)
 {
 	if (sp->acc_um_s2 != m->acc_um_s2) {
 		m->acc_um_s2 = sp->acc_um_s2;
-		m->term_q15 = ff_term(c, &sp->acc_um_s2, k_accel);
+		m->term_q15 = ff_term(c, sp->acc_um_s2, k_accel);
 	}
-	return ff_term(c, &sp->vel_um_s, c->k_speed_q20) + m->term_q15;
+	return ff_term(c, sp->vel_um_s, c->k_speed_q20) + m->term_q15;
 }
 
 void control_update(struct control *c, const struct orders_axis *sp_dist,
@@ -243,8 +133,7 @@ void control_update(struct control *c, const struct orders_axis *sp_dist,
 	c->dist_err_um = sp_dist->pos_um - dist_um;
 	c->angle_err_um = sp_angle->pos_um - angle_um;
 	/* Steering first: when the sum would saturate a motor, the distance command gives way,
-	 * so the robot keeps its heading (a saturated turn would otherwise curve the path). One
-	 * axis after the other, so that little is kept across the other's registers. */
+	 * so the robot keeps its heading (a saturated turn would otherwise curve the path). */
 	u = pid_update(&c->angle, c->angle_err_um);
 	u += feed_forward(c, &c->ff_acc[1], c->k_angle_accel_q20, sp_angle);
 	lim = c->cfg.duty_max_q15;

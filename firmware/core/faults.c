@@ -65,12 +65,6 @@ static int32_t motor_step_q16(struct faults *f, uint8_t side, uint16_t count)
 	return neg ? -t : t;
 }
 
-/* v / 2^n rounded (ties away from zero), n = slip_shift (0..12): a shift of the magnitude. */
-static int32_t shr_round(int32_t v, uint8_t n)
-{
-	return fx_shr_round_var(v, n);
-}
-
 static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 {
 	int32_t m[2], fr[2], diff_d, diff_a, free_a, neg_a;
@@ -96,10 +90,10 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 	diff_d = (m[0] + m[1]) - (fr[0] + fr[1]);
 	diff_a = (m[1] - m[0]) - free_a;
 	f->slip_dist_q16 =
-		fx_add_sat32(f->slip_dist_q16 - shr_round(f->slip_dist_q16, f->cfg.slip_shift),
+		fx_add_sat32(f->slip_dist_q16 - fx_shr_round(f->slip_dist_q16, f->cfg.slip_shift),
 			     fx_shr_round(diff_d, 1));
 	f->slip_angle_q16 =
-		fx_add_sat32(f->slip_angle_q16 - shr_round(f->slip_angle_q16, f->cfg.slip_shift),
+		fx_add_sat32(f->slip_angle_q16 - fx_shr_round(f->slip_angle_q16, f->cfg.slip_shift),
 			     fx_shr_round(diff_a, 1));
 	if (!in->moving) {
 		/* No order to abandon: a robot pushed while it holds its position, or rocking

@@ -68,132 +68,14 @@ int64_t fx_div_round64(int64_t num, int64_t den)
 	return (int64_t)q;
 }
 
-/* floor(sqrt(v)) for a 32-bit v, and *rem = v less its square: digit-by-digit, shifts and adds
- * only, one step per bit of the root (no multiply, which is slow on the AVR); what the steps
- * leave of v is that remainder. Each step's choice is applied through a mask
- * (all ones when the bit belongs to the root) rather than a branch: the choices are as good as
- * random, and a mispredicted branch costs a PC more than the two extra operations.
- * On the AVR the same steps in assembly, 280 cycles where avr-gcc's 32-bit shifts and masks took
- * 870: the bit tried moves through the bytes of the word, four steps per byte; res has no bit
- * below bit + 1 (it is (res >> 1) + bit after a step, and bit moves by two), so res + bit is
- * res | bit, and the bytes below bit's are zero in res + bit: the comparison, the subtraction
- * and res's shift only touch the bytes from bit's up. */
-static inline uint32_t isqrt32_rem(uint32_t *rem)
-{
-	uint32_t v = *rem;
-#if FX_AVR_ASM
-	uint32_t res, t;
-	uint8_t bit;
-
-	__asm__("clr  %A0\n\t"
-		"clr  %B0\n\t"
-		"movw %C0, %A0\n\t"
-		/* bit in byte 3 */
-		"ldi  %3, 0x40\n"
-		"1:\n\t"
-		"mov  %D2, %D0\n\t"
-		"or   %D2, %3\n\t"
-		"lsr  %D0\n\t"
-		"cp   %D1, %D2\n\t"
-		"brlo 2f\n\t"
-		"sub  %D1, %D2\n\t"
-		"or   %D0, %3\n"
-		"2:\n\t"
-		"lsr  %3\n\t"
-		"lsr  %3\n\t"
-		"brne 1b\n\t"
-		/* bit in byte 2 */
-		"ldi  %3, 0x40\n"
-		"1:\n\t"
-		"movw %C2, %C0\n\t"
-		"or   %C2, %3\n\t"
-		"lsr  %D0\n\t"
-		"ror  %C0\n\t"
-		"cp   %C1, %C2\n\t"
-		"cpc  %D1, %D2\n\t"
-		"brlo 2f\n\t"
-		"sub  %C1, %C2\n\t"
-		"sbc  %D1, %D2\n\t"
-		"or   %C0, %3\n"
-		"2:\n\t"
-		"lsr  %3\n\t"
-		"lsr  %3\n\t"
-		"brne 1b\n\t"
-		/* bit in byte 1 */
-		"ldi  %3, 0x40\n"
-		"1:\n\t"
-		"mov  %B2, %B0\n\t"
-		"movw %C2, %C0\n\t"
-		"or   %B2, %3\n\t"
-		"lsr  %D0\n\t"
-		"ror  %C0\n\t"
-		"ror  %B0\n\t"
-		"cp   %B1, %B2\n\t"
-		"cpc  %C1, %C2\n\t"
-		"cpc  %D1, %D2\n\t"
-		"brlo 2f\n\t"
-		"sub  %B1, %B2\n\t"
-		"sbc  %C1, %C2\n\t"
-		"sbc  %D1, %D2\n\t"
-		"or   %B0, %3\n"
-		"2:\n\t"
-		"lsr  %3\n\t"
-		"lsr  %3\n\t"
-		"brne 1b\n\t"
-		/* bit in byte 0 */
-		"ldi  %3, 0x40\n"
-		"1:\n\t"
-		"movw %A2, %A0\n\t"
-		"movw %C2, %C0\n\t"
-		"or   %A2, %3\n\t"
-		"lsr  %D0\n\t"
-		"ror  %C0\n\t"
-		"ror  %B0\n\t"
-		"ror  %A0\n\t"
-		"cp   %A1, %A2\n\t"
-		"cpc  %B1, %B2\n\t"
-		"cpc  %C1, %C2\n\t"
-		"cpc  %D1, %D2\n\t"
-		"brlo 2f\n\t"
-		"sub  %A1, %A2\n\t"
-		"sbc  %B1, %B2\n\t"
-		"sbc  %C1, %C2\n\t"
-		"sbc  %D1, %D2\n\t"
-		"or   %A0, %3\n"
-		"2:\n\t"
-		"lsr  %3\n\t"
-		"lsr  %3\n\t"
-		"brne 1b"
-		: "=&r"(res), "+r"(v), "=&r"(t), "=&d"(bit));
-	*rem = v;
-	return res;
-#else
-	uint32_t res = 0;
-	uint32_t bit = v < ((uint32_t)1 << 16) ? (uint32_t)1 << 14 : (uint32_t)1 << 30;
-
-	while (bit > v)
-		bit >>= 2;
-	while (bit != 0) {
-		uint32_t t = res + bit;
-		uint32_t m = (uint32_t)0 - (uint32_t)(v >= t);
-
-		v -= t & m;
-		res = (res >> 1) + (bit & m);
-		bit >>= 2;
-	}
-	*rem = v;
-	return res;
-#endif
-}
-
 uint32_t fx_isqrt32(uint32_t v)
 {
-	return isqrt32_rem(&v);
+	return fx_isqrt32_rem(&v);
 }
 
 uint32_t fx_isqrt32_up(uint32_t v)
 {
-	uint32_t r = isqrt32_rem(&v);
+	uint32_t r = fx_isqrt32_rem(&v);
 
 	return v != 0 ? r + 1u : r;
 }
@@ -253,103 +135,6 @@ static inline void to_quadrant(uint8_t q, int32_t s, int32_t c, int32_t *sin_out
 	}
 }
 
-/* round(d m / 2^31) for d < 2^32, m <= 2^22, within 0.52: the product of the low halves is
- * taken from their upper bytes (8 x 8 bits, one instruction on an AVR).
- * On the AVR the same steps in assembly (m's top byte is zero, the upper half of m one byte):
- * avr-gcc kept the three 16 x 16 products in the stack and saved 16 registers, 200 cycles for
- * 60. The additions of 0x2000 and the shift by 14 bits work on the upper three bytes of mid,
- * which needs them in r16..r31 (SUBI, SBCI: the "d" constraint). */
-FX_INLINE uint32_t mul_q31(uint32_t d, uint32_t m)
-{
-#if FX_AVR_MUL
-	uint32_t r, mid;
-
-	__asm__(/* mid = (d >> 16) (m & 0xffff) / 2 */
-		"mul  %C2, %A3\n\t"
-		"movw %A1, r0\n\t"
-		"mul  %D2, %B3\n\t"
-		"movw %C1, r0\n\t"
-		"mul  %C2, %B3\n\t"
-		"add  %B1, r0\n\t"
-		"adc  %C1, r1\n\t"
-		"clr  __zero_reg__\n\t"
-		"adc  %D1, __zero_reg__\n\t"
-		"mul  %D2, %A3\n\t"
-		"add  %B1, r0\n\t"
-		"adc  %C1, r1\n\t"
-		"clr  __zero_reg__\n\t"
-		"adc  %D1, __zero_reg__\n\t"
-		"lsr  %D1\n\t"
-		"ror  %C1\n\t"
-		"ror  %B1\n\t"
-		"ror  %A1\n\t"
-		/* + floor((d & 0xffff) (m >> 16) / 2), in r's lower three bytes */
-		"mul  %A2, %C3\n\t"
-		"movw %A0, r0\n\t"
-		"mul  %B2, %C3\n\t"
-		"clr  %C0\n\t"
-		"add  %B0, r0\n\t"
-		"adc  %C0, r1\n\t"
-		"lsr  %C0\n\t"
-		"ror  %B0\n\t"
-		"ror  %A0\n\t"
-		"add  %A1, %A0\n\t"
-		"adc  %B1, %B0\n\t"
-		"adc  %C1, %C0\n\t"
-		"clr  __zero_reg__\n\t"
-		"adc  %D1, __zero_reg__\n\t"
-		/* + floor(d's byte 1 m's byte 1 / 2) */
-		"mul  %B2, %B3\n\t"
-		"lsr  r1\n\t"
-		"ror  r0\n\t"
-		"add  %A1, r0\n\t"
-		"adc  %B1, r1\n\t"
-		"clr  __zero_reg__\n\t"
-		"adc  %C1, __zero_reg__\n\t"
-		"adc  %D1, __zero_reg__\n\t"
-		/* (mid + 0x2000) >> 14 into r's byte 3 : mid's bytes 3, 2 */
-		"subi %B1, 0xe0\n\t"
-		"sbci %C1, 0xff\n\t"
-		"sbci %D1, 0xff\n\t"
-		"clr  %D0\n\t"
-		"lsl  %B1\n\t"
-		"rol  %C1\n\t"
-		"rol  %D1\n\t"
-		"rol  %D0\n\t"
-		"lsl  %B1\n\t"
-		"rol  %C1\n\t"
-		"rol  %D1\n\t"
-		"rol  %D0\n\t"
-		/* + 2 (d >> 16) (m >> 16), below 2^23 */
-		"mul  %C2, %C3\n\t"
-		"movw %A0, r0\n\t"
-		"mul  %D2, %C3\n\t"
-		"clr  %C0\n\t"
-		"add  %B0, r0\n\t"
-		"adc  %C0, r1\n\t"
-		"clr  __zero_reg__\n\t"
-		"lsl  %A0\n\t"
-		"rol  %B0\n\t"
-		"rol  %C0\n\t"
-		"add  %A0, %C1\n\t"
-		"adc  %B0, %D1\n\t"
-		"adc  %C0, %D0\n\t"
-		"clr  %D0\n\t"
-		"rol  %D0"
-		: "=&r"(r), "=&d"(mid)
-		: "r"(d), "r"(m)
-		: "r0");
-	return r;
-#else
-	uint16_t dl = fx_lo16(d), ml = fx_lo16(m);
-	uint16_t ll = (uint16_t)((uint16_t)(uint8_t)(dl >> 8) * (uint8_t)(ml >> 8));
-	uint32_t mid =
-		(fx_mul_u16(fx_hi16(d), ml) >> 1) + (fx_mul_u16(dl, fx_hi16(m)) >> 1) + (ll >> 1);
-
-	return (fx_mul_u16(fx_hi16(d), fx_hi16(m)) << 1) + fx_shr_u32(mid + 0x2000u, 14);
-#endif
-}
-
 /* sin(a + d) = sin a + cos a d - sin a d^2/2 - cos a d^3/6 (+ sin a d^4/24, below 0.06 unit),
  * cos(a + d) = cos a - sin a d - cos a d^2/2 + sin a d^3/6, a the nearest table entry,
  * |d| <= pi/512. The first-order terms come from the derivative table at full precision; each
@@ -365,8 +150,8 @@ void fx_sincos(uint32_t angle_turn32, int32_t *sin_q30, int32_t *cos_q30)
 	uint8_t neg = u < base;
 	uint32_t m = neg ? base - u : u - base; /* |r| <= 2^22 */
 	/* |cos a d|, |sin a d| [2^-30], below 2^22.7. */
-	uint32_t tc = mul_q31(dsin_table_q29[i], m);
-	uint32_t ts = mul_q31(dsin_table_q29[128 - i], m);
+	uint32_t tc = fx_mul_q31_approx(dsin_table_q29[i], m);
+	uint32_t ts = fx_mul_q31_approx(dsin_table_q29[128 - i], m);
 	/* |d|/2 = pi m / 2^32 rad, as hq [2^-24 rad] <= 51472 (m / 2^6 is clamped to 16 bits at
 	 * m = 2^22, an error of 2^-16 of it). */
 	uint32_t m6 = ((m + 32) << 2) >> 8;
@@ -459,44 +244,6 @@ static const uint16_t atan_curve[33] = {
 	52904, 52150, 51267, 50277, 49198, 48047, 46842, 45594, 44318, 43024, 41722,
 };
 
-#if FX_AVR_ASM
-/* One step of frac20_avr(): the remainder doubled (its carry out says it passed 2^24, so den),
- * compared with den and reduced, the quotient bit shifted into the byte qb. 10 to 13 cycles. */
-#define FRAC_STEP(qb)                                                                              \
-	"lsl  " qb "\n\t"                                                                          \
-	"lsl  %A1\n\t"                                                                             \
-	"rol  %B1\n\t"                                                                             \
-	"rol  %C1\n\t"                                                                             \
-	"brcs 1f\n\t"                                                                              \
-	"cp   %A1, %A2\n\t"                                                                        \
-	"cpc  %B1, %B2\n\t"                                                                        \
-	"cpc  %C1, %C2\n\t"                                                                        \
-	"brcs 2f\n"                                                                                \
-	"1:\n\t"                                                                                   \
-	"sub  %A1, %A2\n\t"                                                                        \
-	"sbc  %B1, %B2\n\t"                                                                        \
-	"sbc  %C1, %C2\n\t"                                                                        \
-	"inc  " qb "\n"                                                                            \
-	"2:\n\t"
-
-/* q 2^20 + floor(rem 2^20 / den) for rem < den < 2^24, q 0 or 1: fx_avr_div_steps()'s 20 steps
- * with a remainder of three bytes, and the quotient's bits shifted into one byte at a time
- * (4 into byte 2, above q, then 8 into byte 1 and 8 into byte 0), where the steps shift eight
- * registers: 11 cycles a step for 20. */
-static inline uint32_t frac20_avr(uint32_t q, uint32_t rem, uint32_t den)
-{
-	q <<= 16;
-	__asm__(".rept 4\n\t" FRAC_STEP("%C0") ".endr\n\t"
-					       ".rept 8\n\t" FRAC_STEP(
-						       "%B0") ".endr\n\t"
-							      ".rept 8\n\t" FRAC_STEP("%A0") ".endr"
-		: "+r"(q), "+r"(rem)
-		: "r"(den));
-	return q;
-}
-#undef FRAC_STEP
-#endif
-
 /* The angle of (x, y) with x >= y >= 0, x > 0, in 0..1/8 turn [turn * 2^32]: t = y / x to 20
  * bits by long division (20 steps of compare and subtract), then atan from the nearest of 33
  * entries with a second-order correction, d = t - t_k <= 2^-6:
@@ -517,24 +264,8 @@ static uint32_t atan_octant(uint32_t x, uint32_t y)
 		rem -= x;
 		q = 1;
 	}
-#if FX_AVR_ASM
-	if (x < ((uint32_t)1 << 24)) /* a field's lengths [um]: the steps on three bytes */
-		q = frac20_avr(q, rem, x);
-	else
-		q = fx_avr_div_steps(&rem, q, x, 0, 20); /* q's upper bits are zero */
-#else
-	for (uint8_t i = 0; i < 20; i++) {
-		rem <<= 1; /* rem < x <= 2^31: no overflow */
-		q <<= 1;
-		if (rem >= x) {
-			rem -= x;
-			q |= 1u;
-		}
-	}
-#endif
+	q = fx_udiv_frac20(q, rem, x);
 	/* q = t 2^20 <= 2^20; the nearest entry, 2^15 apart. */
-	/* The shifts by 13 and 15 bits through fx_shr_u32: avr-gcc shifts a 32-bit word one bit
-	 * per turn of a loop otherwise, 250 cycles for the three. */
 	k = (uint8_t)fx_shr_u32(q + 0x4000u, 15);
 	d = (int16_t)((int32_t)q - ((int32_t)k << 15)); /* |d| <= 2^14 */
 	/* round(d slope / 16), ties away from zero (fx_mul_q(d, slope, 4)): one 16 x 16 product */

@@ -9,6 +9,11 @@
  *   sin, cos    int32_t [2^-30]
  *   duties      int16_t [2^-15 of full scale], suffix _q15
  * All functions are pure, bounded in time and safe to call from an interrupt.
+ *
+ * The kernels (the products, shifts and divisions that the tick's arithmetic is made of) are
+ * declared here once, with what each computes; each architecture defines them in its arch_fx.h,
+ * picked by the build's include path: firmware/arch/generic (plain C99, the reference) or
+ * firmware/arch/avr. Everything else in this header is built on them, in plain C.
  */
 #ifndef ASSERV_FIXMATH_H
 #define ASSERV_FIXMATH_H
@@ -17,9 +22,6 @@
 
 #define FX_ONE_Q30 ((int32_t)1 << 30)
 #define FX_HALF_TURN32 ((uint32_t)1 << 31)
-
-/* The small helpers below are defined in this header so that every module can inline them:
- * with a constant shift they reduce to a few instructions, and a call costs more than that. */
 
 /* Saturate to the type's range. */
 static inline int32_t fx_sat32(int64_t v)
@@ -64,150 +66,6 @@ static inline int16_t fx_sat16(int32_t v)
 	return (int16_t)v;
 }
 
-/* Products for the tick's arithmetic. An 8-bit AVR multiplies 8 x 8 bits in hardware: avr-gcc's
- * 16 x 16 -> 32 routine takes about 25 cycles, its 32 x 32 -> 32 one 70, and anything on
- * int64_t goes through library routines of 100 to 650 cycles (docs/avr.md). So the code that
- * runs every tick multiplies 16-bit halves with these, and keeps wide values as 32-bit words.
- *
- * The primitives below give the same exact results on any machine. Where the words are narrower
- * than 32 bits (FX_NARROW: the AVR) they are built from 16-bit pieces and byte moves, the *_n
- * functions; on a 32- or 64-bit machine from its own 64-bit arithmetic, a few instructions where
- * the pieces would take tens. test_fixmath checks that both agree. With GCC on an AVR the hot
- * ones are in assembly instead (FX_AVR_MUL, FX_AVR_ASM below); test_avr_fixmath runs them in
- * simavr and checks that they give the host's bits.
- *
- * FX_HIDE is an empty GNU asm statement: it keeps GCC from seeing that a 16-bit operand is the
- * narrowed half of a 32-bit value, which it would otherwise fold into the multiplication and
- * turn back into the 32 x 32 routine. It generates no instruction on any target; compilers
- * without GNU asm, and wide machines (where it is not needed), skip it. */
-#if UINTPTR_MAX <= 0xffffu
-#define FX_NARROW 1
-#else
-#define FX_NARROW 0
-#endif
-
-#if defined(__GNUC__) && FX_NARROW
-#define FX_HIDE(v) __asm__("" : "+r"(v))
-#else
-#define FX_HIDE(v) ((void)0)
-#endif
-
-/* For the small helpers whose shift counts must be constants where they are used: GCC may
- * otherwise keep one out-of-line copy, and shift by a variable count in a loop. */
-#ifdef __GNUC__
-#define FX_INLINE __attribute__((always_inline)) static inline
-#else
-#define FX_INLINE static inline
-#endif
-
-/* For the work a tick does only now and then: kept out of line, so that the tick's common path
- * does not pay for its registers (an AVR saves up to 18 of them on entry). */
-#ifdef __GNUC__
-#define FX_NOINLINE __attribute__((noinline))
-#else
-#define FX_NOINLINE
-#endif
-
-/* On an AVR with a hardware multiplier (FX_AVR_MUL) the 16 x 16-bit products are written in
- * assembly. avr-gcc 5.4 calls a library routine for each (__umulhisi3 and its signed variants):
- * operands moved into its fixed registers, the call and the return, about 30 cycles, and the
- * caller keeps fewer values in registers across it. In line, the four MUL (8 x 8 bits into
- * r1:r0) and their sums take 18 cycles, in whatever registers the operands already are. r1 is
- * avr-gcc's zero register: it is cleared again before each carry that needs a zero and at the
- * end. A signed product is the unsigned one of the same bits less 2^16 b for a negative a (and
- * 2^16 a for a negative b), modulo 2^32: two subtractions, where the MULS/MULSU forms would
- * tie the operands to r16..r23. Constant operands keep the C, which GCC folds. */
-#if defined(__GNUC__) && defined(__AVR__)
-#define FX_AVR_ASM 1
-#else
-#define FX_AVR_ASM 0
-#endif
-#if FX_AVR_ASM && defined(__AVR_HAVE_MUL__)
-#define FX_AVR_MUL 1
-#else
-#define FX_AVR_MUL 0
-#endif
-
-#if FX_AVR_MUL
-/* p = a b (unsigned), as a 32-bit word of the operand's type; a and b 16-bit registers. */
-#define FX_AVR_MUL_U16(p, a, b)                                                                    \
-	__asm__("mul  %A1, %A2\n\t"                                                                \
-		"movw %A0, r0\n\t"                                                                 \
-		"mul  %B1, %B2\n\t"                                                                \
-		"movw %C0, r0\n\t"                                                                 \
-		"mul  %A1, %B2\n\t"                                                                \
-		"add  %B0, r0\n\t"                                                                 \
-		"adc  %C0, r1\n\t"                                                                 \
-		"clr  __zero_reg__\n\t"                                                            \
-		"adc  %D0, __zero_reg__\n\t"                                                       \
-		"mul  %B1, %A2\n\t"                                                                \
-		"add  %B0, r0\n\t"                                                                 \
-		"adc  %C0, r1\n\t"                                                                 \
-		"clr  __zero_reg__\n\t"                                                            \
-		"adc  %D0, __zero_reg__"                                                           \
-		: "=&r"(p)                                                                         \
-		: "r"(a), "r"(b)                                                                   \
-		: "r0")
-
-/* p -= 2^16 b if a is negative: a and b 16-bit registers. */
-#define FX_AVR_FIX_SIGN(p, a, b)                                                                   \
-	__asm__("sbrs %B1, 7\n\t"                                                                  \
-		"rjmp 1f\n\t"                                                                      \
-		"sub  %C0, %A2\n\t"                                                                \
-		"sbc  %D0, %B2\n"                                                                  \
-		"1:"                                                                               \
-		: "+r"(p)                                                                          \
-		: "r"(a), "r"(b))
-#endif
-
-FX_INLINE uint32_t fx_mul_u16(uint16_t a, uint16_t b)
-{
-#if FX_AVR_MUL
-	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
-		uint32_t p;
-
-		FX_AVR_MUL_U16(p, a, b);
-		return p;
-	}
-#endif
-	FX_HIDE(a);
-	FX_HIDE(b);
-	return (uint32_t)a * b;
-}
-
-FX_INLINE int32_t fx_mul_s16(int16_t a, int16_t b)
-{
-#if FX_AVR_MUL
-	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
-		int32_t p;
-
-		FX_AVR_MUL_U16(p, a, b);
-		FX_AVR_FIX_SIGN(p, a, b);
-		FX_AVR_FIX_SIGN(p, b, a);
-		return p;
-	}
-#endif
-	FX_HIDE(a);
-	FX_HIDE(b);
-	return (int32_t)a * b;
-}
-
-FX_INLINE int32_t fx_mul_s16_u16(int16_t a, uint16_t b)
-{
-#if FX_AVR_MUL
-	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
-		int32_t p;
-
-		FX_AVR_MUL_U16(p, a, b);
-		FX_AVR_FIX_SIGN(p, a, b);
-		return p;
-	}
-#endif
-	FX_HIDE(a);
-	FX_HIDE(b);
-	return (int32_t)a * (int32_t)b;
-}
-
 /* The upper 16 bits of a uint32_t, and the lower. */
 static inline uint16_t fx_hi16(uint32_t v)
 {
@@ -219,227 +77,68 @@ static inline uint16_t fx_lo16(uint32_t v)
 	return (uint16_t)v;
 }
 
-/* x >> n and x << n for a constant n in 0..31, written as 16-bit shifts and byte moves: avr-gcc
- * shifts a uint32_t by any other count than 1, 2, 8, 16, 24 or 31 in a loop, one bit per turn,
- * up to 180 cycles; its 16-bit shifts are straight code. The halves are hidden from the
- * compiler so that it does not fold them back into one 32-bit shift. */
-FX_INLINE uint32_t fx_shr_u32_n(uint32_t x, uint8_t n)
+/* A uint32_t that holds an int32_t modulo 2^32, back to int32_t without the
+ * implementation-defined conversion of an out-of-range value. */
+static inline int32_t fx_int32_of(uint32_t v)
 {
-	uint16_t hi = fx_hi16(x), lo = fx_lo16(x);
-
-	if (n == 0)
-		return x;
-	if (n >= 16)
-		return (uint16_t)(hi >> (n - 16));
-	FX_HIDE(hi);
-	FX_HIDE(lo);
-	return ((uint32_t)(uint16_t)(hi >> n) << 16) |
-	       (uint16_t)((uint16_t)(hi << (16 - n)) | (uint16_t)(lo >> n));
+	if (v < 0x80000000u)
+		return (int32_t)v;
+	return (int32_t)(v - 0x80000000u) - INT32_MAX - 1;
 }
 
-FX_INLINE uint32_t fx_shl_u32_n(uint32_t x, uint8_t n)
-{
-	uint16_t hi = fx_hi16(x), lo = fx_lo16(x);
+/* The kernels. Exact (bit for bit the reference's) on their domain; outside it, undefined. */
 
-	if (n == 0)
-		return x;
-	if (n >= 16)
-		return (uint32_t)(uint16_t)(lo << (n - 16)) << 16;
-	FX_HIDE(hi);
-	FX_HIDE(lo);
-	return ((uint32_t)(uint16_t)((uint16_t)(hi << n) | (uint16_t)(lo >> (16 - n))) << 16) |
-	       (uint16_t)(lo << n);
-}
+/* a b, exactly. */
+static inline uint32_t fx_mul_u16(uint16_t a, uint16_t b);
+static inline int32_t fx_mul_s16(int16_t a, int16_t b);
+static inline int32_t fx_mul_s16_u16(int16_t a, uint16_t b);
 
-/* Constant counts that avr-gcc shifts a uint32_t by in a few instructions (1, 2, 31): the
- * pieces would only hide that from it (the shift by 1 in fx_mul_u32_shr(..., 31) took 40). */
-#ifdef __GNUC__
-#define FX_PLAIN_SHIFT(n) (__builtin_constant_p(n) && ((n) <= 2 || (n) == 31))
-#else
-#define FX_PLAIN_SHIFT(n) 0
-#endif
+/* x >> n and x << n (bits shifted out lost), n in 0..31. */
+static inline uint32_t fx_shr_u32(uint32_t x, uint8_t n);
+static inline uint32_t fx_shl_u32(uint32_t x, uint8_t n);
 
-FX_INLINE uint32_t fx_shr_u32(uint32_t x, uint8_t n)
-{
-	return FX_NARROW && !FX_PLAIN_SHIFT(n) ? fx_shr_u32_n(x, n) : x >> n;
-}
+/* The number of bits of v (0 for 0). */
+static inline uint8_t fx_bit_length32(uint32_t v);
 
-FX_INLINE uint32_t fx_shl_u32(uint32_t x, uint8_t n)
-{
-	return FX_NARROW && !FX_PLAIN_SHIFT(n) ? fx_shl_u32_n(x, n) : x << n;
-}
+/* a b as two 32-bit words: returns the upper one, *lo the lower. */
+static inline uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo);
 
-/* x >> n and x << n for a count n in 0..31 known only at run time: avr-gcc shifts a uint32_t by
- * a variable count one bit per turn of a loop, 8 cycles a bit; here 16 and 8 bits at once are
- * byte moves, and only the last 0..7 bits take turns. */
-static inline uint32_t fx_shr_u32_var(uint32_t x, uint8_t n)
-{
-	if (n >= 16) {
-		x = fx_hi16(x);
-		n = (uint8_t)(n - 16u);
-	}
-	if (n >= 8) {
-		x >>= 8;
-		n = (uint8_t)(n - 8u);
-	}
-	while (n-- != 0)
-		x >>= 1;
-	return x;
-}
+/* round(a b / 2^n) with ties away from zero, for n in 1..47 and |b| <= 65535; the caller knows
+ * the result fits in 32 bits. */
+static inline int32_t fx_mul_q(int32_t a, int32_t b, uint8_t n);
 
-static inline uint32_t fx_shl_u32_var(uint32_t x, uint8_t n)
-{
-	if (n >= 16) {
-		x = (uint32_t)fx_lo16(x) << 16;
-		n = (uint8_t)(n - 16u);
-	}
-	if (n >= 8) {
-		x <<= 8;
-		n = (uint8_t)(n - 8u);
-	}
-	while (n-- != 0)
-		x <<= 1;
-	return x;
-}
+/* fx_mul_q(v, k, 20): a feed-forward term (control.c). */
+static inline int32_t fx_mul_q20_u16(int32_t v, uint16_t k);
 
-/* The number of bits of v (0 for 0): the top non-zero byte found by comparisons, then at most 8
- * turns of an 8-bit loop (a 32-bit one costs an AVR 12 cycles a turn). */
-static inline uint8_t fx_bit_length32(uint32_t v)
-{
-	uint8_t n, top;
+/* floor(num / den), den >= 1, for a quotient known to be below 2^qbits (qbits 1..32). */
+static inline uint32_t fx_udiv_small(uint32_t num, uint32_t den, uint8_t qbits);
 
-	if (fx_hi16(v) != 0) {
-		n = v >= ((uint32_t)1 << 24) ? 24 : 16;
-		top = (uint8_t)(n == 24 ? v >> 24 : v >> 16);
-	} else {
-		n = fx_lo16(v) >= 0x100u ? 8 : 0;
-		top = (uint8_t)(n == 8 ? fx_lo16(v) >> 8 : fx_lo16(v));
-	}
-	while (top != 0) {
-		top >>= 1;
-		n++;
-	}
-	return n;
-}
+/* floor(u / 1000) for u < 2^25 (micrometres to millimetres). */
+static inline uint16_t fx_udiv1000(uint32_t u);
 
-/* a * b as two 32-bit words: returns the upper one, *lo the lower. Four 16 x 16 products. */
-static inline uint32_t fx_mul_u32_wide_n(uint32_t a, uint32_t b, uint32_t *lo)
-{
-	uint32_t p0 = fx_mul_u16(fx_lo16(a), fx_lo16(b));
-	uint32_t p1 = fx_mul_u16(fx_lo16(a), fx_hi16(b));
-	uint32_t p2 = fx_mul_u16(fx_hi16(a), fx_lo16(b));
-	uint32_t t = (p0 >> 16) + fx_lo16(p1) + fx_lo16(p2); /* below 3 * 2^16 */
+/* floor(v 2^16 / den), den 1..2^31 - 1, for a quotient below 2^32. */
+static inline uint32_t fx_udiv_shl16(uint32_t v, uint32_t den);
 
-	*lo = fx_lo16(p0) | (t << 16);
-	return fx_mul_u16(fx_hi16(a), fx_hi16(b)) + (p1 >> 16) + (p2 >> 16) + (t >> 16);
-}
+/* q 2^20 + floor(rem 2^20 / den), for q 0 or 1 and rem < den <= 2^31. */
+static inline uint32_t fx_udiv_frac20(uint32_t q, uint32_t rem, uint32_t den);
 
-/* On the AVR, in assembly: the 16 byte products summed column by column (all a_i b_j with
- * i + j = k into result bytes k and k + 1, the carry into byte k + 2), 83 cycles where the C
- * above takes over 200 with its spills. The sum of the columns up to k is below
- * 2^18 256^k, so a carry never goes past byte k + 2, which is still zero (cleared first) when
- * column k starts. The zero that the carries add comes from byte 7, untouched until the last
- * two columns: column 6 goes before column 5 (no carry out of byte 7 either way, the product
- * being below 2^64), and column 5's carries clear r1 (EOR leaves the carry flag alone). */
-FX_INLINE uint32_t fx_mul_u32_wide(uint32_t a, uint32_t b, uint32_t *lo)
-{
-	uint64_t p;
+/* floor(sqrt(v)) for v = *rem; *rem becomes v less the root's square. */
+static inline uint32_t fx_isqrt32_rem(uint32_t *rem);
 
-#if FX_AVR_MUL
-	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
-		uint32_t l, h;
+/* round(d m / 2^31) within 0.52, for d < 2^32 and m <= 2^22: 2 (d_hi m_hi) +
+ * round((d_hi m_lo / 2 + d_lo m_hi / 2 + (d_lo >> 8)(m_lo >> 8) / 2) / 2^14), each quotient
+ * floored, d_hi d_lo and m_hi m_lo the 16-bit halves (fx_sincos's first-order terms). */
+static inline uint32_t fx_mul_q31_approx(uint32_t d, uint32_t m);
 
-		__asm__("clr  %C0\n\t"
-			"clr  %D0\n\t"
-			"movw %A1, %C0\n\t"
-			"movw %C1, %C0\n\t"
-			/* column 0 */
-			"mul  %A2, %A3\n\t"
-			"movw %A0, r0\n\t"
-			/* column 1 */
-			"mul  %A2, %B3\n\t"
-			"add  %B0, r0\n\t"
-			"adc  %C0, r1\n\t"
-			"adc  %D0, %D1\n\t"
-			"mul  %B2, %A3\n\t"
-			"add  %B0, r0\n\t"
-			"adc  %C0, r1\n\t"
-			"adc  %D0, %D1\n\t"
-			/* column 2 */
-			"mul  %A2, %C3\n\t"
-			"add  %C0, r0\n\t"
-			"adc  %D0, r1\n\t"
-			"adc  %A1, %D1\n\t"
-			"mul  %B2, %B3\n\t"
-			"add  %C0, r0\n\t"
-			"adc  %D0, r1\n\t"
-			"adc  %A1, %D1\n\t"
-			"mul  %C2, %A3\n\t"
-			"add  %C0, r0\n\t"
-			"adc  %D0, r1\n\t"
-			"adc  %A1, %D1\n\t"
-			/* column 3 */
-			"mul  %A2, %D3\n\t"
-			"add  %D0, r0\n\t"
-			"adc  %A1, r1\n\t"
-			"adc  %B1, %D1\n\t"
-			"mul  %B2, %C3\n\t"
-			"add  %D0, r0\n\t"
-			"adc  %A1, r1\n\t"
-			"adc  %B1, %D1\n\t"
-			"mul  %C2, %B3\n\t"
-			"add  %D0, r0\n\t"
-			"adc  %A1, r1\n\t"
-			"adc  %B1, %D1\n\t"
-			"mul  %D2, %A3\n\t"
-			"add  %D0, r0\n\t"
-			"adc  %A1, r1\n\t"
-			"adc  %B1, %D1\n\t"
-			/* column 4 */
-			"mul  %B2, %D3\n\t"
-			"add  %A1, r0\n\t"
-			"adc  %B1, r1\n\t"
-			"adc  %C1, %D1\n\t"
-			"mul  %C2, %C3\n\t"
-			"add  %A1, r0\n\t"
-			"adc  %B1, r1\n\t"
-			"adc  %C1, %D1\n\t"
-			"mul  %D2, %B3\n\t"
-			"add  %A1, r0\n\t"
-			"adc  %B1, r1\n\t"
-			"adc  %C1, %D1\n\t"
-			/* column 6 */
-			"mul  %D2, %D3\n\t"
-			"add  %C1, r0\n\t"
-			"adc  %D1, r1\n\t"
-			/* column 5 */
-			"mul  %C2, %D3\n\t"
-			"add  %B1, r0\n\t"
-			"adc  %C1, r1\n\t"
-			"clr  __zero_reg__\n\t"
-			"adc  %D1, __zero_reg__\n\t"
-			"mul  %D2, %C3\n\t"
-			"add  %B1, r0\n\t"
-			"adc  %C1, r1\n\t"
-			"clr  __zero_reg__\n\t"
-			"adc  %D1, __zero_reg__"
-			: "=&r"(l), "=&r"(h)
-			: "r"(a), "r"(b)
-			: "r0");
-		*lo = l;
-		return h;
-	}
-#endif
-	if (FX_NARROW)
-		return fx_mul_u32_wide_n(a, b, lo);
-	p = (uint64_t)a * b;
-	*lo = (uint32_t)p;
-	return (uint32_t)(p >> 32);
-}
+/* (*lo, *hi) += (d[0], d[1]) and -= it, modulo 2^64 (two 32-bit words, lower first). */
+static inline void fx_add_u64(uint32_t *lo, uint32_t *hi, const uint32_t d[2]);
+static inline void fx_sub_u64(uint32_t *lo, uint32_t *hi, const uint32_t d[2]);
+
+#include "arch_fx.h"
 
 /* round(a * b / 2^n), halves rounded up, for n in 1..63; the caller knows the result fits in
- * 32 bits. With a constant n the shift is a few moves. */
-FX_INLINE uint32_t fx_mul_u32_shr(uint32_t a, uint32_t b, uint8_t n)
+ * 32 bits. */
+static inline uint32_t fx_mul_u32_shr(uint32_t a, uint32_t b, uint8_t n)
 {
 	uint32_t lo, hi = fx_mul_u32_wide(a, b, &lo);
 	uint32_t bias_lo = n <= 32 ? (uint32_t)1 << (n - 1) : 0;
@@ -450,372 +149,6 @@ FX_INLINE uint32_t fx_mul_u32_shr(uint32_t a, uint32_t b, uint8_t n)
 	if (n >= 32)
 		return fx_shr_u32(hi, (uint8_t)(n - 32));
 	return fx_shr_u32(lo, n) | fx_shl_u32(hi, (uint8_t)(32 - n));
-}
-
-/* A uint32_t that holds an int32_t modulo 2^32, back to int32_t without the
- * implementation-defined conversion of an out-of-range value. */
-static inline int32_t fx_int32_of(uint32_t v)
-{
-	if (v < 0x80000000u)
-		return (int32_t)v;
-	return (int32_t)(v - 0x80000000u) - INT32_MAX - 1;
-}
-
-/* round(a b / 2^n) with ties away from zero, for n in 8..47 and |b| <= 65535: two 16 x 16
- * products (|a| < 2^31); the caller knows the result fits in 32 bits. */
-FX_INLINE int32_t fx_mul_q_n(int32_t a, int32_t b, uint8_t n)
-{
-	uint32_t ua = a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a;
-	uint16_t ub = (uint16_t)(b >= 0 ? b : -b);
-	uint32_t lo = fx_mul_u16(fx_lo16(ua), ub);
-	uint32_t hi = fx_mul_u16(fx_hi16(ua), ub) + fx_hi16(lo); /* floor(|a b| / 2^16) */
-	uint32_t r;
-
-	if (n < 16)
-		r = fx_shl_u32(hi, (uint8_t)(16 - n)) +
-		    fx_shr_u32(fx_lo16(lo) + ((uint32_t)1 << (n - 1)), n);
-	else if (n == 16)
-		r = hi + (fx_lo16(lo) >> 15);
-	else
-		r = fx_shr_u32(hi + ((uint32_t)1 << (n - 17)), (uint8_t)(n - 16));
-	return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
-}
-
-#if FX_AVR_MUL
-/* round(ua ub / 2^n), halves up, for a constant n in 1..47, the result fitting 32 bits, in AVR
- * assembly: the 48-bit product column by column (as fx_mul_u32_wide), then, for n <= 16,
- * shifted left by 16 - n (the result is its upper four bytes) or, for n > 16, its upper four
- * bytes moved down by whole bytes and shifted right by the rest; the rounding adds the last bit
- * below the result (bit n - 1 of the product: shifted out to the carry, or by LSL when no bit
- * is). 60 cycles for n = 15 where the C's shifts of the 48-bit value took 120. n reaches the
- * assembler as a constant (.if, .rept). */
-FX_INLINE uint32_t fx_avr_mul_u32_u16_round(uint32_t ua, uint16_t ub, uint8_t n)
-{
-	uint32_t r;
-	uint16_t lo;
-
-	__asm__("clr  %A0\n\t"
-		"clr  %B0\n\t"
-		"movw %C0, %A0\n\t"
-		/* column 0 into lo */
-		"mul  %A2, %A3\n\t"
-		"movw %A1, r0\n\t"
-		/* column 1: carry into byte 3, the zero from byte 5 */
-		"mul  %B2, %A3\n\t"
-		"add  %B1, r0\n\t"
-		"adc  %A0, r1\n\t"
-		"adc  %B0, %D0\n\t"
-		"mul  %A2, %B3\n\t"
-		"add  %B1, r0\n\t"
-		"adc  %A0, r1\n\t"
-		"adc  %B0, %D0\n\t"
-		/* column 2 */
-		"mul  %C2, %A3\n\t"
-		"add  %A0, r0\n\t"
-		"adc  %B0, r1\n\t"
-		"adc  %C0, %D0\n\t"
-		"mul  %B2, %B3\n\t"
-		"add  %A0, r0\n\t"
-		"adc  %B0, r1\n\t"
-		"adc  %C0, %D0\n\t"
-		/* column 3: carry into byte 5 itself */
-		"mul  %D2, %A3\n\t"
-		"add  %B0, r0\n\t"
-		"adc  %C0, r1\n\t"
-		"clr  __zero_reg__\n\t"
-		"adc  %D0, __zero_reg__\n\t"
-		"mul  %C2, %B3\n\t"
-		"add  %B0, r0\n\t"
-		"adc  %C0, r1\n\t"
-		"clr  __zero_reg__\n\t"
-		"adc  %D0, __zero_reg__\n\t"
-		/* column 4 */
-		"mul  %D2, %B3\n\t"
-		"add  %C0, r0\n\t"
-		"adc  %D0, r1\n\t"
-		"clr  __zero_reg__\n\t"
-		".if %4 <= 16\n\t"
-		".rept 16 - %4\n\t"
-		"lsl  %A1\n\t"
-		"rol  %B1\n\t"
-		"rol  %A0\n\t"
-		"rol  %B0\n\t"
-		"rol  %C0\n\t"
-		"rol  %D0\n\t"
-		".endr\n\t"
-		"lsl  %B1\n\t"
-		".elseif %4 < 24\n\t"
-		".rept %4 - 16\n\t"
-		"lsr  %D0\n\t"
-		"ror  %C0\n\t"
-		"ror  %B0\n\t"
-		"ror  %A0\n\t"
-		".endr\n\t"
-		".elseif %4 < 32\n\t"
-		".if %4 == 24\n\t"
-		"lsl  %A0\n\t"
-		".endif\n\t"
-		"mov  %A0, %B0\n\t"
-		"mov  %B0, %C0\n\t"
-		"mov  %C0, %D0\n\t"
-		"clr  %D0\n\t"
-		".rept %4 - 24\n\t"
-		"lsr  %C0\n\t"
-		"ror  %B0\n\t"
-		"ror  %A0\n\t"
-		".endr\n\t"
-		".elseif %4 < 40\n\t"
-		".if %4 == 32\n\t"
-		"lsl  %B0\n\t"
-		".endif\n\t"
-		"movw %A0, %C0\n\t"
-		"clr  %C0\n\t"
-		"clr  %D0\n\t"
-		".rept %4 - 32\n\t"
-		"lsr  %B0\n\t"
-		"ror  %A0\n\t"
-		".endr\n\t"
-		".else\n\t"
-		".if %4 == 40\n\t"
-		"lsl  %C0\n\t"
-		".endif\n\t"
-		"mov  %A0, %D0\n\t"
-		"clr  %B0\n\t"
-		"clr  %C0\n\t"
-		"clr  %D0\n\t"
-		".rept %4 - 40\n\t"
-		"lsr  %A0\n\t"
-		".endr\n\t"
-		".endif\n\t"
-		"adc  %A0, __zero_reg__\n\t"
-		"adc  %B0, __zero_reg__\n\t"
-		"adc  %C0, __zero_reg__\n\t"
-		"adc  %D0, __zero_reg__"
-		: "=&r"(r), "=&r"(lo)
-		: "r"(ua), "r"(ub), "n"(n));
-	return r;
-}
-#endif
-
-FX_INLINE int32_t fx_mul_q(int32_t a, int32_t b, uint8_t n)
-{
-	uint64_t m;
-	uint32_t r;
-
-#if FX_AVR_MUL
-	if (__builtin_constant_p(n) && n >= 1 && n <= 47 &&
-	    !(__builtin_constant_p(a) && __builtin_constant_p(b))) {
-		r = fx_avr_mul_u32_u16_round(a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a,
-					     (uint16_t)(b >= 0 ? b : -b), n);
-		return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
-	}
-#endif
-	if (FX_NARROW)
-		return fx_mul_q_n(a, b, n);
-	m = (uint64_t)(a >= 0 ? (uint32_t)a : (uint32_t)0 - (uint32_t)a) *
-	    (uint32_t)(b >= 0 ? b : -b);
-	r = (uint32_t)((m + ((uint64_t)1 << (n - 1))) >> n);
-	return (a < 0) != (b < 0) ? -(int32_t)r : (int32_t)r;
-}
-
-/* floor(num / den), den >= 1, for a quotient known to be below 2^qbits (1..32): a restoring
- * division over the quotient's bits only (avr-gcc's 32-bit division always takes 32 steps of a
- * slower loop). */
-static inline uint32_t fx_udiv_small_n(uint32_t num, uint32_t den, uint8_t qbits)
-{
-	uint32_t rem = qbits >= 32 ? 0 : num >> qbits;
-	uint32_t q = 0;
-
-	num = qbits >= 32 ? num : num << (32 - qbits);
-	while (qbits-- != 0) {
-		rem = (rem << 1) | (num >> 31);
-		num <<= 1;
-		q <<= 1;
-		if (rem >= den) {
-			rem -= den;
-			q |= 1u;
-		}
-	}
-	return q;
-}
-
-#if FX_AVR_ASM
-/* The steps of that division in AVR assembly, 17 to 20 cycles each where avr-gcc's loop takes
- * 40: the remainder (rem, from 0) first takes the upper shift bits of num (whole bytes, then
- * bits), then each of the steps moves num's top bit into the remainder, compares, subtracts,
- * and puts the quotient bit in num's lowest bit, freed by the shift. After shift + steps = 32
- * (or with num's upper 32 - steps bits zero) num is the quotient: every bit of the dividend has
- * gone to the remainder, and the quotient bits, no more than the steps, never reach bit 31 before
- * the last step. The remainder's top bit is shifted out as the C's does (it is lost only outside
- * the domain, den > 2^31). steps >= 1; *rem is the remainder in, and out. */
-FX_INLINE uint32_t fx_avr_div_steps(uint32_t *rem, uint32_t num, uint32_t den, uint8_t shift,
-				    uint8_t steps)
-{
-	uint32_t r = *rem;
-
-	__asm__("rjmp 2f\n"
-		"1:\n\t"
-		"mov  %D0, %C0\n\t"
-		"mov  %C0, %B0\n\t"
-		"mov  %B0, %A0\n\t"
-		"mov  %A0, %D1\n\t"
-		"mov  %D1, %C1\n\t"
-		"mov  %C1, %B1\n\t"
-		"mov  %B1, %A1\n\t"
-		"clr  %A1\n\t"
-		"subi %2, 8\n"
-		"2:\n\t"
-		"cpi  %2, 8\n\t"
-		"brsh 1b\n\t"
-		"tst  %2\n\t"
-		"breq 4f\n"
-		"3:\n\t"
-		"lsl  %A1\n\t"
-		"rol  %B1\n\t"
-		"rol  %C1\n\t"
-		"rol  %D1\n\t"
-		"rol  %A0\n\t"
-		"rol  %B0\n\t"
-		"rol  %C0\n\t"
-		"rol  %D0\n\t"
-		"dec  %2\n\t"
-		"brne 3b\n"
-		"4:\n\t"
-		"lsl  %A1\n\t"
-		"rol  %B1\n\t"
-		"rol  %C1\n\t"
-		"rol  %D1\n\t"
-		"rol  %A0\n\t"
-		"rol  %B0\n\t"
-		"rol  %C0\n\t"
-		"rol  %D0\n\t"
-		"cp   %A0, %A4\n\t"
-		"cpc  %B0, %B4\n\t"
-		"cpc  %C0, %C4\n\t"
-		"cpc  %D0, %D4\n\t"
-		"brcs 5f\n\t"
-		"sub  %A0, %A4\n\t"
-		"sbc  %B0, %B4\n\t"
-		"sbc  %C0, %C4\n\t"
-		"sbc  %D0, %D4\n\t"
-		"inc  %A1\n"
-		"5:\n\t"
-		"dec  %3\n\t"
-		"brne 4b"
-		: "+r"(r), "+r"(num), "+d"(shift), "+r"(steps)
-		: "r"(den));
-	*rem = r;
-	return num;
-}
-
-/* The same division for a divisor of 16 bits, in AVR assembly: the remainder, below den, stays
- * a 16-bit word (17 bits after the shift, whose carry says it is above den), and the dividend is
- * taken a byte at a time: its top byte shifts out into the remainder and takes the quotient bits
- * in, one register where the steps above shift all four. 8 to 10 cycles a step, over the
- * quotient's whole bytes (ceil(qbits / 8)): the dividend's bytes above them first go to the
- * remainder whole (they are below den, as the quotient is below 2^qbits), and each byte done
- * rotates to the bottom, so that the last leaves the quotient in place. */
-FX_INLINE uint32_t fx_avr_div_u16(uint32_t num, uint16_t den, uint8_t qbits)
-{
-	uint16_t rem = 0;
-	uint8_t bytes = (uint8_t)((qbits + 7u) >> 3); /* 1..4 */
-	uint8_t skip = (uint8_t)(4u - bytes);
-
-	__asm__("tst  %[skip]\n\t"
-		"breq 2f\n"
-		"1:\n\t"
-		"mov  %B[rem], %A[rem]\n\t"
-		"mov  %A[rem], %D[num]\n\t"
-		"mov  %D[num], %C[num]\n\t"
-		"mov  %C[num], %B[num]\n\t"
-		"mov  %B[num], %A[num]\n\t"
-		"clr  %A[num]\n\t"
-		"dec  %[skip]\n\t"
-		"brne 1b\n"
-		"2:\n\t"
-		".rept 8\n\t"
-		"lsl  %D[num]\n\t"
-		"rol  %A[rem]\n\t"
-		"rol  %B[rem]\n\t"
-		"brcs 3f\n\t"
-		"cp   %A[rem], %A[den]\n\t"
-		"cpc  %B[rem], %B[den]\n\t"
-		"brcs 4f\n"
-		"3:\n\t"
-		"sub  %A[rem], %A[den]\n\t"
-		"sbc  %B[rem], %B[den]\n\t"
-		"inc  %D[num]\n"
-		"4:\n\t"
-		".endr\n\t"
-		"mov  __tmp_reg__, %D[num]\n\t"
-		"mov  %D[num], %C[num]\n\t"
-		"mov  %C[num], %B[num]\n\t"
-		"mov  %B[num], %A[num]\n\t"
-		"mov  %A[num], __tmp_reg__\n\t"
-		"dec  %[bytes]\n\t"
-		"breq 5f\n\t"
-		"rjmp 2b\n" /* beyond a branch's reach */
-		"5:"
-		: [num] "+r"(num), [rem] "+r"(rem), [skip] "+r"(skip), [bytes] "+r"(bytes)
-		: [den] "r"(den));
-	return num;
-}
-#endif
-
-static inline uint32_t fx_udiv_small(uint32_t num, uint32_t den, uint8_t qbits)
-{
-#if FX_AVR_ASM
-	if ((uint8_t)(qbits - 1u) < 32u && den <= 0xffffu)
-		return fx_avr_div_u16(num, (uint16_t)den, qbits);
-	if ((uint8_t)(qbits - 1u) < 32u) {
-		uint32_t rem = 0;
-
-		return fx_avr_div_steps(&rem, num, den, (uint8_t)(32u - qbits), qbits);
-	}
-#endif
-	return FX_NARROW ? fx_udiv_small_n(num, den, qbits) : num / den;
-}
-
-/* floor(v 2^16 / den), den 1..2^31 - 1, for a quotient below 2^32 (v / den below 2^16): v / den,
- * then the 16 bits below it one step each, the remainder kept below den (2 r >= den is tested as
- * r >= den - r, so that no den overflows it). */
-static inline uint32_t fx_udiv_shl16_n(uint32_t v, uint32_t den)
-{
-	uint32_t q = v / den, r = v - q * den;
-
-	for (uint8_t i = 0; i < 16; i++) {
-		q <<= 1;
-		if (r >= den - r) {
-			r -= den - r;
-			q |= 1u;
-		} else {
-			r <<= 1;
-		}
-	}
-	return q;
-}
-
-/* The same by the division steps of fx_avr_div_steps() on an AVR: the quotient's integer bits
- * (as many as v and den's lengths allow), then 16 steps on the remainder alone. About 20 cycles
- * a step, where avr-gcc's 32-bit division took some 600 cycles and its remainder's 16 steps in C
- * as many again. */
-static inline uint32_t fx_udiv_shl16(uint32_t v, uint32_t den)
-{
-#if FX_AVR_ASM
-	uint8_t vb = fx_bit_length32(v), db = fx_bit_length32(den);
-	uint32_t rem = 0, q = 0;
-
-	if (vb >= db) {
-		uint8_t qbits = (uint8_t)(vb - db + 1u); /* v / den < 2^qbits */
-
-		q = fx_avr_div_steps(&rem, v, den, (uint8_t)(32u - qbits), qbits);
-	} else {
-		rem = v;
-	}
-	return fx_shl_u32(q, 16) | fx_avr_div_steps(&rem, 0, den, 0, 16);
-#else
-	return FX_NARROW ? fx_udiv_shl16_n(v, den) : (uint32_t)(((uint64_t)v << 16) / den);
-#endif
 }
 
 /* round(num / den) with ties away from zero, den >= 1, for |num| / den + 1 below 2^qbits. */
@@ -849,15 +182,15 @@ static inline int32_t fx_mul_q30(int32_t a, int32_t c)
 }
 
 /* A signed 48-bit value, hi 2^16 + lo with lo unsigned: a length [um * 2^16] keeps its whole
- * micrometres (floored) in hi. avr-gcc's int64_t arithmetic calls library routines (40 to 130
- * cycles an operation); these are a few instructions. hi wraps modulo 2^32 (the callers stay
- * within +-2^31 um). */
+ * micrometres (floored) in hi, its fraction in lo: six bytes of state where an int64_t takes
+ * eight, and 32-bit operations on a machine without 64-bit ones. hi wraps modulo 2^32 (the
+ * callers stay within +-2^31 um). */
 struct fx48 {
 	int32_t hi;
 	uint16_t lo;
 };
 
-FX_INLINE struct fx48 fx48_make(int32_t hi, uint16_t lo)
+static inline struct fx48 fx48_make(int32_t hi, uint16_t lo)
 {
 	struct fx48 r;
 
@@ -867,21 +200,21 @@ FX_INLINE struct fx48 fx48_make(int32_t hi, uint16_t lo)
 }
 
 /* v [2^-16 of the unit] as a 48-bit value (hi = floor(v / 2^16)). */
-FX_INLINE struct fx48 fx48_of32(int32_t v)
+static inline struct fx48 fx48_of32(int32_t v)
 {
 	uint16_t h = fx_hi16((uint32_t)v);
 
 	return fx48_make(h < 0x8000u ? (int32_t)h : (int32_t)h - 65536, fx_lo16((uint32_t)v));
 }
 
-FX_INLINE struct fx48 fx48_add(struct fx48 a, struct fx48 b)
+static inline struct fx48 fx48_add(struct fx48 a, struct fx48 b)
 {
 	uint32_t lo = (uint32_t)a.lo + b.lo;
 
 	return fx48_make(fx_int32_of((uint32_t)a.hi + (uint32_t)b.hi + fx_hi16(lo)), fx_lo16(lo));
 }
 
-FX_INLINE struct fx48 fx48_sub(struct fx48 a, struct fx48 b)
+static inline struct fx48 fx48_sub(struct fx48 a, struct fx48 b)
 {
 	uint32_t lo = 0x10000u + a.lo - b.lo;
 
@@ -889,44 +222,38 @@ FX_INLINE struct fx48 fx48_sub(struct fx48 a, struct fx48 b)
 			 fx_lo16(lo));
 }
 
-FX_INLINE struct fx48 fx48_add32(struct fx48 a, int32_t d)
+static inline struct fx48 fx48_add32(struct fx48 a, int32_t d)
 {
 	return fx48_add(a, fx48_of32(d));
 }
 
-FX_INLINE struct fx48 fx48_neg(struct fx48 a)
+static inline struct fx48 fx48_neg(struct fx48 a)
 {
 	return fx48_sub(fx48_make(0, 0), a);
 }
 
-FX_INLINE int fx48_lt(struct fx48 a, struct fx48 b)
+static inline int fx48_lt(struct fx48 a, struct fx48 b)
 {
 	return a.hi < b.hi || (a.hi == b.hi && a.lo < b.lo);
 }
 
-FX_INLINE int fx48_eq(struct fx48 a, struct fx48 b)
+static inline int fx48_eq(struct fx48 a, struct fx48 b)
 {
 	return a.hi == b.hi && a.lo == b.lo;
 }
 
-FX_INLINE int fx48_is_neg(struct fx48 a)
+static inline int fx48_is_neg(struct fx48 a)
 {
 	return a.hi < 0;
 }
 
-/* The value as an int32_t, when it fits (hi in -32768..32767). */
-FX_INLINE int fx48_fits32(struct fx48 a)
-{
-	return a.hi >= -32768 && a.hi <= 32767;
-}
-
-FX_INLINE int32_t fx48_to32(struct fx48 a)
+static inline int32_t fx48_to32(struct fx48 a)
 {
 	return fx_int32_of(((uint32_t)a.hi << 16) | a.lo);
 }
 
 /* round(v / 2^16), ties away from zero (saturated). */
-FX_INLINE int32_t fx48_round(struct fx48 a)
+static inline int32_t fx48_round(struct fx48 a)
 {
 	if (a.hi >= 0 ? a.lo >= 0x8000u : a.lo > 0x8000u)
 		return a.hi == INT32_MAX ? a.hi : a.hi + 1;
@@ -950,31 +277,23 @@ static inline int64_t fx_shr_round64(int64_t v, uint8_t n)
 	return -(int64_t)mag;
 }
 
-/* v / 2^n rounded to nearest (ties away from zero), n in 0..31; the same in 32 bits. */
+/* floor(v / 2^n), n in 0..31, without shifting a negative value (implementation-defined). */
+static inline int32_t fx_floor_shr(int32_t v, uint8_t n)
+{
+	uint32_t u = fx_shr_u32((uint32_t)v, n);
+
+	return fx_int32_of(v < 0 ? u | ~fx_shr_u32(UINT32_MAX, n) : u);
+}
+
+/* v / 2^n rounded to nearest (ties away from zero), n in 0..31; the same in 32 bits:
+ * (|v| + 2^(n-1)) / 2^n is (|v| / 2^(n-1) + 1) / 2 (both floored), which never overflows. */
 static inline int32_t fx_shr_round(int32_t v, uint8_t n)
 {
 	uint32_t mag;
 
 	if (n == 0)
 		return v;
-	if (v >= 0)
-		return (int32_t)(((uint32_t)v + ((uint32_t)1 << (n - 1))) >> n);
-	mag = (uint32_t)0 - (uint32_t)v;
-	mag = (mag + ((uint32_t)1 << (n - 1))) >> n;
-	/* mag < 2^31 here since n >= 1. */
-	return -(int32_t)mag;
-}
-
-/* The same for a count known only at run time: (|v| + 2^(n-1)) / 2^n is (|v| / 2^(n-1) + 1) / 2
- * (both floored), which spares the shift that makes 2^(n-1), and the shift by n - 1 moves whole
- * bytes (fx_shr_u32_var). */
-static inline int32_t fx_shr_round_var(int32_t v, uint8_t n)
-{
-	uint32_t mag;
-
-	if (n == 0)
-		return v;
-	mag = (fx_shr_u32_var(fx_mag32(v), (uint8_t)(n - 1u)) + 1u) >> 1;
+	mag = (fx_shr_u32(fx_mag32(v), (uint8_t)(n - 1u)) + 1u) >> 1;
 	return v >= 0 ? (int32_t)mag : -(int32_t)mag;
 }
 

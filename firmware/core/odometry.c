@@ -2,8 +2,7 @@
  *
  * The tick's arithmetic is products of at most 32 x 32 bits and 32-bit additions (fixmath.h
  * explains why): the heading is a 64-bit sum kept as two 32-bit words, the position and distance
- * are whole micrometres and a fraction. On an AVR the heading's sum is inline assembly
- * (add_q64), beside the portable C that gives the same bits elsewhere. */
+ * are whole micrometres and a fraction. */
 #include "odometry.h"
 
 #include <errno.h>
@@ -93,7 +92,7 @@ void odometry_install_config(struct odometry *o, const struct odometry_config *c
 /* m counts' travel with the factor k [um * 2^16]: k m from two 16 x 16 products (the upper
  * one below 2^31), clamped to ODOMETRY_STEP_Q16_MAX beyond it (*clamped then 1). The tables hold
  * the same products. */
-FX_INLINE uint32_t travel_of(const uint16_t k[2], uint16_t m, uint8_t *clamped)
+static inline uint32_t travel_of(const uint16_t k[2], uint16_t m, uint8_t *clamped)
 {
 	uint32_t lo = fx_mul_u16(m, k[0]);
 	uint32_t hi = fx_mul_u16(m, k[1]) + fx_hi16(lo);
@@ -103,10 +102,9 @@ FX_INLINE uint32_t travel_of(const uint16_t k[2], uint16_t m, uint8_t *clamped)
 }
 
 /* m counts beyond the tables: the travel (-ERANGE if clamped), and four 16 x 16 products for
- * m u modulo 2^64. Out of line: only a wheel faster than the tables (2.5 m/s at 1 kHz for the
- * reference robot) comes here. */
-static FX_NOINLINE int wheel_move_wide(const struct odometry_wheel *w, uint16_t m,
-				       struct odometry_move *mv)
+ * m u modulo 2^64. Only a wheel faster than the tables (2.5 m/s at 1 kHz for the reference
+ * robot) comes here. */
+static int wheel_move_wide(const struct odometry_wheel *w, uint16_t m, struct odometry_move *mv)
 {
 	uint8_t clamped;
 	const uint32_t *u = w->move[1].turn_q64;
@@ -122,50 +120,13 @@ static FX_NOINLINE int wheel_move_wide(const struct odometry_wheel *w, uint16_t 
 	return clamped ? -ERANGE : 0;
 }
 
-/* h += d, or h -= d, modulo 2^64 (two 32-bit words, lower first). On an AVR, eight loads and
- * additions with carry (loads leave the carry alone): C has no carry, and avr-gcc's compare for
- * it costs as much again. */
+/* h += d, or h -= d, modulo 2^64 (two 32-bit words, lower first): the architecture's kernels. */
 static inline void add_q64(uint32_t *h0, uint32_t *h1, const uint32_t d[2], uint8_t sub)
 {
-#if FX_AVR_ASM
-	uint32_t lo = *h0, hi = *h1;
-	const uint32_t *p = d;
-
-	if (!sub)
-		__asm__("ld __tmp_reg__,%a[p]+\n\tadd %A[lo],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tadc %B[lo],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tadc %C[lo],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tadc %D[lo],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tadc %A[hi],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tadc %B[hi],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tadc %C[hi],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tadc %D[hi],__tmp_reg__"
-			: [lo] "+r"(lo), [hi] "+r"(hi), [p] "+e"(p)
-			: "m"(*(const uint32_t(*)[2])d));
+	if (sub)
+		fx_sub_u64(h0, h1, d);
 	else
-		__asm__("ld __tmp_reg__,%a[p]+\n\tsub %A[lo],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tsbc %B[lo],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tsbc %C[lo],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tsbc %D[lo],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tsbc %A[hi],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tsbc %B[hi],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tsbc %C[hi],__tmp_reg__\n\t"
-			"ld __tmp_reg__,%a[p]+\n\tsbc %D[hi],__tmp_reg__"
-			: [lo] "+r"(lo), [hi] "+r"(hi), [p] "+e"(p)
-			: "m"(*(const uint32_t(*)[2])d));
-	*h0 = lo;
-	*h1 = hi;
-#else
-	uint32_t lo = *h0;
-
-	if (!sub) {
-		*h0 = lo + d[0];
-		*h1 += d[1] + (*h0 < lo);
-	} else {
-		*h0 = lo - d[0];
-		*h1 -= d[1] + (lo < d[0]);
-	}
-#endif
+		fx_add_u64(h0, h1, d);
 }
 
 /* round(a b / 2^31), halves up, as fx_mul_u32_shr(a, b, 31), for a product below 2^62: twice the
@@ -182,10 +143,8 @@ static inline uint32_t mul_shr31(uint32_t a, uint32_t b)
  * (0.0245 rad per arc, a tick's or a period's): 1 - sin(x)/x = x^2/6 - x^4/120..., x = t pi / 2^32,
  * and f = 2^32 x^2/6 = t^2 pi^2 / (6 2^32) is below 1.1e5, where x^4/120 is below 0.82 unit of f
  * (left out: at most 0.82 unit of the result). Below t = 2^15, f is below 0.41: no correction.
- * f reaches 2^16 from t = 1.31e7: its sum is taken in 32 bits (an AVR's int has 16).
- * Out of line: only the arcs that turn come here, and in line its registers cost the others
- * more than the call. */
-static FX_NOINLINE uint32_t arc_correction(uint32_t both, uint32_t t)
+ * f reaches 2^16 from t = 1.31e7: its sum is taken in 32 bits (an int may have 16). */
+static uint32_t arc_correction(uint32_t both, uint32_t t)
 {
 	uint16_t th = fx_hi16(t), tl = fx_lo16(t);
 	/* q = floor(t^2 / 2^16), below 2^32 for t < 2^24 (th < 2^8). */
@@ -208,7 +167,7 @@ static FX_NOINLINE uint32_t arc_correction(uint32_t both, uint32_t t)
 /* The same for any t, in 64 bits (sin(x)/x to the x^4 term: its error stays below 2e-10 while
  * |dtheta| <= 0.2 rad per arc). Runs only above 0.0245 rad per arc: above 24 rad/s with an arc
  * a tick at 1 kHz, above 3 rad/s with an arc a period at 125 Hz (board.c). */
-static FX_NOINLINE uint32_t arc_correction_wide(uint32_t both, uint32_t t)
+static uint32_t arc_correction_wide(uint32_t both, uint32_t t)
 {
 	int64_t x = fx_shr_round64((int64_t)t * QUARTER_PI_Q32, 32);
 	int64_t x2 = fx_shr_round64(x * x, 30);
@@ -390,9 +349,7 @@ void odometry_arc_of(struct odometry_arc *a, int32_t left_q16, int32_t right_q16
 	a->heading_turn32 = heading_turn32;
 }
 
-/* Out of line: once a period, and inlined into a one-rate AVR tick it left avr-gcc too few
- * registers for the control's assembly. */
-FX_NOINLINE void odometry_advance(struct odometry *o, const struct odometry_arc *a)
+void odometry_advance(struct odometry *o, const struct odometry_arc *a)
 {
 	uint32_t both = a->twice_ds_q16, t, chord, mid;
 	int32_t dtheta = a->dtheta_turn32;

@@ -30,7 +30,8 @@ struct pid_config {
 };
 
 /* Gains converted once: P and D to [2^-12 duty_q15] per um and per um/tick, I to [2^-24 duty_q15]
- * per um*tick (docs/control.md "PID"), and the bounds of pid_update's fast path. */
+ * per um*tick (docs/control.md "PID"), and the bounds of the architecture's small-error kernel
+ * (arch_pid.h). */
 struct pid {
 	struct pid_config cfg;
 	int32_t kp_q12;
@@ -40,15 +41,15 @@ struct pid {
 	 * errors. */
 	int32_t p_err_max_um;
 	int32_t d_err_max_um;
-	/* The fast path: errors and differences up to these (at most 32767, and P and D below
-	 * 2^29, so nothing is clipped and their sum fits). */
+	/* The small-error kernel: errors and differences up to these (at most 32767, and P and D
+	 * below 2^29, so nothing is clipped and their sum fits). */
 	int16_t p_err_fast_um;
 	int16_t d_err_fast_um;
 	int32_t i_max_q8;      /* out_limit_q15 << 8: the integral's bound, as its upper part */
 	struct fx48 i_acc_q24; /* [2^-24 duty_q15] integral contribution, |.| <= out_limit * 2^24 */
 	int32_t prev_err_um;
 	/* 0 after a reset (the first derivative is 0), 2 when prev_err_um fits 16 bits (for
-	 * pid_update's fast path), else 1. */
+	 * the small-error kernel), else 1. */
 	uint8_t has_prev;
 	int16_t out_q15; /* last output */
 };
@@ -69,8 +70,22 @@ void pid_reset(struct pid *c);
 /* One tick with the following error err_um [um] (any int32; clipped to +/-PID_ERR_MAX_UM).
  * Returns the duty [2^-15 full duty], within +/-out_limit_q15. Anti-windup: the integral's
  * contribution is clipped to the output limit, and the integral does not grow while the output
- * is saturated in the direction of the error. No division; 16-bit products while the error and
- * its difference are below 32 mm. Interrupt-safe: yes. */
-int16_t pid_update(struct pid *c, int32_t err_um);
+ * is saturated in the direction of the error. No division. Interrupt-safe: yes. */
+static inline int16_t pid_update(struct pid *c, int32_t err_um);
+
+/* pid_update in portable C, on any error: the reference of the architecture's kernel. */
+int16_t pid_update_c(struct pid *c, int32_t err_um);
+
+#include "arch_pid.h"
+
+/* The architecture's small-error kernel when it takes the tick, else the portable C. */
+static inline int16_t pid_update(struct pid *c, int32_t err_um)
+{
+	int16_t out_q15;
+
+	if (pid_arch_update_small(c, &err_um, &out_q15))
+		return out_q15;
+	return pid_update_c(c, err_um);
+}
 
 #endif

@@ -421,7 +421,7 @@ void profile_reset(struct profile *p, int32_t pos_um)
 	p->out.done = 1;
 }
 
-/* s v for a sign s of +-1: a negation where avr-gcc multiplied (__mulsi3, some 60 cycles). */
+/* s v for a sign s of +-1. */
 static int32_t signed_by(int s, int32_t v)
 {
 	return s > 0 ? v : -v;

@@ -51,13 +51,10 @@ enum stage {
 
 typedef char uncertainty_stages_counted[(STAGE_RADIUS == UNCERTAINTY_STAGES) ? 1 : -1];
 
-/* round(v / 2^15), ties away from zero (a shift of the magnitude: avr-gcc divides a signed
- * value by 2^15 with a loop). */
+/* round(v / 2^15), ties away from zero. */
 static int32_t q15_of(int32_t v)
 {
-	int32_t r = (int32_t)fx_shr_u32(fx_mag32(v) + 0x4000u, 15);
-
-	return v >= 0 ? r : -r;
+	return fx_shr_round(v, 15);
 }
 
 /* a + b for the systematic integrals, saturating at +-INT32_MAX. */
@@ -140,16 +137,16 @@ static uint32_t hypot_up(uint32_t ux, uint32_t uy)
 		return fx_isqrt32_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
 				     fx_mul_u16((uint16_t)uy, (uint16_t)uy));
 	j = (uint8_t)(j - 15u);
-	ux = fx_shr_u32_var(ux - 1u, j) + 1u; /* up to 2^15 */
-	uy = fx_shr_u32_var(uy - 1u, j) + 1u;
+	ux = fx_shr_u32(ux - 1u, j) + 1u; /* up to 2^15 */
+	uy = fx_shr_u32(uy - 1u, j) + 1u;
 	if (ux > 0x7fffu || uy > 0x7fffu) {
 		ux = ((ux - 1u) >> 1) + 1u;
 		uy = ((uy - 1u) >> 1) + 1u;
 		j++;
 	}
-	return fx_shl_u32_var(fx_isqrt32_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
-					    fx_mul_u16((uint16_t)uy, (uint16_t)uy)),
-			      j);
+	return fx_shl_u32(fx_isqrt32_up(fx_mul_u16((uint16_t)ux, (uint16_t)ux) +
+					fx_mul_u16((uint16_t)uy, (uint16_t)uy)),
+			  j);
 }
 
 /* ceil(v * c / 2^32). */
@@ -716,9 +713,8 @@ static void stage_radius(struct uncertainty *u)
 	u->radius_mm = r != 0 ? (uint8_t)(mm + 1) : mm;
 }
 
-/* Up to n stages, until idle. In one call: an AVR saves and restores 14 registers per call, which
- * a call per stage paid up to 8 times in a slow run. */
-FX_NOINLINE static void run_stages(struct uncertainty *u, uint8_t n)
+/* Up to n stages, until idle. */
+static void run_stages(struct uncertainty *u, uint8_t n)
 {
 	for (; n != 0 && u->stage != STAGE_IDLE; n--) {
 		switch (u->stage) {
@@ -796,17 +792,11 @@ FX_NOINLINE static void run_stages(struct uncertainty *u, uint8_t n)
 
 /* Hands the accumulated batch to the stages (finishing the one in flight first if there is one).
  * A batch without travel propagates nothing: Fp is the identity, the noise is zero. */
-FX_NOINLINE static void start_batch(struct uncertainty *u)
+static void start_batch(struct uncertainty *u)
 {
 	run_stages(u, UINT8_MAX);
 	if (u->acc.abs_left_q8 != 0 || u->acc.abs_right_q8 != 0) {
-		/* Field by field: avr-gcc copies a whole struct byte by byte in a loop. */
-		u->run.left_q8 = u->acc.left_q8;
-		u->run.right_q8 = u->acc.right_q8;
-		u->run.abs_left_q8 = u->acc.abs_left_q8;
-		u->run.abs_right_q8 = u->acc.abs_right_q8;
-		u->run.heading_turn32 = u->acc.heading_turn32;
-		u->run.ticks = u->acc.ticks;
+		u->run = u->acc;
 		u->stage = STAGE_DIRECTION;
 	}
 	clear_batch(&u->acc);

@@ -83,6 +83,14 @@ static long double absl(long double v)
 }
 
 /* v / 2^n rounded half away from zero, from C's truncating division (exact in int64). */
+/* floor(v / 2^n), by division (C99 rounds towards zero). */
+static int32_t ref_floor_shr(int32_t v, unsigned n)
+{
+	int64_t d = (int64_t)1 << n, q = (int64_t)v / d;
+
+	return (int32_t)(q * d > v ? q - 1 : q);
+}
+
 static int64_t ref_shr_round(int64_t v, unsigned n)
 {
 	int64_t p, q, r;
@@ -131,14 +139,15 @@ static void test_shr_round_ties_and_signs(void **state)
 			v = -v;
 		assert_true(fx_shr_round64(v, (uint8_t)n) == ref_shr_round(v, n));
 		assert_true(fx_shr_round(v32, (uint8_t)n32) == ref_shr_round(v32, n32));
-		assert_true(fx_shr_round_var(v32, (uint8_t)n32) == ref_shr_round(v32, n32));
+		assert_true(fx_floor_shr(v32, (uint8_t)n32) == ref_floor_shr(v32, n32));
 	}
 	for (uint8_t n = 0; n < 32; n++) {
 		static const int32_t edges[] = {INT32_MIN, INT32_MIN + 1, -3,       -2, -1, 0, 1, 2,
 						3,         INT32_MAX - 1, INT32_MAX};
 
 		for (size_t i = 0; i < N_OF(edges); i++)
-			assert_true(fx_shr_round_var(edges[i], n) == fx_shr_round(edges[i], n));
+			assert_true(fx_shr_round(edges[i], n) == ref_shr_round(edges[i], n) &&
+				    fx_floor_shr(edges[i], n) == ref_floor_shr(edges[i], n));
 	}
 }
 
@@ -207,9 +216,20 @@ static void check_isqrt(uint64_t v)
 		assert_true((r + 1) * (r + 1) > v);
 }
 
-/* The primitives an 8-bit AVR builds from 16-bit pieces (fixmath.h, the *_n functions) give the
- * bits of the 64-bit arithmetic a PC uses for them, on random operands and on the edges. */
-static void test_narrow_primitives_match(void **state)
+/* round(a b / 2^n), ties away from zero, from the definition in 64 bits. */
+static int32_t ref_mul_q(int32_t a, int32_t b, unsigned n)
+{
+	int64_t p = (int64_t)a * b;
+	uint64_t m = p >= 0 ? (uint64_t)p : (uint64_t)0 - (uint64_t)p;
+	int64_t r = (int64_t)((m + ((uint64_t)1 << (n - 1))) >> n);
+
+	return (int32_t)(p >= 0 ? r : -r);
+}
+
+/* The kernels (fixmath.h's list, arch_fx.h of the build) against their definitions, computed
+ * here in 64 bits, on random operands and on the edges. test_avr_fixmath checks that the AVR's
+ * kernels give these same bits. */
+static void test_kernels_match_their_definitions(void **state)
 {
 	static const uint32_t edges[] = {0,           1,           2,          0x7fff,
 					 0x8000,      0xffff,      0x10000,    0x7fffffff,
@@ -220,15 +240,18 @@ static void test_narrow_primitives_match(void **state)
 		uint32_t a = i < 121 ? edges[i / 11] : (uint32_t)rng_next() >> (rng_next() & 31);
 		uint32_t b = i < 121 ? edges[i % 11] : (uint32_t)rng_next() >> (rng_next() & 31);
 		uint8_t n = (uint8_t)(rng_next() % 32);
-		uint32_t lo_n, lo, hi_n = fx_mul_u32_wide_n(a, b, &lo_n);
+		uint32_t lo;
 		uint64_t p = (uint64_t)a * b;
 
-		assert_true(hi_n == (uint32_t)(p >> 32) && lo_n == (uint32_t)p);
-		assert_true(fx_mul_u32_wide(a, b, &lo) == hi_n && lo == lo_n);
-		assert_true(fx_shr_u32_n(a, n) == a >> n);
-		assert_true(fx_shl_u32_n(a, n) == (uint32_t)(a << n));
-		assert_true(fx_shr_u32_var(a, n) == a >> n);
-		assert_true(fx_shl_u32_var(a, n) == (uint32_t)(a << n));
+		assert_true(fx_mul_u32_wide(a, b, &lo) == (uint32_t)(p >> 32) && lo == (uint32_t)p);
+		assert_true(fx_mul_u16((uint16_t)a, (uint16_t)b) ==
+			    (uint32_t)(uint16_t)a * (uint16_t)b);
+		assert_true(fx_mul_s16((int16_t)(uint16_t)a, (int16_t)(uint16_t)b) ==
+			    (int32_t)(int16_t)(uint16_t)a * (int16_t)(uint16_t)b);
+		assert_true(fx_mul_s16_u16((int16_t)(uint16_t)a, (uint16_t)b) ==
+			    (int32_t)(int16_t)(uint16_t)a * (int32_t)(uint16_t)b);
+		assert_true(fx_shr_u32(a, n) == a >> n);
+		assert_true(fx_shl_u32(a, n) == (uint32_t)(a << n));
 		{
 			uint8_t len = 0;
 
@@ -237,15 +260,17 @@ static void test_narrow_primitives_match(void **state)
 			assert_int_equal(fx_bit_length32(a), len);
 		}
 		{
-			/* fx_mul_q: |b| <= 65535, n in 8..47, the result fitting 32 bits. */
+			/* fx_mul_q: |b| <= 65535, n in 1..47, the result fitting 32 bits. */
 			int32_t sa = (int32_t)(a >> 1) * (rng_next() & 1 ? 1 : -1);
 			int32_t sb = (int32_t)(b & 0xffff) * (rng_next() & 1 ? 1 : -1);
 			uint8_t q = (uint8_t)(16 + rng_next() % 32);
 
-			assert_true(fx_mul_q_n(sa, sb, q) == fx_mul_q(sa, sb, q));
-			q = (uint8_t)(8 + rng_next() % 8);
+			assert_true(fx_mul_q(sa, sb, q) == ref_mul_q(sa, sb, q));
+			assert_true(fx_mul_q20_u16(sa, (uint16_t)(b & 0xffff)) ==
+				    ref_mul_q(sa, (int32_t)(b & 0xffff), 20));
+			q = (uint8_t)(1 + rng_next() % 15);
 			sa /= 65536;
-			assert_true(fx_mul_q_n(sa, sb, q) == fx_mul_q(sa, sb, q));
+			assert_true(fx_mul_q(sa, sb, q) == ref_mul_q(sa, sb, q));
 		}
 		if (b != 0) {
 			uint32_t quot = a / b;
@@ -256,13 +281,44 @@ static void test_narrow_primitives_match(void **state)
 			bits = (uint8_t)(bits + rng_next() % (33 - bits));
 			if (bits == 0)
 				bits = 1;
-			assert_true(fx_udiv_small_n(a, b, bits) == quot);
+			assert_true(fx_udiv_small(a, b, bits) == quot);
+		}
+		assert_true(fx_udiv1000(a >> 7) == (a >> 7) / 1000u);
+		if (b != 0 && b <= 0x80000000u) {
+			uint32_t rem = a % b, q1 = rng_next() & 1;
+
+			assert_true(fx_udiv_frac20(q1, rem, b) ==
+				    (q1 << 20) + (uint32_t)(((uint64_t)rem << 20) / b));
+		}
+		{
+			uint32_t h[2] = {a, b}, d[2] = {(uint32_t)rng_next(), (uint32_t)rng_next()};
+			uint64_t hv = (uint64_t)b << 32 | a, dv = (uint64_t)d[1] << 32 | d[0];
+
+			fx_add_u64(&h[0], &h[1], d);
+			assert_true(((uint64_t)h[1] << 32 | h[0]) == hv + dv);
+			fx_sub_u64(&h[0], &h[1], d);
+			fx_sub_u64(&h[0], &h[1], d);
+			assert_true(((uint64_t)h[1] << 32 | h[0]) == hv - dv);
+		}
+		{
+			/* within 0.52 of d m / 2^31, for m <= 2^22 */
+			uint32_t m = b >> 10;
+			double exact = (double)a * m / 2147483648.0;
+			double got = fx_mul_q31_approx(a, m);
+
+			assert_true(got - exact <= 0.52 && exact - got <= 0.52);
+		}
+		{
+			uint32_t v = a, r = fx_isqrt32_rem(&v);
+
+			assert_true((uint64_t)r * r <= a && ((uint64_t)r + 1) * (r + 1) > a);
+			assert_true(v == a - r * r);
 		}
 	}
 }
 
-/* floor(v 2^16 / den) for den below 2^31 and a quotient below 2^32: the 16-bit steps and the
- * build's own version against the 64-bit division. */
+/* floor(v 2^16 / den) for den below 2^31 and a quotient below 2^32, against the 64-bit
+ * division. */
 static void test_udiv_shl16(void **state)
 {
 	static const uint32_t edges[] = {1,         2,          3,          999,       1000,
@@ -279,7 +335,6 @@ static void test_udiv_shl16(void **state)
 		if (den == 0 || den > 0x7fffffffu || (v >> 16) >= den)
 			continue; /* outside the domain: den 1..2^31 - 1, v / den below 2^16 */
 		want = ((uint64_t)v << 16) / den;
-		assert_true(fx_udiv_shl16_n(v, den) == want);
 		assert_true(fx_udiv_shl16(v, den) == want);
 	}
 }
@@ -524,7 +579,7 @@ int main(void)
 		cmocka_unit_test(test_shr_round_ties_and_signs),
 		cmocka_unit_test(test_mul_shr_rounds_and_saturates),
 		cmocka_unit_test(test_div_round),
-		cmocka_unit_test(test_narrow_primitives_match),
+		cmocka_unit_test(test_kernels_match_their_definitions),
 		cmocka_unit_test(test_udiv_shl16),
 		cmocka_unit_test(test_isqrt_edges),
 		cmocka_unit_test(test_sincos_against_reference),

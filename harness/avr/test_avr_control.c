@@ -1,5 +1,5 @@
-/* pid_update and control_update as the AVR runs them (pid.c's and control.c's assembly behind
- * FX_AVR_MUL) against the host's portable C, bit for bit: control_avr.elf in simavr applies each
+/* pid_update and control_update as the AVR runs them (with firmware/arch/avr's
+ * kernels) against the host's portable C, bit for bit: control_avr.elf in simavr applies each
  * operation (init, settings, reset, update) sent through a mailbox in its RAM to its own pid and
  * control, the host applies it to its own (control_avr/control_ops.c on both), and the return
  * value and the state after it must be equal. Edge cases around the fast paths' bounds (the
@@ -88,7 +88,8 @@ static int within(int32_t v, int32_t lim)
 	return v >= -lim && v <= lim;
 }
 
-/* Whether pid_update(c, e) takes the fast path (pid.c: update_fast_avr and update_any). */
+/* Whether pid_update(c, e) takes the fast path (arch/avr/arch_pid.h: pid_arch_update_small;
+ * pid.c: pid_update_c). */
 static int takes_fast_path(const struct pid *c, int32_t e)
 {
 	int32_t de;

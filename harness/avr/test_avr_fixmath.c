@@ -1,4 +1,4 @@
-/* The primitives of fixmath.h as the AVR runs them (their assembly: FX_AVR_MUL) against the
+/* The primitives of fixmath.h as the AVR runs them (firmware/arch/avr's kernels) against the
  * host's portable C, bit for bit: fixmath_avr.elf in simavr computes each primitive on operands
  * sent through a mailbox in its RAM (fixmath_avr/fixmath_avr.h), on edge cases and on
  * pseudo-random operands within each function's documented domain. test_fixmath checks the
@@ -49,6 +49,14 @@ static const char *const op_name[FXA_OPS] = {
 	[FXA_ISQRT64] = "fx_isqrt64",
 	[FXA_ISQRT32] = "fx_isqrt32",
 	[FXA_TURN32_TO_CDEG] = "fx_turn32_to_cdeg",
+	[FXA_SHR_U32] = "fx_shr_u32 and fx_shl_u32",
+	[FXA_FLOOR_SHR] = "fx_floor_shr and fx_shr_round",
+	[FXA_MUL_Q20_U16] = "fx_mul_q20_u16",
+	[FXA_UDIV1000] = "fx_udiv1000",
+	[FXA_UDIV_FRAC20] = "fx_udiv_frac20",
+	[FXA_ADD_SUB_U64] = "fx_add_u64 and fx_sub_u64",
+	[FXA_ISQRT32_REM] = "fx_isqrt32_rem",
+	[FXA_MUL_Q31_APPROX] = "fx_mul_q31_approx",
 };
 
 struct target {
@@ -173,6 +181,43 @@ static void on_host(uint8_t op, uint8_t n, const uint32_t in[3], uint32_t r[2])
 	case FXA_ISQRT32:
 		r[0] = fx_isqrt32(a);
 		break;
+	case FXA_SHR_U32:
+		r[0] = fx_shr_u32(a, n);
+		r[1] = fx_shl_u32(a, n);
+		break;
+	case FXA_FLOOR_SHR:
+		r[0] = (uint32_t)fx_floor_shr((int32_t)a, n);
+		r[1] = (uint32_t)fx_shr_round((int32_t)a, n);
+		break;
+	case FXA_MUL_Q20_U16:
+		r[0] = (uint32_t)fx_mul_q20_u16((int32_t)a, (uint16_t)b);
+		break;
+	case FXA_UDIV1000:
+		r[0] = fx_udiv1000(a);
+		break;
+	case FXA_UDIV_FRAC20:
+		r[0] = fx_udiv_frac20(n, a, b);
+		break;
+	case FXA_ADD_SUB_U64: {
+		uint32_t d[2] = {c, a ^ b}, e[2] = {c, b};
+
+		r[0] = a;
+		r[1] = b;
+		fx_add_u64(&r[0], &r[1], d);
+		if (n)
+			fx_sub_u64(&r[0], &r[1], e);
+		break;
+	}
+	case FXA_ISQRT32_REM: {
+		uint32_t v = a;
+
+		r[0] = fx_isqrt32_rem(&v);
+		r[1] = v;
+		break;
+	}
+	case FXA_MUL_Q31_APPROX:
+		r[0] = fx_mul_q31_approx(a, b);
+		break;
 	case FXA_TURN32_TO_CDEG:
 		r[0] = (uint32_t)fx_turn32_to_cdeg(a);
 		break;
@@ -283,6 +328,37 @@ static void test_products(void **state)
 		check(t, FXA_MUL_SHR32, 0, s, b, 0);
 		check(t, FXA_MUL_Q30, 0, s, rnd64() & 1 ? (uint32_t)0 - c : c, 0);
 	}
+}
+
+/* The kernels that the core's own functions above reach only on part of their domain. */
+static void test_kernels(void **state)
+{
+	struct target *t = *state;
+
+	for (uint32_t k = 0; k < RANDOM_PER_OP; k++) {
+		uint32_t a = (uint32_t)rnd_bits(32), b = (uint32_t)rnd_bits(32);
+		uint32_t c = (uint32_t)rnd_bits(32), den = (uint32_t)rnd_bits(31) + 1u;
+		uint8_t n = (uint8_t)(rnd64() % 32);
+
+		check(t, FXA_SHR_U32, n, a, 0, 0);
+		check(t, FXA_FLOOR_SHR, n, a, 0, 0);
+		/* |v| below 2^24 (the profiles' limits), k below 2^16 */
+		check(t, FXA_MUL_Q20_U16, 0, (uint32_t)((int32_t)(a >> 8) - (1 << 23)), b & 0xffffu,
+		      0);
+		check(t, FXA_UDIV1000, 0, a >> 7, 0, 0);
+		check(t, FXA_UDIV_FRAC20, (uint8_t)(b & 1u), a % den, den, 0);
+		check(t, FXA_UDIV_FRAC20, (uint8_t)(b & 1u), (a >> 8) % (den >> 8 | 1u),
+		      den >> 8 | 1u, 0);
+		check(t, FXA_ADD_SUB_U64, (uint8_t)(c & 1u), a, b, c);
+		check(t, FXA_ISQRT32_REM, 0, a, 0, 0);
+		check(t, FXA_MUL_Q31_APPROX, 0, a, b >> 10, 0);
+	}
+	for (size_t i = 0; i < N_EDGES; i++)
+		for (uint8_t n = 0; n < 32; n++) {
+			check(t, FXA_SHR_U32, n, edges32[i], 0, 0);
+			check(t, FXA_FLOOR_SHR, n, edges32[i], 0, 0);
+			check(t, FXA_ISQRT32_REM, 0, edges32[i], 0, 0);
+		}
 }
 
 static void test_scaled_products(void **state)
@@ -442,7 +518,7 @@ int main(int argc, char **argv)
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_products),     cmocka_unit_test(test_scaled_products),
 		cmocka_unit_test(test_divisions),    cmocka_unit_test(test_angles),
-		cmocka_unit_test(test_square_roots),
+		cmocka_unit_test(test_square_roots), cmocka_unit_test(test_kernels),
 	};
 
 	if (argc != 2) {

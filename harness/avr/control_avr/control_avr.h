@@ -1,7 +1,7 @@
 /* The mailbox between test_avr_control (the host, through simavr) and control_avr.elf (the AVR),
  * and the operations on the PID and the polar control that both run: cta_run (control_ops.c) is
  * compiled for each, so the host's results come from the portable C and the AVR's from its
- * assembly (FX_AVR_MUL). The handshake is fixmath_avr.h's (FXA_READY in GPIOR0, the mailbox's
+ * kernels (firmware/arch/avr). The handshake is fixmath_avr.h's (FXA_READY in GPIOR0, the mailbox's
  * address in GPIOR1:GPIOR2); the host writes the arguments, then the operation, and runs the AVR
  * until the operation byte is 0 again. Integers are little-endian, as the AVR stores them. */
 #ifndef ASSERV_HARNESS_CONTROL_AVR_H

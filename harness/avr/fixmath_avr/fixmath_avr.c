@@ -154,6 +154,43 @@ static void run(uint8_t op)
 	case FXA_TURN32_TO_CDEG:
 		r0 = (uint32_t)fx_turn32_to_cdeg(a);
 		break;
+	case FXA_SHR_U32:
+		r0 = fx_shr_u32(a, n);
+		r1 = fx_shl_u32(a, n);
+		break;
+	case FXA_FLOOR_SHR:
+		r0 = (uint32_t)fx_floor_shr((int32_t)a, n);
+		r1 = (uint32_t)fx_shr_round((int32_t)a, n);
+		break;
+	case FXA_MUL_Q20_U16:
+		r0 = (uint32_t)fx_mul_q20_u16((int32_t)a, (uint16_t)b);
+		break;
+	case FXA_UDIV1000:
+		r0 = fx_udiv1000(a);
+		break;
+	case FXA_UDIV_FRAC20:
+		r0 = fx_udiv_frac20(n, a, b);
+		break;
+	case FXA_ADD_SUB_U64: {
+		uint32_t d[2] = {c, a ^ b}, e[2] = {c, b};
+
+		r0 = a;
+		r1 = b;
+		fx_add_u64(&r0, &r1, d);
+		if (n)
+			fx_sub_u64(&r0, &r1, e);
+		break;
+	}
+	case FXA_ISQRT32_REM: {
+		uint32_t v = a;
+
+		r0 = fx_isqrt32_rem(&v);
+		r1 = v;
+		break;
+	}
+	case FXA_MUL_Q31_APPROX:
+		r0 = fx_mul_q31_approx(a, b);
+		break;
 	default:
 		break;
 	}

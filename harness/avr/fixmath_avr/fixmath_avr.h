@@ -50,6 +50,14 @@ enum fxa_op {
 	FXA_ISQRT64,         /* r0 = fx_isqrt64(c 2^32 + a) */
 	FXA_ISQRT32,         /* r0 = fx_isqrt32(a) */
 	FXA_TURN32_TO_CDEG,  /* r0 = fx_turn32_to_cdeg(a) */
+	FXA_SHR_U32,         /* r0 = fx_shr_u32(a, n), r1 = fx_shl_u32(a, n), n at run time */
+	FXA_FLOOR_SHR,       /* r0 = fx_floor_shr(a, n), r1 = fx_shr_round(a, n) */
+	FXA_MUL_Q20_U16,     /* r0 = fx_mul_q20_u16(a, b) */
+	FXA_UDIV1000,        /* r0 = fx_udiv1000(a) */
+	FXA_UDIV_FRAC20,     /* r0 = fx_udiv_frac20(n, a, b) */
+	FXA_ADD_SUB_U64,     /* (r0, r1) = (a, b) + (c, a ^ b), then, if n, - (c, b) */
+	FXA_ISQRT32_REM,     /* r0 = fx_isqrt32_rem(&a), r1 = a after */
+	FXA_MUL_Q31_APPROX,  /* r0 = fx_mul_q31_approx(a, b) */
 	FXA_OPS
 };
 
