@@ -36,7 +36,8 @@ void board_default_config(struct board_config *c)
 	c->uncertainty.track_error_um = 100;  /* calibrated: 0.1 mm */
 	c->uncertainty.scale_error_ppm = 500;
 	c->uncertainty.k_q8 = 776; /* 3.03: 99 % */
-	c->uncertainty.batch_ticks = 10;
+	c->uncertainty.batch_ms = 10;
+	c->uncertainty.rate_hz = 1000; /* the slow steps' rate: board_init() sets it */
 
 	c->control.tick_hz = 1000;
 	c->control.duty_max_q15 = 32767;
@@ -49,24 +50,25 @@ void board_default_config(struct board_config *c)
 
 	c->faults.shock_basket_mask = 0x00; /* every shock sensor is on the border side */
 	c->faults.following_max_um = 20000;
-	c->faults.following_ticks = 100;
+	c->faults.following_ms = 100;
 	c->faults.current_max_ma = 6000;
-	c->faults.current_ticks = 50;
+	c->faults.current_ms = 50;
 	c->faults.motor_encoders = 1;
 	c->faults.motor_um_per_count_q16 = 322692; /* 2 pi 32.5 mm / (2048 * 20.25), * 2^16 */
 	c->faults.slip_max_um = 10000;
-	c->faults.slip_shift = 7;
+	c->faults.slip_window_ms = 128;
 	c->faults.lost_min_um = 5000;
 	c->faults.repeat_max = 3;
-	c->faults.repeat_window_ticks = 10000;
+	c->faults.repeat_window_ms = 10000;
+	c->faults.rate_hz = 1000; /* the slow steps' rate: board_init() sets it */
 
 	c->orders.drive_track_um = 160000;
 	c->orders.heading_window_turn32 = fx_deg_to_turn32(5);
 	c->orders.freeze_radius_um = 30000;
 	c->orders.arrive_window_um = 500;
 	c->orders.arrive_speed_um_s = 5000;
-	c->orders.settle_ticks = 20;
-	c->orders.settle_timeout_ticks = 1000;
+	c->orders.settle_ms = 20;
+	c->orders.settle_timeout_ms = 1000;
 	c->orders.push_speed_um_s = 150000;
 	c->orders.push_max_um = 500000;
 	c->orders.basket_contact_um = 150000;
@@ -96,7 +98,7 @@ void board_default_config(struct board_config *c)
 	c->orders.border_extra_um = 60000;
 	c->orders.border_block_um = 5000;
 	c->orders.border_depth_um = 8000;
-	c->orders.square_ticks = 300;
+	c->orders.square_ms = 300;
 	c->orders.backoff_um = 60000;
 	c->orders.border_bound_um = 1000;
 	c->orders.border_heading_bound_turn32 = fx_deg_to_turn32(1) / 4; /* 0.25 degree */
@@ -226,20 +228,12 @@ static void period_clear(struct board_snapshot *p)
 	p->ds_um = 0;
 	p->arc_um = 0;
 	p->dtheta_turn32 = 0;
-	p->heading_moved_turn32 = 0;
 	p->in.shocks = 0;
 	p->in.basket = 0;
 	p->encoder_fault = 0;
 	p->wheels_replaced = 0;
 	p->edges.rose = 0;
 	p->edges.fell = 0;
-}
-
-/* The slow modules count their durations in slow ticks: a duration of n ticks is
- * ceil(n / 2^shift) of them. */
-static uint16_t slow_ticks(uint16_t n, uint8_t shift)
-{
-	return (uint16_t)(((uint32_t)n + (1u << shift) - 1u) >> shift);
 }
 
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in)
@@ -257,19 +251,14 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->cfg = *cfg;
 	b->slow_hz = (uint16_t)(cfg->tick_hz >> shift);
 	b->slow_mask = (uint8_t)((1u << shift) - 1u);
-	/* The slow modules' durations in their own ticks; the slip window the same length. */
-	uc.batch_ticks = (uint8_t)slow_ticks(uc.batch_ticks, shift);
+	/* The slow modules run at the slow steps' rate: their durations, in ms, in their updates.
+	 */
+	uc.rate_hz = b->slow_hz;
 	uc.ratio_error_ppm = cfg->uncalibrated.ratio_error_ppm; /* until a calibration */
 	uc.track_error_um = cfg->uncalibrated.track_error_um;
 	uc.scale_error_ppm = cfg->uncalibrated.scale_error_ppm;
-	fc.following_ticks = slow_ticks(fc.following_ticks, shift);
-	fc.current_ticks = slow_ticks(fc.current_ticks, shift);
-	fc.repeat_window_ticks = slow_ticks(fc.repeat_window_ticks, shift);
-	fc.slip_shift = (uint8_t)(fc.slip_shift > shift ? fc.slip_shift - shift : 0);
+	fc.rate_hz = b->slow_hz;
 	oc.tick_hz = b->slow_hz;
-	oc.settle_ticks = slow_ticks(oc.settle_ticks, shift);
-	oc.settle_timeout_ticks = slow_ticks(oc.settle_timeout_ticks, shift);
-	oc.square_ticks = slow_ticks(oc.square_ticks, shift);
 	proto_init(&b->proto);
 	if (odometry_init(&b->odometry, &cfg->odometry, in->free_count[0], in->free_count[1]) ||
 	    uncertainty_init(&b->uncertainty, &uc) || control_init(&b->control, &cfg->control) ||
@@ -343,7 +332,6 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	p->angle_um = b->angle_um;
 	measure(b, p, &b->m);
 	b->m.pose = odometry_get_pose(&b->odometry);
-	p->heading_turn32 = b->m.pose.heading_turn32;
 	p->tick = 0;
 	p->dist_err_um = 0;
 	p->angle_err_um = 0;
@@ -600,15 +588,11 @@ static void react(struct board *b, uint8_t event, const struct orders_measure *m
 	b->timed_out = 0; /* a stop for the timeout ends on the fault instead */
 }
 
-/* A new estimate: the position at once (the slow steps' own); the heading for the servo to
- * take, moved by as much as it differs from the snapshot's. */
+/* A new estimate, at once: the pose is the slow steps' own (the servo only counts heading
+ * changes, for the angle axis). */
 static void set_pose(struct board *b, const struct odometry_pose *p, struct orders_measure *m)
 {
-	struct board_handover *h = &b->handover;
-
 	odometry_set_position(&b->odometry, p->x_um, p->y_um);
-	h->heading_move_turn32 = p->heading_turn32 - b->period[b->period_index ^ 1u].heading_turn32;
-	h->set_heading = 1;
 	m->pose = *p;
 }
 
@@ -818,11 +802,12 @@ static void slow_steps(struct board *b)
 	uint8_t reason, event;
 	int32_t left_q16, right_q16; /* the free wheels' travels over the period */
 
-	/* 0. The position, along the period's travel as one arc; the measure's pose (its heading
-	 * the snapshot's: the odometry's own is the servo's, and moves on). The travels from the
-	 * counts, with the factors the period's ticks had. */
+	/* 0. The pose, along the period's travel as one arc ending at the period's heading change
+	 * from the last pose. The travels from the counts, with the factors the period's ticks
+	 * had. */
 	{
 		struct odometry_arc arc;
+		uint32_t heading_turn32 = m->pose.heading_turn32 + (uint32_t)p->dtheta_turn32;
 		const uint16_t *kl = p->wheels_replaced ? p->wheel_k[0] : b->odometry.left.k;
 		const uint16_t *kr = p->wheels_replaced ? p->wheel_k[1] : b->odometry.right.k;
 
@@ -832,17 +817,16 @@ static void slow_steps(struct board *b)
 			odometry_travel_q16(kr, (int16_t)(p->in.free_count[1] - b->free_base[1]));
 		b->free_base[0] = p->in.free_count[0];
 		b->free_base[1] = p->in.free_count[1];
-		odometry_arc_of(&arc, left_q16, right_q16, p->dtheta_turn32,
-				p->heading_turn32 - p->heading_moved_turn32);
+		odometry_arc_of(&arc, left_q16, right_q16, p->dtheta_turn32, heading_turn32);
 		odometry_advance(&b->odometry, &arc);
 		m->pose.x_um = odometry_round_um(b->odometry.x_um, b->odometry.x_frac, 0x8000u);
 		m->pose.y_um = odometry_round_um(b->odometry.y_um, b->odometry.y_frac, 0x8000u);
-		m->pose.heading_turn32 = p->heading_turn32;
+		m->pose.heading_turn32 = heading_turn32;
 		measure(b, p, m);
 	}
 
 	/* 1. Error radius, from the period's travel, and what the free wheels may not have seen. */
-	uncertainty_update(&b->uncertainty, left_q16, right_q16, p->heading_turn32);
+	uncertainty_update(&b->uncertainty, left_q16, right_q16, m->pose.heading_turn32);
 	{
 		int32_t travel_q16[2];
 
@@ -960,12 +944,11 @@ static void sp_advance(struct orders_axis *sp, const struct orders_axis *step,
 	sp->vel_um_s += step->vel_um_s;
 }
 
-/* The slow steps' results, taken by the servo; returns the heading's move. p: the period that
- * ends at this tick, if its travel is not summed yet (then new wheels keep its old factors). */
-static uint32_t take_handover(struct board *b, struct board_snapshot *p)
+/* The slow steps' results, taken by the servo. p: the period that ends at this tick, if its
+ * travel is not summed yet (then new wheels keep its old factors). */
+static void take_handover(struct board *b, struct board_snapshot *p)
 {
 	struct board_handover *h = &b->handover;
-	uint32_t moved = 0;
 
 	if (h->set_odometry) {
 		if (p) {
@@ -977,12 +960,6 @@ static uint32_t take_handover(struct board *b, struct board_snapshot *p)
 		}
 		odometry_install_config(&b->odometry, &h->odometry_cfg, h->odometry_wheels);
 		h->set_odometry = 0;
-	}
-	if (h->set_heading) {
-		/* The heading has moved on since the snapshot: the correction is a move. */
-		moved = h->heading_move_turn32;
-		odometry_set_heading(&b->odometry, b->odometry.heading_turn32 + moved);
-		h->set_heading = 0;
 	}
 	if (h->set_gains) {
 		control_set_gains(&b->control, &h->gains);
@@ -1010,7 +987,6 @@ static uint32_t take_handover(struct board *b, struct board_snapshot *p)
 		b->phase = (uint8_t)(1u << b->cfg.slow_shift);
 		h->jump = 0;
 	}
-	return moved;
 }
 
 /* The period's end: what the slow steps work on, and a new period. */
@@ -1028,7 +1004,6 @@ static void take_snapshot(struct board *b, const struct board_inputs *in, int32_
 	p->in.lines = in->lines;
 	p->dist_um = dist_um;
 	p->angle_um = b->angle_um;
-	p->heading_turn32 = b->odometry.heading_turn32;
 	p->sp_dist_um = b->sp_dist.pos_um;
 	p->sp_angle_um = b->sp_angle.pos_um;
 	p->msg_head = b->proto.head;
@@ -1084,8 +1059,8 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	} else if (slow_tick) {
 		if (b->slow_due)
 			b->slow_overruns++;
-		else /* after this period's travel: the slow steps' arc ends before the move */
-			p->heading_moved_turn32 += take_handover(b, p);
+		else
+			take_handover(b, p);
 	}
 
 	/* 4. The set points of this tick, a step towards the handed-over ones. */

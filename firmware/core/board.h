@@ -93,11 +93,7 @@ struct board_snapshot {
 	int32_t ds_um;         /* distance axis change over the period */
 	int32_t arc_um;        /* angle axis change over the period */
 	int32_t dtheta_turn32; /* heading change over the period */
-	uint32_t heading_turn32;
-	/* The heading moves handed over at the period's last tick, after its travel: the travel
-	 * ended at heading_turn32 - heading_moved_turn32. */
-	uint32_t heading_moved_turn32;
-	int32_t sp_dist_um; /* the servo's set points at that tick */
+	int32_t sp_dist_um;    /* the servo's set points at that tick */
 	int32_t sp_angle_um;
 	int32_t dist_err_um; /* the control's, for DEBUG */
 	int32_t angle_err_um;
@@ -126,12 +122,9 @@ struct board_setpoints {
 /* What the slow steps hand the servo, applied at the next slow tick (or at once with
  * slow_shift 0). */
 struct board_handover {
-	/* set_heading: the heading moves by this (the position is the slow steps' own). */
-	uint32_t heading_move_turn32;
 	struct odometry_config odometry_cfg; /* set_odometry, with its tables */
 	struct odometry_wheel odometry_wheels[2];
 	struct control_gains gains; /* set_gains */
-	uint8_t set_heading;
 	uint8_t set_odometry;
 	uint8_t set_gains;
 	uint8_t reset;      /* forget the PIDs' integrals */
@@ -231,6 +224,13 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 static inline int board_period_ends(const struct board *b)
 {
 	return (b->tick & b->slow_mask) == 0;
+}
+
+/* The estimate of the robot's pose (what POSITION reports, at full resolution): the slow steps'
+ * own, as of the last period they ran. Interrupt-safe: from the slow steps' context. */
+static inline struct odometry_pose board_get_pose(const struct board *b)
+{
+	return b->m.pose;
 }
 
 /* 1 when board_slow() has a snapshot to work on (slow_shift > 0). Interrupt-safe: yes. */

@@ -64,14 +64,6 @@ void control_set_gains(struct control *c, const struct control_gains *g)
 	pid_set_config(&c->angle, &pc);
 }
 
-int control_set_preset(struct control *c, uint8_t preset)
-{
-	if (preset >= CONTROL_N_PRESETS)
-		return -1;
-	control_set_gains(c, &c->cfg.presets[preset]);
-	return 0;
-}
-
 void control_reset(struct control *c)
 {
 	pid_reset(&c->dist);

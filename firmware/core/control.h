@@ -56,9 +56,6 @@ int control_init(struct control *c, const struct control_config *cfg);
 /* SET_FILTRE_RAW: gains on both axes; the integrals are kept. Interrupt-safe: no. */
 void control_set_gains(struct control *c, const struct control_gains *g);
 
-/* SET_FILTRE: a preset, 0..CONTROL_N_PRESETS-1; returns -1 for another. Interrupt-safe: no. */
-int control_set_preset(struct control *c, uint8_t preset);
-
 /* Forget the integrals and derivatives (after a hard stop). Interrupt-safe: no. */
 void control_reset(struct control *c);
 

@@ -19,10 +19,20 @@ static int32_t clamp_step(int32_t v)
 
 int faults_init(struct faults *f, const struct faults_config *cfg, const uint16_t motor_count[2])
 {
-	if (cfg->repeat_max == 0 || cfg->repeat_max > N_FAULT_TIMES || cfg->slip_shift > 12 ||
-	    cfg->following_ticks == 0 || cfg->current_ticks == 0 || cfg->slip_max_um > 30000)
+	uint16_t slip_ticks;
+
+	if (cfg->repeat_max == 0 || cfg->repeat_max > N_FAULT_TIMES || cfg->rate_hz == 0 ||
+	    cfg->following_ms == 0 || cfg->current_ms == 0 || cfg->slip_window_ms == 0 ||
+	    cfg->slip_max_um > 30000)
+		return -1;
+	slip_ticks = fx_ticks_of_ms(cfg->slip_window_ms, cfg->rate_hz);
+	if (slip_ticks > 4096)
 		return -1;
 	f->cfg = *cfg;
+	f->following_ticks = fx_ticks_of_ms(cfg->following_ms, cfg->rate_hz);
+	f->current_ticks = fx_ticks_of_ms(cfg->current_ms, cfg->rate_hz);
+	f->repeat_window_ticks = fx_ticks_of_ms(cfg->repeat_window_ms, cfg->rate_hz);
+	f->slip_shift = (uint8_t)(fx_bit_length32(slip_ticks) - 1u);
 	f->last_motor[0] = motor_count[0];
 	f->last_motor[1] = motor_count[1];
 	f->following_count = 0;
@@ -90,10 +100,10 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 	diff_d = (m[0] + m[1]) - (fr[0] + fr[1]);
 	diff_a = (m[1] - m[0]) - free_a;
 	f->slip_dist_q16 =
-		fx_add_sat32(f->slip_dist_q16 - fx_shr_round(f->slip_dist_q16, f->cfg.slip_shift),
+		fx_add_sat32(f->slip_dist_q16 - fx_shr_round(f->slip_dist_q16, f->slip_shift),
 			     fx_shr_round(diff_d, 1));
 	f->slip_angle_q16 =
-		fx_add_sat32(f->slip_angle_q16 - fx_shr_round(f->slip_angle_q16, f->cfg.slip_shift),
+		fx_add_sat32(f->slip_angle_q16 - fx_shr_round(f->slip_angle_q16, f->slip_shift),
 			     fx_shr_round(diff_a, 1));
 	if (!in->moving) {
 		/* No order to abandon: a robot pushed while it holds its position, or rocking
@@ -182,7 +192,7 @@ static uint8_t motor_fault(struct faults *f, uint8_t cause)
 		f->n_motor_faults++;
 	if (f->n_motor_faults >= n) {
 		oldest = f->motor_fault_at[(uint8_t)(f->n_motor_faults - n) % N_FAULT_TIMES];
-		if (f->now - oldest <= f->cfg.repeat_window_ticks) {
+		if (f->now - oldest <= f->repeat_window_ticks) {
 			f->cause = FAULTS_CAUSE_REPEATED;
 			return FAULTS_GRAVE;
 		}
@@ -206,7 +216,7 @@ uint8_t faults_check(struct faults *f, const struct faults_inputs *in)
 	ev = slip_and_lost(f, in);
 	over = fx_abs32(in->current_ma[0]) > f->cfg.current_max_ma ||
 	       fx_abs32(in->current_ma[1]) > f->cfg.current_max_ma;
-	if (counted(&f->current_count, over, f->cfg.current_ticks) && ev == FAULTS_NONE) {
+	if (counted(&f->current_count, over, f->current_ticks) && ev == FAULTS_NONE) {
 		f->current_count = 0;
 		if (!in->moving)
 			return FAULTS_YIELD; /* holding against a push: let go, no order to stop */
@@ -216,7 +226,7 @@ uint8_t faults_check(struct faults *f, const struct faults_inputs *in)
 	blocked = in->moving && !in->pushing &&
 		  (fx_abs32(in->dist_err_um) > f->cfg.following_max_um ||
 		   fx_abs32(in->angle_err_um) > f->cfg.following_max_um);
-	if (counted(&f->following_count, blocked, f->cfg.following_ticks) && ev == FAULTS_NONE) {
+	if (counted(&f->following_count, blocked, f->following_ticks) && ev == FAULTS_NONE) {
 		ev = FAULTS_MOTOR;
 		f->cause = FAULTS_CAUSE_FOLLOWING;
 	}

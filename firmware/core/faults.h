@@ -33,16 +33,17 @@ enum faults_cause {
 struct faults_config {
 	uint8_t shock_basket_mask;       /* shock sensors on the basket side; the others: border */
 	int32_t following_max_um;        /* following error that counts as blocked ... */
-	uint16_t following_ticks;        /* ... for this many consecutive ticks */
+	uint16_t following_ms;           /* ... for this long (consecutive checks) */
 	int16_t current_max_ma;          /* overcurrent ... */
-	uint16_t current_ticks;          /* ... for this many consecutive ticks */
+	uint16_t current_ms;             /* ... for this long (consecutive checks) */
 	uint8_t motor_encoders;          /* 0: no motor encoders, no slip or encoder-lost checks */
 	uint32_t motor_um_per_count_q16; /* drive wheel travel per motor count [um * 2^16] */
 	int32_t slip_max_um;             /* drive wheels vs free wheels disagreement ... */
-	uint8_t slip_shift;              /* ... over a window of 2^slip_shift ticks (leaky sum) */
-	int32_t lost_min_um; /* a free wheel counted 0 while its motor turned this much ... */
-	uint8_t repeat_max;  /* this many PB_MOTEUR (1..8) ... */
-	uint16_t repeat_window_ticks; /* ... within this window: PB_GRAVE */
+	uint16_t slip_window_ms;   /* ... in leaky sums over this window (2^n checks, n floored) */
+	int32_t lost_min_um;       /* a free wheel counted 0 while its motor turned this much ... */
+	uint8_t repeat_max;        /* this many PB_MOTEUR (1..8) ... */
+	uint16_t repeat_window_ms; /* ... within this window: PB_GRAVE */
+	uint16_t rate_hz;          /* faults_check() calls per second (board_init() sets it) */
 };
 
 /* What the checks look at this tick. */
@@ -60,6 +61,11 @@ struct faults_inputs {
 
 struct faults {
 	struct faults_config cfg;
+	/* cfg's durations in checks */
+	uint16_t following_ticks;
+	uint16_t current_ticks;
+	uint16_t repeat_window_ticks;
+	uint8_t slip_shift; /* the slip window: 2^slip_shift checks */
 	uint16_t last_motor[2];
 	uint16_t following_count;
 	uint16_t current_count;

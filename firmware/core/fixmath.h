@@ -151,15 +151,6 @@ static inline uint32_t fx_mul_u32_shr(uint32_t a, uint32_t b, uint8_t n)
 	return fx_shr_u32(lo, n) | fx_shl_u32(hi, (uint8_t)(32 - n));
 }
 
-/* round(num / den) with ties away from zero, den >= 1, for |num| / den + 1 below 2^qbits. */
-static inline int32_t fx_div_round_small(int32_t num, uint32_t den, uint8_t qbits)
-{
-	uint32_t m = num >= 0 ? (uint32_t)num : (uint32_t)0 - (uint32_t)num;
-	int32_t q = (int32_t)fx_udiv_small(m + den / 2, den, qbits);
-
-	return num >= 0 ? q : -q;
-}
-
 /* round(a b / 2^32) with ties away from zero, for any int32_t a and uint32_t b whose product
  * over 2^32 fits: four 16 x 16 products. */
 static inline int32_t fx_mul_shr32(int32_t a, uint32_t b)
@@ -275,6 +266,15 @@ static inline int64_t fx_shr_round64(int64_t v, uint8_t n)
 	mag = (mag + ((uint64_t)1 << (n - 1))) >> n;
 	/* mag <= 2^62 + 1 here since n >= 1, so the negation stays in range. */
 	return -(int64_t)mag;
+}
+
+/* A duration [ms] as a count of periods at rate_hz, rounded up, at least 1 (configuration time:
+ * the modules' durations are given in ms, whatever the rate they run at). */
+static inline uint16_t fx_ticks_of_ms(uint16_t ms, uint16_t rate_hz)
+{
+	uint32_t n = ((uint32_t)ms * rate_hz + 999u) / 1000u;
+
+	return (uint16_t)(n == 0 ? 1u : n > 0xffffu ? 0xffffu : n);
 }
 
 /* floor(v / 2^n), n in 0..31, without shifting a negative value (implementation-defined). */

@@ -414,7 +414,7 @@ void odometry_set_position(struct odometry *o, int32_t x_um, int32_t y_um)
 	o->y_frac = 0;
 }
 
-void odometry_set_heading(struct odometry *o, uint32_t heading_turn32)
+static void set_heading(struct odometry *o, uint32_t heading_turn32)
 {
 	o->heading_q64[0] = 0;
 	o->heading_q64[1] = heading_turn32;
@@ -424,5 +424,5 @@ void odometry_set_heading(struct odometry *o, uint32_t heading_turn32)
 void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose)
 {
 	odometry_set_position(o, pose->x_um, pose->y_um);
-	odometry_set_heading(o, pose->heading_turn32);
+	set_heading(o, pose->heading_turn32);
 }

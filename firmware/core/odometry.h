@@ -153,9 +153,8 @@ void odometry_advance(struct odometry *o, const struct odometry_arc *a);
  * interrupt-safe: no (call between two ticks). */
 void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose);
 
-/* The same in two halves, each owned by one of odometry_count() and odometry_advance(). */
+/* The position alone (odometry_advance()'s half of the pose). */
 void odometry_set_position(struct odometry *o, int32_t x_um, int32_t y_um);
-void odometry_set_heading(struct odometry *o, uint32_t heading_turn32);
 
 /* A length kept as whole um (an int32_t in a uint32_t) and a fraction, half = half a um in the
  * fraction's unit, rounded to nearest with ties away from zero (saturated). For the accessors

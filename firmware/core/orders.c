@@ -6,7 +6,8 @@
 
 #define CM_TO_UM 10000
 
-int32_t orders_arc_um(const struct orders *o, int32_t dheading_turn32)
+/* A heading change [turn * 2^32] as an arc on the angle axis [um]. */
+static int32_t orders_arc_um(const struct orders *o, int32_t dheading_turn32)
 {
 	return fx_mul_shr32(dheading_turn32, (uint32_t)o->pi_track_um);
 }
@@ -59,7 +60,7 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	struct profile_config pc;
 
 	if (cfg->drive_track_um < 10000u || cfg->drive_track_um > 1000000u ||
-	    cfg->n_baskets > ORDERS_MAX_BASKETS || cfg->settle_ticks == 0 ||
+	    cfg->n_baskets > ORDERS_MAX_BASKETS || cfg->settle_ms == 0 ||
 	    cfg->grip_um_s2 < 100000 || cfg->grip_um_s2 > 50000000 || cfg->rot_grip_q8 == 0)
 		return -1;
 	o->cfg = *cfg;
@@ -82,13 +83,15 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 		profile_set_limits(&o->angle, &r);
 	}
 	o->designation = 0xFFu;
+	o->settle_ticks = fx_ticks_of_ms(cfg->settle_ms, cfg->tick_hz);
+	o->settle_timeout_ticks = fx_ticks_of_ms(cfg->settle_timeout_ms, cfg->tick_hz);
+	o->square_ticks = fx_ticks_of_ms(cfg->square_ms, cfg->tick_hz);
 	o->aim_period = (uint8_t)(cfg->tick_hz >= 500 ? cfg->tick_hz / 250 : 1);
 	o->aim_wait = 0;
 	o->bearing_valid = 0;
 	o->trig_valid = 0;
 	o->state = ORDER_STATE_IDLE;
 	o->end_reason = END_REASON_NONE;
-	o->ended = 0;
 	o->give_way = 0;
 	o->gave_way = 0;
 	o->braking = 0;
@@ -157,7 +160,6 @@ static void begin(struct orders *o, uint8_t designation)
 {
 	o->designation = designation;
 	o->frozen = 0;
-	o->ended = 0;
 	o->bearing_valid = 0; /* a new target */
 	o->aim_wait = o->aim_period;
 	o->border = 0;
@@ -171,7 +173,6 @@ static void end(struct orders *o, uint8_t reason)
 	o->border = 0;
 	o->state = ORDER_STATE_IDLE;
 	o->end_reason = reason;
-	o->ended = 1;
 	apply_limits(o);
 }
 
@@ -429,8 +430,7 @@ static int settled(struct orders *o, const struct orders_measure *m)
 	}
 	if (o->settle_time < 0xFFFFu)
 		o->settle_time++;
-	return o->settle_count >= o->cfg.settle_ticks ||
-	       o->settle_time >= o->cfg.settle_timeout_ticks;
+	return o->settle_count >= o->settle_ticks || o->settle_time >= o->settle_timeout_ticks;
 }
 
 static void step_goto(struct orders *o, const struct orders_measure *m)
@@ -533,7 +533,7 @@ static uint8_t update_border(struct orders *o, const struct orders_measure *m)
 		}
 		break;
 	case ORDER_STATE_SQUARE:
-		if (++o->square_count < o->cfg.square_ticks)
+		if (++o->square_count < o->square_ticks)
 			break;
 		border_recal(o, m);
 		enter(o, ORDER_STATE_BACK_OFF);

@@ -29,8 +29,8 @@ struct orders_config {
 	int32_t freeze_radius_um;       /* within this distance of the target, no re-aiming */
 	int32_t arrive_window_um;       /* settled when both following errors are below this */
 	int32_t arrive_speed_um_s;      /* ... and both measured speeds below this */
-	uint16_t settle_ticks;          /* ... for this many consecutive ticks */
-	uint16_t settle_timeout_ticks;  /* an order ends DONE after this long in SETTLE anyway */
+	uint16_t settle_ms;             /* ... for this long (consecutive updates) */
+	uint16_t settle_timeout_ms;     /* an order ends DONE after this long in SETTLE anyway */
 	int32_t push_speed_um_s;   /* GOTO_PANIER's approach speed (capped by the traj limit) */
 	int32_t push_max_um;       /* GOTO_PANIER gives up (PB_MOTEUR, NO_BASKET) after this */
 	int32_t basket_contact_um; /* from the encoder axis midpoint to the basket switch */
@@ -63,7 +63,7 @@ struct orders_config {
 	int32_t border_extra_um;              /* gives up this far past the expected contact */
 	int32_t border_block_um;              /* a following error this large is a contact too */
 	int32_t border_depth_um;              /* the push: setpoint this far past the contact */
-	uint16_t square_ticks;                /* the push lasts this long, heading loop relaxed */
+	uint16_t square_ms;                   /* the push lasts this long, heading loop relaxed */
 	int32_t backoff_um;                   /* then backs off this far */
 	uint32_t border_bound_um;             /* residual of the coordinate across the border */
 	uint32_t border_heading_bound_turn32; /* residual of the heading once squared up */
@@ -106,12 +106,15 @@ struct orders {
 	uint8_t designation;        /* the running or last order, PROTO_NONE before the first */
 	uint8_t state;              /* ORDER_STATE_* */
 	uint8_t end_reason;         /* END_REASON_* of the last order that ended */
-	uint8_t ended;              /* set when an order ends, cleared by orders_take_end() */
 	uint8_t options;            /* GOTO options */
 	int32_t target_x_um;
 	int32_t target_y_um;
 	uint32_t target_heading_turn32;
 	int32_t push_start_um;
+	/* cfg's durations in updates (at tick_hz) */
+	uint16_t settle_ticks;
+	uint16_t settle_timeout_ticks;
+	uint16_t square_ticks;
 	uint16_t settle_count;
 	uint16_t settle_time;
 	uint8_t frozen; /* GOTO within the freeze radius: targets no longer follow the estimate */
@@ -183,9 +186,6 @@ void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_
  * two ticks of braking) is held where it is: the hold never pulls it back towards the obstacle.
  * gave_way tells the board that a hold point moved (the integrals go). Interrupt-safe: no. */
 void orders_shock(struct orders *o, const struct orders_measure *m, uint8_t end_reason);
-
-/* A heading change [turn * 2^32] as an arc on the angle axis [um]. Interrupt-safe: yes. */
-int32_t orders_arc_um(const struct orders *o, int32_t dheading_turn32);
 
 /* One tick: advance the state machine and the profiles; fills sp_dist and sp_angle.
  * Returns END_REASON_NONE, or the reason when the order ended during this tick (for

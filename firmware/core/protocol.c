@@ -382,3 +382,20 @@ void proto_publish(struct proto *p, const struct proto_snapshot *s)
 	*proto_draft(p) = *s;
 	proto_flip(p);
 }
+
+void proto_master_write(struct proto *p, const uint8_t *data, uint8_t n, int stop)
+{
+	proto_on_write_start(p);
+	for (uint8_t i = 0; i < n; i++)
+		proto_on_byte(p, data[i]);
+	if (stop)
+		proto_on_stop(p);
+}
+
+void proto_master_read(struct proto *p, uint8_t *out, uint8_t n)
+{
+	proto_on_read_start(p);
+	for (uint8_t i = 0; i < n; i++)
+		out[i] = proto_read_byte(p);
+	proto_on_stop(p);
+}

@@ -128,6 +128,12 @@ uint8_t proto_read_byte(struct proto *p);
  * Interrupt-safe: yes. */
 void proto_on_stop(struct proto *p);
 
+/* A whole transaction of an in-process master (the simulator's bus, the test harnesses), as
+ * the bus events above: a write of n bytes, ended by STOP (stop 1) or left for a read by
+ * repeated start (stop 0); a read of n bytes, ended by STOP. Interrupt-safe: as proto_on_*(). */
+void proto_master_write(struct proto *p, const uint8_t *data, uint8_t n, int stop);
+void proto_master_read(struct proto *p, uint8_t *out, uint8_t n);
+
 /* A bus error cut the transaction: a write in progress is rejected (REJECT_ABORTED), never
  * applied. Interrupt-safe: yes. */
 void proto_on_abort(struct proto *p);

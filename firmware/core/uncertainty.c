@@ -174,8 +174,9 @@ static int config_valid(const struct uncertainty_config *cfg)
 	       cfg->noise_right_mm2_per_m_q16 <= UNCERTAINTY_NOISE_Q16_MAX &&
 	       cfg->track_um >= ((uint32_t)1 << 14) && cfg->track_um <= ((uint32_t)1 << 21) &&
 	       cfg->ratio_error_ppm <= 1000000u && cfg->track_error_um <= cfg->track_um &&
-	       cfg->scale_error_ppm <= 1000000u && cfg->k_q8 >= 1 && cfg->batch_ticks >= 1 &&
-	       cfg->batch_ticks <= UNCERTAINTY_BATCH_TICKS_MAX;
+	       cfg->scale_error_ppm <= 1000000u && cfg->k_q8 >= 1 && cfg->batch_ms >= 1 &&
+	       cfg->rate_hz >= 1 &&
+	       fx_ticks_of_ms(cfg->batch_ms, cfg->rate_hz) <= UNCERTAINTY_BATCH_TICKS_MAX;
 }
 
 /* Constants of the configuration, so that the stages multiply only. The systematic
@@ -185,6 +186,7 @@ static void derive(struct uncertainty *u)
 	uint64_t b = u->cfg.track_um;
 	uint64_t g = ((uint64_t)1 << 30) / b;
 
+	u->batch_ticks = (uint8_t)fx_ticks_of_ms(u->cfg.batch_ms, u->cfg.rate_hz);
 	u->turn_per_um = (uint16_t)((((uint64_t)TURN32_PER_RAD << 16) / b + 0x8000u) >> 16);
 	u->inv_track_q28 = (uint16_t)(((uint64_t)1 << 28) / b);
 	u->g_q12 = (uint16_t)(g > 0xffffu ? 0xffffu : g);
@@ -832,7 +834,7 @@ void uncertainty_update(struct uncertainty *u, int32_t left_q16, int32_t right_q
 		b->ticks++;
 		/* A batch that is due waits until the stages are done. */
 		if (u->stage == STAGE_IDLE &&
-		    (b->ticks >= u->cfg.batch_ticks ||
+		    (b->ticks >= u->batch_ticks ||
 		     (b->abs_left_q8 >> 1) + (b->abs_right_q8 >> 1) >= PATH_HALF_Q8)) {
 			start_batch(u); /* its first stage runs next tick */
 			return;

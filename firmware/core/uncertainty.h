@@ -34,7 +34,9 @@ struct uncertainty_config {
 	uint32_t track_error_um;  /* bound on the track error [um], <= track_um */
 	uint32_t scale_error_ppm; /* bound on the common wheel factor error [1e-6], <= 1e6 */
 	uint16_t k_q8; /* radius / sigma [2^-8], 1..65535: 627 = 2.45 (95 %), 776 = 3.03 (99 %) */
-	uint8_t batch_ticks; /* covariance update every that many ticks, 1..64 */
+	uint16_t
+		batch_ms; /* covariance update this often, 1..UNCERTAINTY_BATCH_TICKS_MAX updates */
+	uint16_t rate_hz; /* uncertainty_update() calls per second (board_init() sets it) */
 };
 
 /* A batch of wheel travels [um * 2^8] (8.4 m before they could overflow): signed sums, and
@@ -49,6 +51,7 @@ struct uncertainty_batch {
 struct uncertainty {
 	struct uncertainty_config cfg;
 	/* Derived from cfg. */
+	uint8_t batch_ticks;  /* batch_ms in updates */
 	uint16_t turn_per_um; /* heading per um of right - left travel [turn * 2^32 / um * 2^-16] */
 	uint16_t inv_track_q28;  /* 2^28 / track */
 	uint16_t g_q12;          /* 2^30 / track: heading [2^-16 rad] per 4 um of right - left */

@@ -260,7 +260,7 @@ static void test_replace_near_target_at_speed(void **state)
 	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 150, 150}, 3);
 	goto_mm(1000, 0);
 	for (ticks = 0; ticks < 20000; ticks++) {
-		struct odometry_pose p = odometry_get_pose(&h.board.odometry);
+		struct odometry_pose p = board_get_pose(&h.board);
 
 		host_tick(&h);
 		if (p.x_um > -200000)
@@ -342,7 +342,7 @@ static void test_goto_panier(void **state)
 	assert_int_equal(h.board.orders.end_reason, END_REASON_BASKET);
 	assert_int_equal(status() & STATUS_CHOC_PANIER, STATUS_CHOC_PANIER);
 	truth(&tx, &ty, &th);
-	p = odometry_get_pose(&h.board.odometry);
+	p = board_get_pose(&h.board);
 	print_message("basket contact: truth (%.2f, %.2f), estimate (%.2f, %.2f)\n", tx, ty,
 		      p.x_um / 1000.0, p.y_um / 1000.0);
 	assert_true(fabs(p.y_um / 1000.0 - ty) < 3.0);
@@ -502,9 +502,9 @@ static void test_timeout_stops_a_silent_master(void **state)
 	/* The first tick sees the poll; 200 more see none. */
 	assert_int_equal(n, 201);
 	assert_int_equal(h.board.orders.state, ORDER_STATE_STOPPING);
-	p0 = odometry_get_pose(&h.board.odometry);
+	p0 = board_get_pose(&h.board);
 	silence(2000);
-	p1 = odometry_get_pose(&h.board.odometry);
+	p1 = board_get_pose(&h.board);
 	print_message("timeout: stopped %d mm after the timeout\n", (p1.x_um - p0.x_um) / 1000);
 	assert_true(p1.x_um - p0.x_um > 480000 && p1.x_um - p0.x_um < 520000);
 	assert_int_equal(status(), 0); /* not busy: the master comes back to a stopped robot */
@@ -603,7 +603,7 @@ static void test_set_odometrie(void **state)
 	start(&f);
 	host_tick(&h);
 	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5147185);
-	p0 = odometry_get_pose(&h.board.odometry);
+	p0 = board_get_pose(&h.board);
 	d0 = odometry_get_distance_um(&h.board.odometry);
 	/* ratio +2000 ppm, track 280.12 mm, scale -1000 ppm */
 	send((const uint8_t[]){PROTO_SET_ODOMETRIE, 0x07, 0xD0, 0x6D, 0x6C, 0xFC, 0x18}, 7);
@@ -614,7 +614,7 @@ static void test_set_odometrie(void **state)
 	assert_int_equal(h.board.odometry.cfg.right_um_per_count_q16, 5147180);
 	assert_int_equal(h.board.odometry.cfg.track_um, 280120);
 	assert_int_equal(h.board.uncertainty.cfg.track_um, 280120);
-	p1 = odometry_get_pose(&h.board.odometry);
+	p1 = board_get_pose(&h.board);
 	assert_int_equal(p1.x_um, p0.x_um);
 	assert_int_equal(p1.y_um, p0.y_um);
 	assert_int_equal(p1.heading_turn32, p0.heading_turn32);
@@ -642,15 +642,15 @@ static void test_set_odometrie_moving(void **state)
 	setup_field(&f);
 	start(&f);
 	host_tick(&h);
-	x0 = h.board.m.pose.x_um;
+	x0 = board_get_pose(&h.board).x_um;
 	d0 = h.board.m.dist_um;
-	goto_mm((int16_t)(x0 / 1000 + 1500), (int16_t)(h.board.m.pose.y_um / 1000));
+	goto_mm((int16_t)(x0 / 1000 + 1500), (int16_t)(board_get_pose(&h.board).y_um / 1000));
 	for (int i = 0; i < 1500; i++) {
 		if (i == 600) /* at speed (a period is 800 um): scale +30000 ppm */
 			send((const uint8_t[]){PROTO_SET_ODOMETRIE, 0, 0, 0x6D, 0x60, 0x75, 0x30},
 			     7);
 		host_tick(&h);
-		x1 = h.board.m.pose.x_um - x0;
+		x1 = board_get_pose(&h.board).x_um - x0;
 		d1 = h.board.m.dist_um - d0;
 		assert_true(x1 - d1 <= 2 && d1 - x1 <= 2);
 	}

@@ -16,19 +16,12 @@
 
 static void write_frame(struct proto *p, const uint8_t *bytes, uint8_t n, int stop)
 {
-	proto_on_write_start(p);
-	for (uint8_t i = 0; i < n; i++)
-		proto_on_byte(p, bytes[i]);
-	if (stop)
-		proto_on_stop(p);
+	proto_master_write(p, bytes, n, stop);
 }
 
 static void read_frame(struct proto *p, uint8_t *out, uint8_t n)
 {
-	proto_on_read_start(p);
-	for (uint8_t i = 0; i < n; i++)
-		out[i] = proto_read_byte(p);
-	proto_on_stop(p);
+	proto_master_read(p, out, n);
 }
 
 static struct proto_snapshot snapshot_of(const struct vec_snapshot *v)

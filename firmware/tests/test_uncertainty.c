@@ -17,7 +17,7 @@
 #define TRACK_UM 280000u
 
 /* 0.1 mm^2/m per wheel (physics.md: 0.04..0.25), no systematic error, 99 %, 16 ticks. */
-static const struct uncertainty_config cfg_noise = {6554, 6554, TRACK_UM, 0, 0, 0, 776, 16};
+static const struct uncertainty_config cfg_noise = {6554, 6554, TRACK_UM, 0, 0, 0, 776, 16, 1000};
 
 static long double absl(long double v)
 {
@@ -67,7 +67,7 @@ static void drive(struct uncertainty *u, long double dl_um, long double dr_um, l
  * ends after batch_ticks, and each batch takes UNCERTAINTY_STAGES ticks more. */
 static void settle(struct uncertainty *u)
 {
-	for (int i = 0; i < u->cfg.batch_ticks + 2 * UNCERTAINTY_STAGES + 2; i++)
+	for (int i = 0; i < u->batch_ticks + 2 * UNCERTAINTY_STAGES + 2; i++)
 		uncertainty_update(u, 0, 0, heading_turn32());
 }
 
@@ -180,7 +180,7 @@ static void test_rotation_in_place_grows(void **state)
  * 15. */
 static void test_systematic_ratio(void **state)
 {
-	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16};
+	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16, 1000};
 	struct uncertainty u;
 
 	(void)state;
@@ -204,7 +204,7 @@ static void test_systematic_ratio(void **state)
  * straight d an offset (Eb / b) theta d: 1 mm / 280 mm * 2 pi * 1 m = 22.44 mm -> 23. */
 static void test_systematic_track(void **state)
 {
-	const struct uncertainty_config cfg = {0, 0, TRACK_UM, 0, 1000, 0, 776, 16};
+	const struct uncertainty_config cfg = {0, 0, TRACK_UM, 0, 1000, 0, 776, 16, 1000};
 	struct uncertainty u;
 	long ticks = (long)(PI_L * TRACK_UM / 1000 + 0.5L);
 
@@ -233,7 +233,7 @@ static void test_systematic_track(void **state)
  * test_systematic_ratio.) */
 static void test_radius_monotonic(void **state)
 {
-	const struct uncertainty_config cfg = {16384, 9830, TRACK_UM, 500, 100, 300, 776, 8};
+	const struct uncertainty_config cfg = {16384, 9830, TRACK_UM, 500, 100, 300, 776, 8, 1000};
 	struct uncertainty u;
 	uint8_t last = 0;
 	static const long double moves[][3] = {
@@ -354,7 +354,7 @@ static void test_config_checks(void **state)
 	struct uncertainty u;
 
 	(void)state;
-	cfg.batch_ticks = 0;
+	cfg.batch_ms = 0;
 	assert_int_equal(uncertainty_init(&u, &cfg), -EDOM);
 	cfg = cfg_noise;
 	cfg.k_q8 = 0;
@@ -451,7 +451,7 @@ static void test_heading_bound(void **state)
  * systematic offset became a fixed error); a reset of that coordinate clears it. */
 static void test_new_bounds_keep_what_was_accumulated(void **state)
 {
-	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16};
+	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16, 1000};
 	struct uncertainty_config none = cfg;
 	struct uncertainty u;
 
@@ -476,7 +476,7 @@ static void test_new_bounds_keep_what_was_accumulated(void **state)
  * is 1000e-6 * 1 m / 0.3 m = 3.33 mrad (0.19 degree), with no noise at all. */
 static void test_heading_bound_counts_the_drift(void **state)
 {
-	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16};
+	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16, 1000};
 	struct uncertainty u;
 	long double rad;
 

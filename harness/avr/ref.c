@@ -59,17 +59,10 @@ void ref_tick(struct ref *r)
 
 void ref_i2c_write(struct ref *r, const uint8_t *data, uint8_t n, int stop)
 {
-	proto_on_write_start(&r->board.proto);
-	for (uint8_t i = 0; i < n; i++)
-		proto_on_byte(&r->board.proto, data[i]);
-	if (stop)
-		proto_on_stop(&r->board.proto);
+	proto_master_write(&r->board.proto, data, n, stop);
 }
 
 void ref_i2c_read(struct ref *r, uint8_t *out, uint8_t n)
 {
-	proto_on_read_start(&r->board.proto);
-	for (uint8_t i = 0; i < n; i++)
-		out[i] = proto_read_byte(&r->board.proto);
-	proto_on_stop(&r->board.proto);
+	proto_master_read(&r->board.proto, out, n);
 }

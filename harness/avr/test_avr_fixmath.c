@@ -41,7 +41,6 @@ static const char *const op_name[FXA_OPS] = {
 	[FXA_MUL_SHR32] = "fx_mul_shr32",
 	[FXA_MUL_Q30] = "fx_mul_q30",
 	[FXA_UDIV_SMALL] = "fx_udiv_small",
-	[FXA_DIV_ROUND_SMALL] = "fx_div_round_small",
 	[FXA_UDIV_SHL16] = "fx_udiv_shl16",
 	[FXA_SINCOS] = "fx_sincos",
 	[FXA_SINCOS_Q14] = "fx_sincos_q14",
@@ -155,9 +154,6 @@ static void on_host(uint8_t op, uint8_t n, const uint32_t in[3], uint32_t r[2])
 		break;
 	case FXA_UDIV_SMALL:
 		r[0] = fx_udiv_small(a, b, n);
-		break;
-	case FXA_DIV_ROUND_SMALL:
-		r[0] = (uint32_t)fx_div_round_small((int32_t)a, b, n);
 		break;
 	case FXA_UDIV_SHL16:
 		r[0] = fx_udiv_shl16(a, b);
@@ -405,12 +401,6 @@ static void test_divisions(void **state)
 		if (num > UINT32_MAX)
 			continue;
 		check(t, FXA_UDIV_SMALL, bits, (uint32_t)num, (uint32_t)den, 0);
-		/* round(num / den): |num| + den / 2 below 2^32, |num| / den + 1 below 2^bits */
-		if (num <= INT32_MAX && num + den / 2 <= UINT32_MAX &&
-		    num / den + 1 < (1ull << bits))
-			check(t, FXA_DIV_ROUND_SMALL, bits,
-			      rnd64() & 1 ? (uint32_t)0 - (uint32_t)num : (uint32_t)num,
-			      (uint32_t)den, 0);
 		/* floor(v 2^16 / d): d 1..2^31 - 1, v / d below 2^16 */
 		{
 			uint32_t v = (uint32_t)rnd_bits(32), d = (uint32_t)rnd_bits(31);

@@ -236,7 +236,8 @@ struct uncertainty_config {
     uint32_t track_error_um;
     uint32_t scale_error_ppm;
     uint16_t k_q8;
-    uint8_t batch_ticks;
+    uint16_t batch_ms;
+    uint16_t rate_hz;
 };
 struct uncertainty { struct uncertainty_config cfg; ...; };
 struct control_gains { uint16_t p; uint16_t i; uint16_t d; };
@@ -251,16 +252,17 @@ struct control_config {
 struct faults_config {
     uint8_t shock_basket_mask;
     int32_t following_max_um;
-    uint16_t following_ticks;
+    uint16_t following_ms;
     int16_t current_max_ma;
-    uint16_t current_ticks;
+    uint16_t current_ms;
     uint8_t motor_encoders;
     uint32_t motor_um_per_count_q16;
     int32_t slip_max_um;
-    uint8_t slip_shift;
+    uint16_t slip_window_ms;
     int32_t lost_min_um;
     uint8_t repeat_max;
-    uint16_t repeat_window_ticks;
+    uint16_t repeat_window_ms;
+    uint16_t rate_hz;
 };
 struct orders_config {
     uint32_t drive_track_um;
@@ -268,8 +270,8 @@ struct orders_config {
     int32_t freeze_radius_um;
     int32_t arrive_window_um;
     int32_t arrive_speed_um_s;
-    uint16_t settle_ticks;
-    uint16_t settle_timeout_ticks;
+    uint16_t settle_ms;
+    uint16_t settle_timeout_ms;
     int32_t push_speed_um_s;
     int32_t push_max_um;
     int32_t basket_contact_um;

@@ -62,7 +62,7 @@ LEGACY_CONFIG: dict[str, int] = {
     "control.ff_speed_q15_per_m_s": 0,  # no feed-forward
     "control.ff_accel_q15_per_m_s2": 0,
     "control.ff_angle_accel_q15_per_m_s2": 0,
-    "orders.settle_ticks": 1,  # finished on the first tick after both set points end
+    "orders.settle_ms": 1,  # finished on the first tick after both set points end (1 kHz)
     "orders.arrive_window_um": _BIG,
     "orders.arrive_speed_um_s": _BIG,
     "faults.following_max_um": _BIG,  # a lag of 67 mm at 1 m/s is its normal behaviour

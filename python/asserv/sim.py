@@ -203,7 +203,7 @@ class Simulator:
     ``bus_hz`` is the I2C bit rate: each byte takes 9 bit times of simulated time.
     ``board_config`` overrides members of the board's ``struct board_config`` (board.h and the
     module headers it includes) by dotted name, after ``host_board_config()`` has set it for the
-    nominal robot, e.g. ``{"control.ff_speed_q15_per_m_s": 0, "orders.settle_ticks": 1}``.
+    nominal robot, e.g. ``{"control.ff_speed_q15_per_m_s": 0, "orders.settle_ms": 1}``.
     ``nvm`` is the board's storage at power-on (at most ``NVM_SIZE`` bytes, the rest erased;
     default: all erased): what ``Simulator.nvm`` read from an earlier board, so that the
     calibration it kept is installed at start (docs/calibration.md).

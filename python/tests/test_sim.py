@@ -124,9 +124,9 @@ def test_a_stuck_motor_is_reported_then_the_next_order_runs() -> None:
 def test_board_config_overrides_and_odometry_errors() -> None:
     sim = Simulator(
         {"enc_radius_error": (0.002, -0.001), "enc_track_error_mm": 0.5},
-        board_config={"orders.settle_ticks": 7, "odometry.track_um": 280100},
+        board_config={"orders.settle_ms": 7, "odometry.track_um": 280100},
     )
-    assert sim.board_config.orders.settle_ticks == 7
+    assert sim.board_config.orders.settle_ms == 7
     e = sim.odometry_errors()
     # configured factors over true ones: 1/1.002 and 1/0.999
     assert e.ratio == pytest.approx(1.002 / 0.999 - 1, rel=1e-6)

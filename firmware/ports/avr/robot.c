@@ -10,14 +10,6 @@
 #error "CONFIG_AVR_SLOW_SHIFT: 0..3, and the slow steps at 100 Hz at least (board.h)"
 #endif
 
-/* A duration given in ticks at 1 kHz, in ticks at the build's rate (at least 1). */
-static uint16_t ticks_of(uint32_t ticks_at_1khz)
-{
-	uint32_t t = (ticks_at_1khz * CONFIG_AVR_TICK_HZ + 500u) / 1000u;
-
-	return (uint16_t)(t ? t : 1u);
-}
-
 void avr_robot_config(struct board_config *cfg)
 {
 	board_default_config(cfg);
@@ -27,16 +19,11 @@ void avr_robot_config(struct board_config *cfg)
 	 * 2 pi 32.5 mm / (48 * 20.25) = 210.08 um per count, * 2^16. */
 	cfg->faults.motor_um_per_count_q16 = 13768191;
 
-	/* The control rate, and the durations the defaults give in ticks at 1 kHz kept in time. */
+	/* The control rate (the durations are in ms: board_init() counts them at its rates). */
 	cfg->tick_hz = CONFIG_AVR_TICK_HZ;
 	/* The slow steps every 2^n ticks: the port's execution model follows it (tick.c), so keep
 	 * the build option. */
 	cfg->slow_shift = CONFIG_AVR_SLOW_SHIFT;
 	cfg->control.tick_hz = CONFIG_AVR_TICK_HZ;
 	cfg->orders.tick_hz = CONFIG_AVR_TICK_HZ;
-	cfg->faults.following_ticks = ticks_of(cfg->faults.following_ticks);
-	cfg->faults.current_ticks = ticks_of(cfg->faults.current_ticks);
-	cfg->faults.repeat_window_ticks = ticks_of(cfg->faults.repeat_window_ticks);
-	cfg->orders.settle_ticks = ticks_of(cfg->orders.settle_ticks);
-	cfg->orders.settle_timeout_ticks = ticks_of(cfg->orders.settle_timeout_ticks);
 }

@@ -235,19 +235,12 @@ void host_tick(struct host *h)
 
 void host_i2c_write(struct host *h, const uint8_t *data, uint8_t n, int stop)
 {
-	proto_on_write_start(&h->board.proto);
-	for (uint8_t i = 0; i < n; i++)
-		proto_on_byte(&h->board.proto, data[i]);
-	if (stop)
-		proto_on_stop(&h->board.proto);
+	proto_master_write(&h->board.proto, data, n, stop);
 }
 
 void host_i2c_read(struct host *h, uint8_t *out, uint8_t n)
 {
-	proto_on_read_start(&h->board.proto);
-	for (uint8_t i = 0; i < n; i++)
-		out[i] = proto_read_byte(&h->board.proto);
-	proto_on_stop(&h->board.proto);
+	proto_master_read(&h->board.proto, out, n);
 }
 
 static double turn32_deg(uint32_t heading_turn32)
@@ -264,7 +257,7 @@ static void record(const struct host *h, struct host_sample *r)
 	double half_track_um = b->cfg.orders.drive_track_um / 2.0;
 
 	sim_get_truth(&h->sim, &t);
-	est = odometry_get_pose(&b->odometry);
+	est = board_get_pose(b);
 	r->t_s = h->now_ns * 1e-9;
 	r->x_mm = t.odo_pose.x_mm;
 	r->y_mm = t.odo_pose.y_mm;

@@ -33,7 +33,7 @@ enum cta_op {
 	CTA_CTL_INIT,    /* control_init(tick_hz, duty_max_q15, ff speed, accel, angle accel,
 			  * the presets' p i d x 3) */
 	CTA_CTL_GAINS,   /* control_set_gains(p, i, d) */
-	CTA_CTL_PRESET,  /* control_set_preset(n) */
+	CTA_CTL_PRESET,  /* control_set_gains(preset n), -1 for no such preset */
 	CTA_CTL_RESET,   /* control_reset() */
 	CTA_CTL_OFF,     /* control_off() */
 	CTA_CTL_UPDATE,  /* control_update(sp_dist pos vel acc, sp_angle pos vel acc, dist_um,

@@ -93,7 +93,11 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		control_set_gains(c, &g);
 		break;
 	case CTA_CTL_PRESET:
-		ret = control_set_preset(c, (uint8_t)arg[0]);
+		/* SET_FILTRE: a preset's gains, -1 for no such preset */
+		if ((uint8_t)arg[0] < CONTROL_N_PRESETS)
+			control_set_gains(c, &c->cfg.presets[(uint8_t)arg[0]]);
+		else
+			ret = -1;
 		break;
 	case CTA_CTL_RESET:
 		control_reset(c);

@@ -126,9 +126,6 @@ static void run(uint8_t op)
 	case FXA_UDIV_SMALL:
 		r0 = fx_udiv_small(a, b, n);
 		break;
-	case FXA_DIV_ROUND_SMALL:
-		r0 = (uint32_t)fx_div_round_small((int32_t)a, b, n);
-		break;
 	case FXA_UDIV_SHL16:
 		r0 = fx_udiv_shl16(a, b);
 		break;

@@ -37,27 +37,26 @@ enum fxa_op {
 	FXA_MUL_Q15, /* the same with n a constant: 15, 16, 30 */
 	FXA_MUL_Q16,
 	FXA_MUL_Q30C,
-	FXA_MUL_QC,          /* fx_mul_q(a, b, n) with n a constant, each of 1..47 */
-	FXA_MUL_U32_SHRC,    /* fx_mul_u32_shr(a, b, n) with n a constant, each of 1..63 */
-	FXA_MUL_SHR32,       /* r0 = fx_mul_shr32(a, b) */
-	FXA_MUL_Q30,         /* r0 = fx_mul_q30(a, b) */
-	FXA_UDIV_SMALL,      /* r0 = fx_udiv_small(a, b, n) */
-	FXA_DIV_ROUND_SMALL, /* r0 = fx_div_round_small(a, b, n) */
-	FXA_UDIV_SHL16,      /* r0 = fx_udiv_shl16(a, b) */
-	FXA_SINCOS,          /* fx_sincos(a, &r0, &r1) */
-	FXA_SINCOS_Q14,      /* fx_sincos_q14(a, &r0, &r1) (16-bit results) */
-	FXA_ATAN2,           /* r0 = fx_atan2(a, b) */
-	FXA_ISQRT64,         /* r0 = fx_isqrt64(c 2^32 + a) */
-	FXA_ISQRT32,         /* r0 = fx_isqrt32(a) */
-	FXA_TURN32_TO_CDEG,  /* r0 = fx_turn32_to_cdeg(a) */
-	FXA_SHR_U32,         /* r0 = fx_shr_u32(a, n), r1 = fx_shl_u32(a, n), n at run time */
-	FXA_FLOOR_SHR,       /* r0 = fx_floor_shr(a, n), r1 = fx_shr_round(a, n) */
-	FXA_MUL_Q20_U16,     /* r0 = fx_mul_q20_u16(a, b) */
-	FXA_UDIV1000,        /* r0 = fx_udiv1000(a) */
-	FXA_UDIV_FRAC20,     /* r0 = fx_udiv_frac20(n, a, b) */
-	FXA_ADD_SUB_U64,     /* (r0, r1) = (a, b) + (c, a ^ b), then, if n, - (c, b) */
-	FXA_ISQRT32_REM,     /* r0 = fx_isqrt32_rem(&a), r1 = a after */
-	FXA_MUL_Q31_APPROX,  /* r0 = fx_mul_q31_approx(a, b) */
+	FXA_MUL_QC,         /* fx_mul_q(a, b, n) with n a constant, each of 1..47 */
+	FXA_MUL_U32_SHRC,   /* fx_mul_u32_shr(a, b, n) with n a constant, each of 1..63 */
+	FXA_MUL_SHR32,      /* r0 = fx_mul_shr32(a, b) */
+	FXA_MUL_Q30,        /* r0 = fx_mul_q30(a, b) */
+	FXA_UDIV_SMALL,     /* r0 = fx_udiv_small(a, b, n) */
+	FXA_UDIV_SHL16,     /* r0 = fx_udiv_shl16(a, b) */
+	FXA_SINCOS,         /* fx_sincos(a, &r0, &r1) */
+	FXA_SINCOS_Q14,     /* fx_sincos_q14(a, &r0, &r1) (16-bit results) */
+	FXA_ATAN2,          /* r0 = fx_atan2(a, b) */
+	FXA_ISQRT64,        /* r0 = fx_isqrt64(c 2^32 + a) */
+	FXA_ISQRT32,        /* r0 = fx_isqrt32(a) */
+	FXA_TURN32_TO_CDEG, /* r0 = fx_turn32_to_cdeg(a) */
+	FXA_SHR_U32,        /* r0 = fx_shr_u32(a, n), r1 = fx_shl_u32(a, n), n at run time */
+	FXA_FLOOR_SHR,      /* r0 = fx_floor_shr(a, n), r1 = fx_shr_round(a, n) */
+	FXA_MUL_Q20_U16,    /* r0 = fx_mul_q20_u16(a, b) */
+	FXA_UDIV1000,       /* r0 = fx_udiv1000(a) */
+	FXA_UDIV_FRAC20,    /* r0 = fx_udiv_frac20(n, a, b) */
+	FXA_ADD_SUB_U64,    /* (r0, r1) = (a, b) + (c, a ^ b), then, if n, - (c, b) */
+	FXA_ISQRT32_REM,    /* r0 = fx_isqrt32_rem(&a), r1 = a after */
+	FXA_MUL_Q31_APPROX, /* r0 = fx_mul_q31_approx(a, b) */
 	FXA_OPS
 };
 
