@@ -23,7 +23,14 @@ SOURCES = [
     PORTS / "common" / "calib_store.c",
     PORTS / "host" / "host.c",
 ]
-INCLUDES = [CORE, ROOT / "firmware" / "arch" / "generic", ROOT / "firmware" / "hal", PORTS / "common", PORTS / "host", SIM]
+INCLUDES = [
+    CORE,
+    ROOT / "firmware" / "arch" / "generic",
+    ROOT / "firmware" / "hal",
+    PORTS / "common",
+    PORTS / "host",
+    SIM,
+]
 
 # Only what Python touches is declared; "...;" lets the C compiler fill in the rest of a struct,
 # and a mismatch with the headers is a build error (cffi API mode).
