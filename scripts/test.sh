@@ -8,14 +8,14 @@ step "generated files: C and Python match protocol/messages.toml and field/defau
 python protocol/gen.py --check
 python field/gen_field.py --check
 
-step "generated files: the simulator's reference robot matches robot/default.toml"
+step "generated files: the simulator's and the boards' robots match robot/*.toml"
 python robot/gen_robot.py --check
 ruff check robot
 ruff format --check robot
 
 step "style: clang-format, ruff, mypy"
 mapfile -t c_files < <(git ls-files -co --exclude-standard '*.c' '*.h' |
-	grep -v -e '_gen\.h$' -e 'protocol_defs\.h$' -e 'field_defs\.h$' -e 'protocol_table\.c$')
+	grep -v -e '_gen\.h$' -e 'protocol_defs\.h$' -e 'field_defs\.h$' -e 'robot_defs\.h$' -e 'protocol_table\.c$')
 clang-format --dry-run --Werror "${c_files[@]}"
 ruff check python protocol field bench fuzz
 ruff format --check python protocol field bench fuzz

@@ -7,6 +7,7 @@
 #include "field_defs.h"
 #include "fixmath.h"
 #include "protocol_defs.h"
+#include "robot_defs.h"
 
 typedef char board_field_baskets_fit[(FIELD_N_BASKETS <= ORDERS_MAX_BASKETS) ? 1 : -1];
 typedef char board_field_lines_fit[(FIELD_N_LINES <= RECAL_MAX_LINES) ? 1 : -1];
@@ -19,19 +20,20 @@ void board_default_config(struct board_config *c)
 {
 	/* Reference robot: 25 mm free wheels, 2000 counts/rev, 280 mm apart; drive wheels 160 mm
 	 * apart; motors reaching ~1.64 m/s at full duty (Maxon RE25 24 V, 20.25:1, 32.5 mm
-	 * wheels: ../shared/notes/physics.md). */
-	const uint32_t um_per_count_q16 = 5147185; /* 2 pi 25 mm / 2000 = 78.540 um, * 2^16 */
+	 * wheels: ../shared/notes/physics.md). The ROBOT_ constants: robot/default.toml through
+	 * robot/gen_robot.py (robot_defs.h). */
+	const uint32_t um_per_count_q16 = ROBOT_ENC_UM_PER_COUNT_Q16; /* 78.540 um, * 2^16 */
 
 	c->tick_hz = 1000;
 	c->slow_shift = 0; /* ports whose CPU is short run the slow steps at 125 Hz (3) */
 	c->odometry.left_um_per_count_q16 = um_per_count_q16;
 	c->odometry.right_um_per_count_q16 = um_per_count_q16;
-	c->odometry.track_um = 280000;
+	c->odometry.track_um = ROBOT_ENC_TRACK_UM;
 
 	c->uncertainty.noise_left_mm2_per_m_q16 = (uint32_t)10 << 16; /* 0.1 mm^2/m, mid-range */
 	c->uncertainty.noise_left_mm2_per_m_q16 /= 100;
 	c->uncertainty.noise_right_mm2_per_m_q16 = c->uncertainty.noise_left_mm2_per_m_q16;
-	c->uncertainty.track_um = 280000;
+	c->uncertainty.track_um = ROBOT_ENC_TRACK_UM;
 	c->uncertainty.ratio_error_ppm = 500; /* calibrated: 0.05 % */
 	c->uncertainty.track_error_um = 100;  /* calibrated: 0.1 mm */
 	c->uncertainty.scale_error_ppm = 500;
@@ -41,9 +43,9 @@ void board_default_config(struct board_config *c)
 
 	c->control.tick_hz = 1000;
 	c->control.duty_max_q15 = 32767;
-	c->control.ff_speed_q15_per_m_s = 19980; /* 32767 / 1.64 m/s */
-	c->control.ff_accel_q15_per_m_s2 = 1400; /* 8 kg on two 32.5 mm wheels */
-	c->control.ff_angle_accel_q15_per_m_s2 = 900;
+	c->control.ff_speed_q15_per_m_s = ROBOT_FF_SPEED_Q15_PER_M_S;
+	c->control.ff_accel_q15_per_m_s2 = ROBOT_FF_ACCEL_Q15_PER_M_S2;
+	c->control.ff_angle_accel_q15_per_m_s2 = ROBOT_FF_ANGLE_ACCEL_Q15_PER_M_S2;
 	c->control.presets[FILTRE_STD] = (struct control_gains){205, 400, 160};
 	c->control.presets[FILTRE_SOUPLE] = (struct control_gains){40, 0, 60};
 	c->control.presets[FILTRE_RAIDE] = (struct control_gains){400, 1200, 250};
@@ -54,7 +56,7 @@ void board_default_config(struct board_config *c)
 	c->faults.current_max_ma = 6000;
 	c->faults.current_ms = 50;
 	c->faults.motor_encoders = 1;
-	c->faults.motor_um_per_count_q16 = 322692; /* 2 pi 32.5 mm / (2048 * 20.25), * 2^16 */
+	c->faults.motor_um_per_count_q16 = ROBOT_MOTOR_UM_PER_COUNT_Q16;
 	c->faults.slip_max_um = 10000;
 	c->faults.slip_window_ms = 128;
 	c->faults.lost_min_um = 5000;
@@ -62,7 +64,7 @@ void board_default_config(struct board_config *c)
 	c->faults.repeat_window_ms = 10000;
 	c->faults.rate_hz = 1000; /* the slow steps' rate: board_init() sets it */
 
-	c->orders.drive_track_um = 160000;
+	c->orders.drive_track_um = ROBOT_DRIVE_TRACK_UM;
 	c->orders.heading_window_turn32 = fx_deg_to_turn32(5);
 	c->orders.freeze_radius_um = 30000;
 	c->orders.arrive_window_um = 500;
@@ -82,8 +84,8 @@ void board_default_config(struct board_config *c)
 	}
 	c->orders.tick_hz = 1000;
 	c->orders.jerk_um_s3 = 0;
-	c->orders.grip_um_s2 = 4707192; /* mu 0.8 x 60 % of the weight x g (as host.c derives it) */
-	c->orders.rot_grip_q8 = 500;    /* 4 x 0.10 kg m^2 / (8 kg x 0.160 m^2): 1.95 */
+	c->orders.grip_um_s2 = ROBOT_GRIP_UM_S2;   /* mu 0.8 x 60 % of the weight x g */
+	c->orders.rot_grip_q8 = ROBOT_ROT_GRIP_Q8; /* 4 x 0.10 kg m^2 / (8 kg x 0.160 m^2): 1.95 */
 
 	/* Recalibration (docs/recalibration.md). The basket switch, a 1 mm-travel microswitch at
 	 * the middle of the front edge, closes on a 125 mm circle within 16 mm of its centre. */
@@ -92,7 +94,7 @@ void board_default_config(struct board_config *c)
 	c->orders.borders = FIELD_BORDERS;
 	c->orders.half_length_um = FIELD_LENGTH_UM / 2;
 	c->orders.half_width_um = FIELD_WIDTH_UM / 2;
-	c->orders.front_um = 125000;       /* the 250 mm long outline, centred on the axis */
+	c->orders.front_um = ROBOT_FRONT_UM;
 	c->orders.front_shock_mask = 0x07; /* CAPTEUR_0..2 on the front edge */
 	c->orders.border_speed_um_s = 100000;
 	c->orders.border_extra_um = 60000;
@@ -145,7 +147,7 @@ void board_default_config(struct board_config *c)
 	 * at mu g, 7.8 m/s^2 at mu 0.8 (sim/config.c); with a margin. The outline's farthest
 	 * point, a corner of the 250 x 300 mm box, is 195 mm from the axis. */
 	c->unseen.slide_decel_mm_s2 = 6000;
-	c->unseen.reach_um = 195000;
+	c->unseen.reach_um = ROBOT_REACH_UM;
 	/* A free wheel counts every 78.5 um: silent over 1 mm of its motor's travel, it slips,
 	 * is lifted or is cut. */
 	c->unseen.silent_min_um = 1000;

@@ -287,6 +287,11 @@ struct orders_config {
     uint32_t jerk_um_s3;
     int32_t grip_um_s2;
     uint16_t rot_grip_q8;
+    int32_t front_um;
+    ...;
+};
+struct board_unseen {
+    uint32_t reach_um;
     ...;
 };
 struct board_config {
@@ -300,6 +305,7 @@ struct board_config {
     struct odometry_pose start;
     uint32_t start_radius_um;
     uint32_t start_heading_bound_turn32;
+    struct board_unseen unseen;
     ...;
 };
 struct faults {

@@ -2,17 +2,21 @@
 outline (robot/default.toml, the reference robot).
 
 ``robot/gen_robot.py`` turns robot/default.toml into ``sim/robot_default_gen.h``, from which
-``sim_config_defaults()`` (sim/config.c) builds the simulator's robot; ``load(path)`` reads any
-other file, and ``Robot.sim_config()`` gives the members of ``struct sim_config`` it sets, for
-``Simulator(robot=path)``. Only the standard library is used, so that the generator can load
-this module before any virtual environment exists.
+``sim_config_defaults()`` (sim/config.c) builds the simulator's robot, and into the board's
+constants (``firmware/core/robot_defs.h``, and a port's from its own file, robot/avr.toml);
+``load(path)`` reads any other file, and ``Robot.sim_config()`` gives the members of
+``struct sim_config`` it sets, for ``Simulator(robot=path)``. A file may start from another
+(``base = "default.toml"``, a path from its own folder) and restate only what differs. Only the
+standard library is used, so that the generator can load this module before any virtual
+environment exists.
 """
 
 from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -66,6 +70,15 @@ SCHEMA: dict[str, dict[str, tuple[str, float, float, float]]] = {
 }
 _INTEGERS = {"motor.encoder_cpr", "enc_cpr"}
 
+#: Optional: the board's feed-forward coefficients (firmware/core/control.h) when the file states
+#: them (tuned); a key left out, or "model", leaves them to the motor model of robot/gen_robot.py.
+#: key -> (lowest, highest), whole numbers (control_init() refuses the rest).
+FEEDFORWARD: dict[str, tuple[int, int]] = {
+    "speed_q15_per_m_s": (0, 1000000),
+    "accel_q15_per_m_s2": (0, 1000000),
+    "angle_accel_q15_per_m_s2": (0, 1000000),
+}
+
 
 @dataclass(frozen=True)
 class Robot:
@@ -73,6 +86,8 @@ class Robot:
 
     source: str
     values: dict[str, float]
+    #: the [feedforward] values the file states (key of FEEDFORWARD -> value)
+    feedforward: dict[str, int] = field(default_factory=dict)
 
     def sim_config(self) -> dict[str, Any]:
         """The ``config`` overrides of ``asserv.sim.Simulator`` that make this robot."""
@@ -86,7 +101,7 @@ def parse(data: dict[str, Any], source: str = "<robot>") -> Robot:
         return RobotError(f"{source}: {where}: {what}")
 
     values: dict[str, float] = {}
-    unknown = set(data) - set(SCHEMA)
+    unknown = set(data) - set(SCHEMA) - {"feedforward"}
     if unknown:
         raise fail(sorted(unknown)[0], f"unknown section (known: {', '.join(SCHEMA)})")
     for section, keys in SCHEMA.items():
@@ -108,12 +123,43 @@ def parse(data: dict[str, Any], source: str = "<robot>") -> Robot:
             if not low <= v <= high:
                 raise fail(where, f"{v!r} is outside {low:g}..{high:g}")
             values[member] = float(v) * scale
-    return Robot(source, values)
+    return Robot(source, values, _feedforward(data.get("feedforward", {}), fail))
 
 
-def load(path: str | Path = DEFAULT) -> Robot:
-    """Read and check a robot file."""
-    p = Path(path)
+def _feedforward(table: Any, fail: Callable[[str, str], RobotError]) -> dict[str, int]:
+    if not isinstance(table, dict):
+        raise fail("[feedforward]", "not a table")
+    extra = set(table) - set(FEEDFORWARD)
+    if extra:
+        known = ", ".join(FEEDFORWARD)
+        raise fail(f"feedforward.{sorted(extra)[0]}", f"unknown key (known: {known})")
+    out: dict[str, int] = {}
+    for key, (low, high) in FEEDFORWARD.items():
+        v = table.get(key, "model")
+        if v == "model":
+            continue
+        where = f"feedforward.{key}"
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise fail(where, f'{v!r} is not a whole number (or "model")')
+        if not low <= v <= high:
+            raise fail(where, f"{v!r} is outside {low}..{high}")
+        out[key] = v
+    return out
+
+
+def _merged(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
+    """base with over's sections laid on it key by key."""
+    out = {k: dict(v) if isinstance(v, dict) else v for k, v in base.items()}
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k].update(v)
+        else:
+            out[k] = v
+    return out
+
+
+def _read(p: Path, chain: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """The TOML document of p, with its ``base`` file (and that one's) under it."""
     try:
         with p.open("rb") as f:
             data = tomllib.load(f)
@@ -121,4 +167,22 @@ def load(path: str | Path = DEFAULT) -> Robot:
         raise RobotError(f"{p}: cannot read the robot file: {e.strerror}") from None
     except tomllib.TOMLDecodeError as e:
         raise RobotError(f"{p}: not valid TOML: {e}") from None
-    return parse(data, str(p))
+    if "base" not in data:
+        return data
+    base = data.pop("base")
+    if not isinstance(base, str):
+        raise RobotError(f"{p}: base: {base!r} is not a file name")
+    bp = p.parent / base
+    if bp.resolve() in (*chain, p.resolve()):
+        raise RobotError(f"{p}: base: {base!r} leads back to itself")
+    try:
+        under = _read(bp, (*chain, p.resolve()))
+    except RobotError as e:
+        raise RobotError(f"{p}: base: {e}") from None
+    return _merged(under, data)
+
+
+def load(path: str | Path = DEFAULT) -> Robot:
+    """Read and check a robot file (and its ``base``, if it names one)."""
+    p = Path(path)
+    return parse(_read(p), str(p))
