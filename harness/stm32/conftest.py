@@ -6,6 +6,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# The tests assert behaviour, not speed (a loaded runner can take 1 s over a 1 ms example).
+settings.register_profile("asserv", deadline=None)
+settings.load_profile("asserv")
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))

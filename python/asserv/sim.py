@@ -475,8 +475,11 @@ class Simulator:
     @property
     def board_config(self) -> Any:
         """The board's ``struct board_config`` (firmware/core/board.h) it was started with: the
-        nominal robot, with the ``board_config`` overrides. Read it only."""
-        return self._h.board.cfg
+        nominal robot, with the ``board_config`` overrides: a copy, which stays valid after the
+        simulator is gone."""
+        cfg = ffi.new("struct board_config *")
+        cfg[0] = self._h.board.cfg
+        return cfg
 
     def odometry_errors(self) -> OdometryErrors:
         """How far the board's odometry configuration (SET_ODOMETRIE included) is from the true
