@@ -322,6 +322,7 @@ class Summary:
     ratio_max: float
     excess_ms: tuple[float, float]
     within_goal: int  # moves within 1.02 bound + 20 ms
+    worst: Move  # the move with the largest excess
 
 
 def _span(values: Iterable[float]) -> tuple[float, float]:
@@ -342,12 +343,14 @@ def summarize(results: Sequence[MoveResult]) -> Summary:
         max(r.ratio for r in results),
         _span(r.excess_ms for r in results),
         sum(within_goal(r.time_s, r.bound_s) for r in results),
+        max(results, key=lambda r: r.excess_ms).move,
     )
 
 
 def report(s: Summary) -> str:
     rate = "one rate" if s.slow_shift == 0 else f"planner every {1 << s.slow_shift} ticks"
     goal_moves = "yes" if s.within_goal == s.moves else "no"
+    w = s.worst
     lines = [
         f"slow_shift {s.slow_shift} ({rate}, planner period {s.period_ms:g} ms), {s.moves} moves",
         f"  order: GOTO taken -> servo set point moves       {s.order_ms[0]:6.2f} .. "
@@ -361,13 +364,14 @@ def report(s: Summary) -> str:
         f"{s.excess_ms[1]:6.2f} ms",
         f"  within {GOAL_RATIO:g} x bound + {GOAL_EXTRA_S * 1000:g} ms: "
         f"{s.within_goal}/{s.moves} moves ({goal_moves})",
+        f"  the largest excess: {w.distance_mm} mm at {w.speed_cm_s} cm/s, {w.accel_cm_s2} cm/s^2",
     ]
     return "\n".join(lines)
 
 
 def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="bench/latency.py", description=__doc__.split("\n")[0])
-    p.add_argument("--moves", type=int, default=40, help="straight moves per rate (40)")
+    p.add_argument("--moves", type=int, default=200, help="straight moves per rate (200)")
     p.add_argument("--seed", type=int, default=0, help="the moves' random seed (0)")
     p.add_argument(
         "--shift",

@@ -324,6 +324,7 @@ def test_summary_spans_the_moves() -> None:
     assert s.order_ms == (min(r.order_ms for r in rs), max(r.order_ms for r in rs))
     assert s.ratio_max == max(r.ratio for r in rs)
     assert s.within_goal == sum(latency.within_goal(r.time_s, r.bound_s) for r in rs)
+    assert s.worst in [r.move for r in rs if r.excess_ms == s.excess_ms[1]]
     text = latency.report(s)
     assert f"{s.ratio_max:6.4f}" in text and f"{s.within_goal}/{s.moves}" in text
 
