@@ -47,6 +47,8 @@ SPEED_CM_S = (20, 150)
 ACCEL_CM_S2 = (20, 255)
 START = (-800.0, 0.0, 0.0)  # facing +X on the default table's centre line: 1600 mm clear ahead
 
+# The board setting of the planner's period: every 2^slow_shift ticks (firmware/core/board.h).
+RATE_SETTING = "slow_shift"
 BUS_HZ = 100_000  # the I2C bit rate (the simulator's default)
 POLL_S = 0.001  # CHECK_BUSY every 1 ms near the end of a move
 POLL_AHEAD_S = 0.05  # polls start this long before the bound (the move cannot end earlier)
@@ -241,7 +243,7 @@ def run_move(move: Move, slow_shift: int, seed: int = 0) -> MoveResult:
         {"start": START, "enc_noise_mm2_per_m": (0.0, 0.0)},
         seed=seed,
         field=field.Field(),
-        board_config={"slow_shift": slow_shift},
+        board_config={RATE_SETTING: slow_shift},
         bus_hz=BUS_HZ,
     )
     board = Board(sim.bus)
