@@ -8,8 +8,9 @@
 
 ``Simulator`` runs the C sources of the board (``firmware/core``, compiled into
 ``asserv._core``) through the host port (``firmware/ports/host``) on the physics of
-``sim/``, in deterministic lockstep: control ticks at 1 kHz, physics substeps of 100 us, and the
-I2C bytes arriving between ticks at the bus bit rate. The traces of every tick (truth, estimate,
+``sim/``, in deterministic lockstep: control ticks at 1 kHz, physics substeps of 100 us (one of
+1 ms for a whole tick away from contacts and from the tyres' grip, ``COARSE_SUBSTEP_NS``), and
+the I2C bytes arriving between ticks at the bus bit rate. The traces of every tick (truth, estimate,
 set-points, duties, currents, status) are kept as a numpy structured array.
 """
 
@@ -81,6 +82,11 @@ SPEC_START = _spec_start()
 
 _CHUNK = 4096  # trace rows per call into C
 
+#: The simulator's default long substep [ns]: a whole 1 kHz control tick in one step of the
+#: physics where no contact can happen within it and the tyres are well within their grip, and
+#: for 0.5 s after a contact; the 100 us substep elsewhere (sim/robot.c, docs/simulator.md).
+COARSE_SUBSTEP_NS = 1_000_000
+
 
 class TruePose(NamedTuple):
     """Ground truth of the encoder axis midpoint (the specification's reference point)."""
@@ -88,6 +94,13 @@ class TruePose(NamedTuple):
     x_mm: float
     y_mm: float
     heading_deg: float
+
+
+class Substeps(NamedTuple):
+    """Physics steps run (``Simulator.substeps``)."""
+
+    short: int  # of substep_ns (100 us)
+    long: int  # of coarse_substep_ns (1 ms: a whole control tick)
 
 
 class OdometryErrors(NamedTuple):
@@ -244,6 +257,9 @@ class Simulator:
         _fill_field(self._f, self.field)
         sc = ffi.new("struct sim_config *")
         lib.sim_config_defaults(sc)
+        # The 1 ms substep away from contacts and from the tyres' grip (docs/simulator.md,
+        # "Speed"); ``{"coarse_substep_ns": 0}`` keeps the 100 us substep everywhere.
+        sc.coarse_substep_ns = COARSE_SUBSTEP_NS
         _set_config(sc, "start", SPEC_START)
         if robot is not None:
             from . import robot as robotmod
@@ -503,6 +519,13 @@ class Simulator:
     def ticks(self) -> int:
         """Control ticks run since power-on."""
         return int(self._h.ticks)
+
+    @property
+    def substeps(self) -> Substeps:
+        """The physics steps run since power-on: short ones (``substep_ns``), and long ones
+        (``coarse_substep_ns``: a whole control tick, away from contacts and from the grip)."""
+        s = self._h.sim
+        return Substeps(int(s.short_steps), int(s.coarse_steps))
 
     # ---- disturbances and faults (sim/sim.h) --------------------------------------------------
     def set_battery_volts(self, volts: float) -> None:
