@@ -396,21 +396,50 @@ class Simulator:
     def i2c_write(self, data: bytes, stop: bool) -> None:
         """A write transaction at the bus bit rate: each byte reaches the board's interrupt when
         its ninth clock ends, while the control ticks go on."""
-        self.bus_start(read=False)
-        for b in bytes(data):
-            self.bus_write_byte(b)
-        if stop:
-            self.bus_stop()
-        self._log(Frame(self.time_s, "W", bytes(data), stop))
+        data = bytes(data)
+        if self._in_one_call(len(data)):
+            rows = lib.asim_bus_write(
+                self._h, data, len(data), stop, self._byte_ns, *self._rows_buffer()
+            )
+            self._keep_rows(rows)
+        else:
+            self.bus_start(read=False)
+            for b in data:
+                self.bus_write_byte(b)
+            if stop:
+                self.bus_stop()
+        self._log(Frame(self.time_s, "W", data, stop))
 
     def i2c_read(self, n: int) -> bytes:
         """A read transaction of n bytes, ended by NACK and STOP."""
-        self.bus_start(read=True)
-        out = bytes(self.bus_read_byte() for _ in range(n))
-        self.bus_stop()
+        if self._in_one_call(n):
+            buf = ffi.new("uint8_t[]", max(1, n))
+            self._keep_rows(lib.asim_bus_read(self._h, buf, n, self._byte_ns, *self._rows_buffer()))
+            out = bytes(ffi.buffer(buf, n))
+        else:
+            self.bus_start(read=True)
+            out = bytes(self.bus_read_byte() for _ in range(n))
+            self.bus_stop()
         frame = Frame(self.time_s, "R", out, True)
         self._log(frame)
         return frame.data
+
+    def _in_one_call(self, n_bytes: int) -> bool:
+        # The transaction runs in one call into C (asim_bus_write/read, the same steps as the
+        # bus_*() methods below) unless a timed event falls within it, or its ticks' trace rows
+        # might not fit in the buffer.
+        span = (n_bytes + 1) * self._byte_ns
+        if self._events and self._events[0][0] <= int(self._h.now_ns) + span:
+            return False
+        return (n_bytes + 1) * (self._byte_ns // int(self._h.tick_ns) + 2) <= _CHUNK
+
+    def _rows_buffer(self) -> tuple[Any, int]:
+        return (self._buf, _CHUNK) if self._record else (ffi.NULL, 0)
+
+    def _keep_rows(self, n: int) -> None:
+        if n:
+            raw = ffi.buffer(self._buf, n * TRACE_DTYPE.itemsize)
+            self._chunks.append(np.frombuffer(raw, dtype=TRACE_DTYPE).copy())
 
     # ---- raw bus events, as the board's I2C interrupt sees them (for tests of any sequence) --
     def bus_start(self, read: bool) -> None:

@@ -13,6 +13,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from asserv import Board, GotoOption, Status, field
+from asserv.driver import Outcome
 from asserv.sim import COARSE_SUBSTEP_NS, Simulator, lib
 
 SLOW = settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -45,16 +46,21 @@ def run(
 @given(
     seed=st.integers(0, 1000),
     targets=st.lists(
-        st.tuples(st.integers(-1000, 1000), st.integers(-700, 700)), min_size=1, max_size=3
+        st.tuples(st.integers(-800, 800), st.integers(-700, 700)), min_size=1, max_size=3
     ),
 )
 def test_the_default_long_substep_ends_free_moves_where_the_fine_one_does(
     seed: int, targets: list[tuple[int, int]]
 ) -> None:
+    # Free moves: targets 275 mm and more from the baskets' edges and 350 mm from the borders,
+    # more than the robot's reach (196 mm). (A GOTO into a basket ends in a fault whose stop
+    # hangs on the last micrometres, with any substep: seed 94's (1000, -699) stops at (941.9,
+    # -597.4) -64.08 degrees with 100 us substeps, (942.2, -599.6) -62.87 with 50 and 20 us,
+    # (942.2, -599.3) -62.97 with the default.)
     fine = run(0, seed, targets)
     default = run(None, seed, targets)
     for f, c in zip(fine, default, strict=True):
-        assert f[0] == c[0]
+        assert f[0] == c[0] == Outcome.DONE
         assert math.hypot(f[1] - c[1], f[2] - c[2]) < 2.0  # type: ignore[operator]
         assert abs(f[3] - c[3]) < 0.5  # type: ignore[operator]
 
