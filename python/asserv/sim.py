@@ -160,6 +160,8 @@ def _set_member(root: Any, key: str, value: Any, unknown: str, where: str) -> No
         raise ValueError(f"{unknown} {key!r} (see {where})") from None
     try:
         if isinstance(current, int | float | bool):
+            if type(current) is int and isinstance(value, float) and value.is_integer():
+                value = int(value)  # a whole number read as a float (a scenario's config line)
             setattr(obj, path[-1], value)
         else:  # an array such as enc_radius_error
             values = list(value)

@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from pathlib import Path
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from asserv import Board, GotoOption, Status, field
+from asserv import Board, GotoOption, Status, field, scenario
 from asserv.driver import Outcome
 from asserv.sim import COARSE_SUBSTEP_NS, Simulator, lib
 
@@ -197,3 +198,14 @@ def test_a_robot_on_a_stand_runs_the_fine_substep() -> None:
     sim = Simulator({"start": (0, 0, 0), "lifted": True}, record=False)
     Board(sim.bus).goto(500, 0)
     assert long_steps_per_tick(sim, 1.0) == 0
+
+
+def test_a_scenario_config_line_sets_the_substep(tmp_path: Path) -> None:
+    # A scenario's numbers are read as floats: a whole number sets an integer setting.
+    for line, long_steps in (("config coarse_substep_ns 0", False), ("", True)):
+        path = tmp_path / "s.txt"
+        path.write_text(f"{line}\nstart 0 0 0\ngoto 300 0\nwait\n", encoding="utf-8")
+        sim = scenario.load(path).simulator()
+        Board(sim.bus).goto(300, 0)
+        sim.advance(1.0)
+        assert (sim.substeps.long > 0) == long_steps
