@@ -6,10 +6,12 @@ with a master polling over the simulated bus, in simulated seconds per wall-cloc
 Each robot (seeds 0..N-1, randomized) plays the same tour of GOTOs with Board.complete() (a
 CHECK_BUSY poll every 10 ms of simulated time), then runs 20 s of a GOTO with
 Simulator.advance() alone (the drive, then holding the position); one process per core by
-default (``--jobs``). ``--fine`` runs the physics with its 100 us substep everywhere
-(coarse_substep_ns = 0), as before the 1 ms substep away from contacts. Prints the speeds per
-process against the process's CPU time (what the simulator costs, whatever else the machine
-runs) and against the wall clock, and the whole machine's.
+default (``--jobs``). The simulator's default physics takes a whole 1 ms tick as one step away
+from contacts and from the tyres' grip (docs/simulator.md, "Speed"); ``--fine`` runs the 100 us
+substep everywhere (coarse_substep_ns = 0), as before. Prints the speeds per process against the
+process's CPU time (what the simulator costs, whatever else the machine runs: the figure to
+compare, on a machine shared with other work) and against the wall clock, and the whole
+machine's. The last line is the physics and the core at 1 kHz through Simulator.advance().
 """
 
 from __future__ import annotations
@@ -34,7 +36,9 @@ def one(job: tuple[int, bool, bool]) -> Run:
     from asserv.sim import Simulator
 
     seed, record, fine = job
-    config = {"start": (0, -850, 0), "coarse_substep_ns": 0 if fine else 1_000_000}
+    config: dict[str, object] = {"start": (0, -850, 0)}
+    if fine:
+        config["coarse_substep_ns"] = 0
     sim = Simulator(config, seed, randomize=True, record=record)
     board = Board(sim.bus)
     board.set_vitesse_traj(100, 100)
@@ -77,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     sim_total = sum(r[0] + r[3] for r in runs)
     print(
         f"{robots} robots on {args.jobs} processes, trace {'kept' if args.record else 'off'},"
-        f" substep {'100 us everywhere' if args.fine else '1 ms away from contacts'}"
+        f" substep {'100 us everywhere' if args.fine else '1 ms away from contacts and grip'}"
     )
     cols = list(zip(*runs, strict=True))
     print(_line("tour, Board.complete() polling every 10 ms", *map(list, cols[0:3])))
@@ -85,6 +89,11 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"whole machine: {sim_total:.0f} simulated s in {wall:.1f} s of wall time:"
         f" {sim_total / wall:.0f}x real time"
+    )
+    per_cpu = [r[3] / r[5] for r in runs]
+    print(
+        f"speed: physics and core at 1 kHz through Simulator.advance():"
+        f" {statistics.median(per_cpu):.0f}x real time per CPU second (median of {robots} robots)"
     )
     return 0
 

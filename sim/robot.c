@@ -2,7 +2,12 @@
  *
  * Numerical method, one substep of dt (100 us by default; 1 ms, cfg.coarse_substep_ns, for a
  * whole control tick when the robot cannot reach a contact within it, sim_advance_ns(): the
- * penalty walls are the only stiff explicit part, the others stay stable, stable_free()):
+ * penalty walls are the only stiff explicit part, the others stay stable, stable_free(); and
+ * only while the tyres stayed within 90 % of their grip in the last call and no contact was
+ * looked at in the last 0.5 s: the stick and slide of a tread, a rebound and the stop after a
+ * shock are resolved at 100 us. The long substep is first order like the short one: on the
+ * open floor it ends moves within 0.2 mm and 0.2 degree of 10 us substeps, the short one
+ * within 0.02 mm and 0.02 degree; python/tests/test_sim_coarse.py):
  *   1. Motor current, exact for a frozen speed: di/dt = (u - R i - Ke w) / L, so
  *      i <- i_ss + (i - i_ss) exp(-dt R / L) with i_ss = (u - Ke w) / R. Stable at any dt; with
  *      L = 0 the current is i_ss (the 0.1 ms L/R constant is below the 1 ms control period).
@@ -57,6 +62,11 @@
  * in the call at its speed plus this [m/s] */
 #define COARSE_MARGIN_M 0.005
 #define COARSE_SPEED_MARGIN 1.0
+/* ... and only while no tyre asked for more than this share of its grip in the last call: near
+ * the grip (hard braking, a wheel that starts to slide), the short substep resolves when the
+ * tread sticks and slides */
+#define COARSE_GRIP_SHARE 0.9
+#define FINE_AFTER_CONTACT_NS 500000000u
 
 /* Draws the accumulated encoder noise (see add_travel()) into the encoder positions: variance
  * k |ds| [mm^2] for |ds| = noise_cnt / enc_cnt_per_m [m] rolled, noise_var_cnt * noise_cnt
@@ -82,6 +92,8 @@ static double clearance_at(struct sim *s, double x, double y)
 
 	if (clear > 0.0)
 		s->contact_force = 0.0;
+	else
+		s->fine_until_ns = s->time_ns + FINE_AFTER_CONTACT_NS;
 	return clear;
 }
 
@@ -226,6 +238,7 @@ int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field
 	int i, err;
 
 	memset(s, 0, sizeof(*s));
+	s->step_units = 1;
 	err = check_config(cfg, field);
 	if (err)
 		return err;
@@ -342,6 +355,7 @@ void sim_set_pose(struct sim *s, const struct sim_pose *pose)
 	s->wheel_w[0] = s->wheel_w[1] = 0.0;
 	s->current[0] = s->current[1] = 0.0;
 	s->slip[0] = s->slip[1] = 0.0;
+	s->grip_use2 = 0.0;
 	memset(s->tread_m, 0, sizeof(s->tread_m));
 	s->contact_force = 0.0;
 	s->clearance_m = 0.0;    /* look again */
@@ -521,7 +535,8 @@ static void run_ground(struct sim *s, uint64_t n)
 	double z00 = s->tread_m[0][0], z01 = s->tread_m[0][1];
 	double z10 = s->tread_m[1][0], z11 = s->tread_m[1][1];
 	double sx0 = (r * w0 + omega * ht) - u, sx1 = (r * w1 - omega * ht) - u;
-	double sum_w0 = 0.0, sum_w1 = 0.0, sum_w[2];
+	double sum_w0 = 0.0, sum_w1 = 0.0, sum_w[2], grip_use = 0.0;
+	const uint64_t inc = s->step_units;
 	uint64_t steps = s->steps;
 
 	for (; n > 0; n--) {
@@ -537,8 +552,13 @@ static void run_ground(struct sim *s, uint64_t n)
 		double fy0 = z01 * s->f_per_tread_lat - vlat;
 		double fy1 = z11 * s->f_per_tread_lat - vlat;
 		double fxb, fyb, domega, p, q, dx, dy, dth, dth2, cd, sd, nc, hw;
-		int slide0 = fx0 * fx0 + fy0 * fy0 > s->grip2_N2[0];
-		int slide1 = fx1 * fx1 + fy1 * fy1 > s->grip2_N2[1];
+		double f2_0 = fx0 * fx0 + fy0 * fy0, f2_1 = fx1 * fx1 + fy1 * fy1;
+		int slide0 = f2_0 > s->grip2_N2[0];
+		int slide1 = f2_1 > s->grip2_N2[1];
+
+		/* the largest share of the grip a tyre asked for (squared, times the grip squared
+		 * of the other wheel: no division in the loop), for the choice of the substep */
+		grip_use = fmax(grip_use, fmax(f2_0 * s->grip2_N2[1], f2_1 * s->grip2_N2[0]));
 
 		if (slide0) {
 			/* sliding: the tread stays at its elastic limit along the force */
@@ -600,7 +620,8 @@ static void run_ground(struct sim *s, uint64_t n)
 		cdt = nc;
 		u = cd * p + sd * q;
 		v = cd * q - sd * p;
-		if ((++steps & RESYNC_MASK) == 0) {
+		steps += inc;
+		if ((steps & RESYNC_MASK) < inc) {
 			cdt = cos(s->heading + dheading) * dt;
 			sdt = sin(s->heading + dheading) * dt;
 		}
@@ -640,6 +661,7 @@ static void run_ground(struct sim *s, uint64_t n)
 	s->tread_m[1][1] = z11;
 	s->slip[0] = sx0;
 	s->slip[1] = sx1;
+	s->grip_use2 = grip_use;
 	n = s->steps;
 	s->steps = steps;
 	sum_w[0] = sum_w0;
@@ -655,6 +677,7 @@ static void set_step(struct sim *s, int coarse)
 		return;
 	s->coarse = coarse;
 	s->dt_s = (coarse ? s->coarse_ns : s->cfg.substep_ns) * 1e-9;
+	s->step_units = coarse ? s->coarse_ns / s->cfg.substep_ns : 1;
 	derive_step(s);
 }
 
@@ -662,6 +685,7 @@ static void run_substeps(struct sim *s, uint64_t n)
 {
 	set_step(s, 0);
 	s->time_ns += n * s->cfg.substep_ns;
+	s->short_steps += n;
 	if (s->cfg.lifted)
 		run_lifted(s, n);
 	else
@@ -745,11 +769,13 @@ void sim_advance_ns(struct sim *s, uint64_t duration_ns)
 		double speed = fabs(s->vx) + fabs(s->vy) + 0.5 * s->half_track_m * fabs(s->omega);
 		double reach = (speed + COARSE_SPEED_MARGIN) * (double)duration_ns * 1e-9;
 
-		if (s->clearance_m > reach + COARSE_MARGIN_M) {
+		if (s->clearance_m > reach + COARSE_MARGIN_M && s->grip_use2 < s->coarse_grip2 &&
+		    s->time_ns >= s->fine_until_ns) {
 			uint64_t m = duration_ns / s->coarse_ns;
 
 			set_step(s, 1);
 			s->time_ns += duration_ns;
+			s->coarse_steps += m;
 			run_ground(s, m);
 			return;
 		}
@@ -852,6 +878,8 @@ void sim_set_friction_scale(struct sim *s, int wheel, double scale)
 		s->mu_scale[wheel] = scale;
 		s->grip_N[wheel] = s->cfg.friction_coeff * scale * s->n_wheel_N;
 		s->grip2_N2[wheel] = s->grip_N[wheel] * s->grip_N[wheel];
+		s->coarse_grip2 =
+			COARSE_GRIP_SHARE * COARSE_GRIP_SHARE * s->grip2_N2[0] * s->grip2_N2[1];
 	}
 }
 

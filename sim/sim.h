@@ -14,8 +14,10 @@
  * exponential update of the motor current (so the 0.1 ms L/R time constant is kept and stable at
  * any substep), a linearly implicit tyre force, and penalty spring-dampers for the walls.
  * Away from every contact, a whole control tick may be one substep of coarse_substep_ns (off by
- * default; 1 ms for speed runs): the wall springs, the only part that needs 100 us, are not
- * integrated then.
+ * default here; 1 ms by default in the Python Simulator): the wall springs, the only part that
+ * needs 100 us, are not integrated then; nor while a tyre nears its grip, nor for 0.5 s after a
+ * contact (the stop and the rebound), where the 100 us substep resolves the tyres' stick and
+ * slide (robot.c, sim_advance_ns()).
  *
  * Conventions:
  *   - Field frame: origin at the centre of the table, X along the long side (3000 mm), Y along the
@@ -181,7 +183,7 @@ struct sim_config {
 	uint32_t coarse_substep_ns; /* the substep away from every contact, used for whole calls of
 				     * sim_advance_ns() that are a multiple of it (a control tick);
 				     * 0 (the default) or <= substep_ns: never; ignored if not
-				     * stable */
+				     * stable; a multiple of substep_ns */
 	struct sim_pose start;      /* pose of the drive axis midpoint, default (-1300, 0, 0) */
 	uint64_t seed;              /* seeds the encoder noise */
 };
@@ -255,6 +257,8 @@ struct sim {
 	double motor_cnt_per_rad, step_decay[2]; /* [short, long substep] */
 	uint32_t coarse_ns;                      /* the long substep, 0: none */
 	int coarse;                              /* the coefficients are those of the long one */
+	double grip_use2;    /* the last call's largest tyre force^2 times the other's grip^2 */
+	double coarse_grip2; /* grip_use2 must stay below this for the long substep */
 	double corner_m[4][2], bound_radius_m, reach_m;
 	/* coefficients of a substep, from the constants above and the fault settings */
 	double cur_decay, cur_per_w, cur_in[2], px_per_tau[2], w_per_tau[2], f_per_tau[2];
@@ -276,7 +280,13 @@ struct sim {
 	double battery_V, volts_per_q15, volts[2], mu_scale[2], grip_N[2];
 	bool motor_stuck[2], enc_cut[2], motor_enc_cut[2];
 	struct sim_rng rng;
-	uint64_t time_ns, steps, carry_ns;
+	uint64_t time_ns, carry_ns;
+	uint64_t steps;      /* the time in substeps: a long one counts as the short ones it
+			      * spans (step_units), so that the encoder noise is drawn at the
+			      * same ticks, from the same random numbers, with either */
+	uint64_t step_units; /* 1, or coarse_ns / substep_ns during long substeps */
+	uint64_t short_steps, coarse_steps;        /* substeps run, of each length (for tests) */
+	uint64_t fine_until_ns;                    /* short substeps until then (after a contact) */
 	uint64_t split_ns, split_n, split_rest_ns; /* the last time sim_advance_ns() divided */
 	uint8_t shock_forced;                      /* switches held closed by sim_force_sensors() */
 	bool basket_forced;

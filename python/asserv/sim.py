@@ -8,8 +8,9 @@
 
 ``Simulator`` runs the C sources of the board (``firmware/core``, compiled into
 ``asserv._core``) through the host port (``firmware/ports/host``) on the physics of
-``sim/``, in deterministic lockstep: control ticks at 1 kHz, physics substeps of 100 us, and the
-I2C bytes arriving between ticks at the bus bit rate. The traces of every tick (truth, estimate,
+``sim/``, in deterministic lockstep: control ticks at 1 kHz, physics substeps of 100 us (one of
+1 ms for a whole tick away from contacts and from the tyres' grip, ``COARSE_SUBSTEP_NS``), and
+the I2C bytes arriving between ticks at the bus bit rate. The traces of every tick (truth, estimate,
 set-points, duties, currents, status) are kept as a numpy structured array.
 """
 
@@ -81,6 +82,11 @@ SPEC_START = _spec_start()
 
 _CHUNK = 4096  # trace rows per call into C
 
+#: The simulator's default long substep [ns]: a whole 1 kHz control tick in one step of the
+#: physics where no contact can happen within it and the tyres are well within their grip, and
+#: for 0.5 s after a contact; the 100 us substep elsewhere (sim/robot.c, docs/simulator.md).
+COARSE_SUBSTEP_NS = 1_000_000
+
 
 class TruePose(NamedTuple):
     """Ground truth of the encoder axis midpoint (the specification's reference point)."""
@@ -88,6 +94,13 @@ class TruePose(NamedTuple):
     x_mm: float
     y_mm: float
     heading_deg: float
+
+
+class Substeps(NamedTuple):
+    """Physics steps run (``Simulator.substeps``)."""
+
+    short: int  # of substep_ns (100 us)
+    long: int  # of coarse_substep_ns (1 ms: a whole control tick)
 
 
 class OdometryErrors(NamedTuple):
@@ -147,6 +160,8 @@ def _set_member(root: Any, key: str, value: Any, unknown: str, where: str) -> No
         raise ValueError(f"{unknown} {key!r} (see {where})") from None
     try:
         if isinstance(current, int | float | bool):
+            if type(current) is int and isinstance(value, float) and value.is_integer():
+                value = int(value)  # a whole number read as a float (a scenario's config line)
             setattr(obj, path[-1], value)
         else:  # an array such as enc_radius_error
             values = list(value)
@@ -244,6 +259,9 @@ class Simulator:
         _fill_field(self._f, self.field)
         sc = ffi.new("struct sim_config *")
         lib.sim_config_defaults(sc)
+        # The 1 ms substep away from contacts and from the tyres' grip (docs/simulator.md,
+        # "Speed"); ``{"coarse_substep_ns": 0}`` keeps the 100 us substep everywhere.
+        sc.coarse_substep_ns = COARSE_SUBSTEP_NS
         _set_config(sc, "start", SPEC_START)
         if robot is not None:
             from . import robot as robotmod
@@ -380,21 +398,50 @@ class Simulator:
     def i2c_write(self, data: bytes, stop: bool) -> None:
         """A write transaction at the bus bit rate: each byte reaches the board's interrupt when
         its ninth clock ends, while the control ticks go on."""
-        self.bus_start(read=False)
-        for b in bytes(data):
-            self.bus_write_byte(b)
-        if stop:
-            self.bus_stop()
-        self._log(Frame(self.time_s, "W", bytes(data), stop))
+        data = bytes(data)
+        if self._in_one_call(len(data)):
+            rows = lib.asim_bus_write(
+                self._h, data, len(data), stop, self._byte_ns, *self._rows_buffer()
+            )
+            self._keep_rows(rows)
+        else:
+            self.bus_start(read=False)
+            for b in data:
+                self.bus_write_byte(b)
+            if stop:
+                self.bus_stop()
+        self._log(Frame(self.time_s, "W", data, stop))
 
     def i2c_read(self, n: int) -> bytes:
         """A read transaction of n bytes, ended by NACK and STOP."""
-        self.bus_start(read=True)
-        out = bytes(self.bus_read_byte() for _ in range(n))
-        self.bus_stop()
+        if self._in_one_call(n):
+            buf = ffi.new("uint8_t[]", max(1, n))
+            self._keep_rows(lib.asim_bus_read(self._h, buf, n, self._byte_ns, *self._rows_buffer()))
+            out = bytes(ffi.buffer(buf, n))
+        else:
+            self.bus_start(read=True)
+            out = bytes(self.bus_read_byte() for _ in range(n))
+            self.bus_stop()
         frame = Frame(self.time_s, "R", out, True)
         self._log(frame)
         return frame.data
+
+    def _in_one_call(self, n_bytes: int) -> bool:
+        # The transaction runs in one call into C (asim_bus_write/read, the same steps as the
+        # bus_*() methods below) unless a timed event falls within it, or its ticks' trace rows
+        # might not fit in the buffer.
+        span = (n_bytes + 1) * self._byte_ns
+        if self._events and self._events[0][0] <= int(self._h.now_ns) + span:
+            return False
+        return (n_bytes + 1) * (self._byte_ns // int(self._h.tick_ns) + 2) <= _CHUNK
+
+    def _rows_buffer(self) -> tuple[Any, int]:
+        return (self._buf, _CHUNK) if self._record else (ffi.NULL, 0)
+
+    def _keep_rows(self, n: int) -> None:
+        if n:
+            raw = ffi.buffer(self._buf, n * TRACE_DTYPE.itemsize)
+            self._chunks.append(np.frombuffer(raw, dtype=TRACE_DTYPE).copy())
 
     # ---- raw bus events, as the board's I2C interrupt sees them (for tests of any sequence) --
     def bus_start(self, read: bool) -> None:
@@ -506,6 +553,13 @@ class Simulator:
     def ticks(self) -> int:
         """Control ticks run since power-on."""
         return int(self._h.ticks)
+
+    @property
+    def substeps(self) -> Substeps:
+        """The physics steps run since power-on: short ones (``substep_ns``), and long ones
+        (``coarse_substep_ns``: a whole control tick, away from contacts and from the grip)."""
+        s = self._h.sim
+        return Substeps(int(s.short_steps), int(s.coarse_steps))
 
     # ---- disturbances and faults (sim/sim.h) --------------------------------------------------
     def set_battery_volts(self, volts: float) -> None:
