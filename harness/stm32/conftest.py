@@ -9,7 +9,7 @@ import pytest
 from hypothesis import settings
 
 # The tests assert behaviour, not speed (a loaded runner can take 1 s over a 1 ms example).
-settings.register_profile("asserv", deadline=None)
+settings.register_profile("asserv", deadline=None, derandomize=True, database=None)
 settings.load_profile("asserv")
 
 HERE = Path(__file__).resolve().parent

@@ -1,8 +1,9 @@
-"""Shared fixtures: the vector file, read once; and hypothesis without its deadline.
+"""Shared fixtures: the vector file, read once; and hypothesis's profile.
 
-The tests assert behaviour, not speed: a loaded CI runner once took 905 ms over an example that
-takes 0.1 ms, and hypothesis's default 200 ms deadline failed the test. Speed is the benches'
-(bench/)."""
+No deadline: the tests assert behaviour, not speed (a loaded CI runner once took 905 ms over an
+example that takes 0.1 ms; speed is the benches', bench/). Derandomized, without an example
+database: every run draws the same examples, so that a failure is reproduced by running the
+test again; the soaks in bench/ draw new robots and masters on every seed."""
 
 import tomllib
 from pathlib import Path
@@ -11,7 +12,7 @@ from typing import Any
 import pytest
 from hypothesis import settings
 
-settings.register_profile("asserv", deadline=None)
+settings.register_profile("asserv", deadline=None, derandomize=True, database=None)
 settings.load_profile("asserv")
 
 ROOT = Path(__file__).resolve().parents[2]
