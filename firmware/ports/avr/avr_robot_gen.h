@@ -19,14 +19,11 @@ static void avr_robot_gen(struct board_config *cfg)
 	cfg->orders.drive_track_um = 160000;
 	/* motor encoders: pi 65 mm / (48 counts * 20.25) = 210.086 um per count, * 2^16 */
 	cfg->faults.motor_um_per_count_q16 = 13768191;
-	/* feedforward.speed_q15_per_m_s of the file (the model: 19959, 32767 / 1.6417 m/s (no load:
-	 * 407 rpm/V * 24 V / 20.25, wheels of 65 mm)) */
+	/* feedforward.speed_q15_per_m_s of the file (the model: 19959, 32767 / 1.6417 m/s (no load: 407 rpm/V * 24 V / 20.25, wheels of 65 mm)) */
 	cfg->control.ff_speed_q15_per_m_s = 19980;
-	/* feedforward.accel_q15_per_m_s2 of the file (the model: 1251, 8 kg / 2 per wheel, with the
-	 * wheel's and the rotor's inertia) */
+	/* feedforward.accel_q15_per_m_s2 of the file (the model: 1251, 8 kg / 2 per wheel, with the wheel's and the rotor's inertia) */
 	cfg->control.ff_accel_q15_per_m_s2 = 1400;
-	/* feedforward.angle_accel_q15_per_m_s2 of the file (the model: 2355, 0.1 kg m^2 * 2 / (160
-	 * mm)^2 per wheel, with the wheel's and the rotor's inertia) */
+	/* feedforward.angle_accel_q15_per_m_s2 of the file (the model: 2355, 0.1 kg m^2 * 2 / (160 mm)^2 per wheel, with the wheel's and the rotor's inertia) */
 	cfg->control.ff_angle_accel_q15_per_m_s2 = 900;
 	/* mu 0.8 x 0.6 of the weight on the driven wheels x g */
 	cfg->orders.grip_um_s2 = 4707192;
