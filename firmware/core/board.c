@@ -25,8 +25,8 @@ void board_default_config(struct board_config *c)
 	const uint32_t um_per_count_q16 = ROBOT_ENC_UM_PER_COUNT_Q16; /* 78.540 um, * 2^16 */
 
 	c->tick_hz = 1000;
-	c->slow_shift = 0; /* ports whose CPU is short run the slow steps at 125 Hz (3) */
-	c->planner_ticks = 1;
+	c->slow_shift = 0;    /* ports whose CPU is short run the slow steps at 125 Hz (3) */
+	c->planner_ticks = 0; /* the slow steps in the tick itself */
 	c->odometry.left_um_per_count_q16 = um_per_count_q16;
 	c->odometry.right_um_per_count_q16 = um_per_count_q16;
 	c->odometry.track_um = ROBOT_ENC_TRACK_UM;
@@ -249,7 +249,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 
 	if (cfg->tick_hz < 100 || cfg->tick_hz > 2000 || cfg->control.tick_hz != cfg->tick_hz ||
 	    cfg->orders.tick_hz != cfg->tick_hz || shift > 3 || (cfg->tick_hz >> shift) < 100 ||
-	    ((cfg->tick_hz >> shift) << shift) != cfg->tick_hz || cfg->planner_ticks < 1 ||
+	    ((cfg->tick_hz >> shift) << shift) != cfg->tick_hz ||
 	    cfg->planner_ticks > (1u << shift))
 		return -1;
 	b->cfg = *cfg;
@@ -1022,7 +1022,8 @@ static void take_snapshot(struct board *b, const struct board_inputs *in, int32_
 	b->period[b->period_index].edges.on = p->edges.on;
 }
 
-/* The control's side of the snapshot: this tick's, after the control. */
+/* The control's side of the snapshot: the last tick's (the snapshot is taken before this one's
+ * control). */
 static void snapshot_control(struct board *b, struct board_snapshot *p)
 {
 	p->tick = b->tick;
@@ -1059,10 +1060,25 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	p->in.basket |= in->basket;
 	recal_sense(&b->lines, &p->edges, in->lines & b->line_mask, dist_um);
 
-	/* 3. The slow steps' results, planner_ticks after the snapshot they worked on (later if
-	 * they still run: an overrun); new wheel factors at the period's end, after its travel. */
+	/* 3. At the period's end: new wheel factors (after its travel), then the snapshot the slow
+	 * steps work on next, unless the last one's results are not taken yet (the period goes
+	 * on). With planner_ticks 0 they run here, in this tick. */
 	if (b->since_snapshot < UINT8_MAX)
 		b->since_snapshot++;
+	if (period_ends && !b->slow_due && b->handover.set_odometry)
+		take_wheels(b, p);
+	if (period_ends && !b->slow_due && !b->awaiting) {
+		snapshot_control(b, p);
+		take_snapshot(b, in, dist_um);
+		b->since_snapshot = 0;
+		b->awaiting = 1;
+		b->slow_due = 1;
+		if (b->cfg.planner_ticks == 0)
+			board_slow(b);
+	}
+
+	/* 4. The slow steps' results, planner_ticks after the snapshot they worked on (later if
+	 * they still run: an overrun). */
 	if (b->awaiting && b->since_snapshot >= b->cfg.planner_ticks) {
 		if (!b->slow_due) {
 			take_handover(b);
@@ -1071,10 +1087,8 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 			b->slow_overruns++;
 		}
 	}
-	if (period_ends && !b->slow_due && b->handover.set_odometry)
-		take_wheels(b, p);
 
-	/* 4. The set points of this tick, a step towards the handed-over ones. */
+	/* 5. The set points of this tick, a step towards the handed-over ones. */
 	if (b->phase <= b->slow_mask) { /* phase < 2^shift */
 		const struct board_setpoints *s = &b->setpoints[b->setpoints_index];
 		uint8_t last = b->phase == b->slow_mask;
@@ -1084,26 +1098,16 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 		sp_advance(&b->sp_angle, &s->angle_step, &s->angle, last);
 	}
 
-	/* 5. Control: feed-forward + PID on both axes, mixed into the motor duties; none after a
+	/* 6. Control: feed-forward + PID on both axes, mixed into the motor duties; none after a
 	 * motor problem (slow_steps()). */
 	if (b->motors_off)
 		control_off(&b->control);
 	else
 		control_update(&b->control, &b->sp_dist, &b->sp_angle, dist_um, b->angle_um);
 
-	/* 6. Outputs. */
+	/* 7. Outputs. */
 	out->duty_q15[0] = b->control.duty_q15[0];
 	out->duty_q15[1] = b->control.duty_q15[1];
 	b->last_out = *out;
 	b->tick++;
-
-	/* 7. At the period's end, the snapshot the slow steps work on next (board_slow()); while
-	 * the last one's results are not taken, the period goes on. */
-	if (period_ends && !b->slow_due && !b->awaiting) {
-		snapshot_control(b, p);
-		take_snapshot(b, in, dist_um);
-		b->since_snapshot = 0;
-		b->awaiting = 1;
-		b->slow_due = 1;
-	}
 }

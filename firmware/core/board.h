@@ -7,10 +7,10 @@
  * conditions, orders and profiles, pose, error radius, recalibrations, reply snapshot), every
  * 2^slow_shift ticks, on a snapshot the servo took at the period's end; the servo takes its
  * results planner_ticks ticks after that snapshot. One rate (slow_shift 0) is the same code with
- * a period of one tick: the planner runs after each tick, and its results are taken at the next.
- * A port may run board_slow() in a lower-priority context (the AVR's main loop, preempted by the
- * servo's interrupt); the results do not depend on when it runs, as long as it is done within
- * planner_ticks. */
+ * a period of one tick. With planner_ticks 0 board_tick() runs board_slow() itself between the
+ * snapshot and the hand-over; otherwise a port runs it in a lower-priority context (the AVR's
+ * main loop, preempted by the servo's interrupt), and the results do not depend on when it
+ * runs, as long as it is done within planner_ticks. */
 #ifndef ASSERV_BOARD_H
 #define ASSERV_BOARD_H
 
@@ -58,8 +58,9 @@ struct board_config {
 	uint16_t tick_hz;   /* control rate, 100..2000 */
 	uint8_t slow_shift; /* the slow steps every 2^slow_shift ticks, 0..3, at 100 Hz or more */
 	/* The servo takes the slow steps' results this many ticks after the snapshot they work
-	 * on, 1..2^slow_shift: the time a port gives them (1 where they run right after the
-	 * tick; the AVR, preempted by the servo, 2). */
+	 * on, 0..2^slow_shift: the time a port gives them. 0: board_tick() runs them itself,
+	 * between the snapshot and the hand-over (one context: the host, the STM32, the AVR at one
+	 * rate); the AVR at 125 Hz runs them in its main loop, preempted by the servo: 2. */
 	uint8_t planner_ticks;
 	struct odometry_config odometry;
 	struct uncertainty_config uncertainty;
@@ -219,9 +220,10 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
  * context, or before the first tick). */
 int board_set_calibration(struct board *b, const struct board_calibration *cal);
 
-/* One control period, the servo: encoders -> odometry -> period sums -> (planner_ticks after the
- * snapshot: the hand-over) -> set points -> control -> outputs -> (the period's end: the
- * snapshot). Interrupt-safe: it is the control interrupt; it must not be re-entered. */
+/* One control period, the servo: encoders -> odometry -> period sums -> (the period's end: the
+ * snapshot, and the planner itself with planner_ticks 0) -> (planner_ticks after the snapshot:
+ * the hand-over) -> set points -> control -> outputs. Interrupt-safe: it is the control
+ * interrupt; it must not be re-entered. */
 void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out);
 
 /* 1 when the next board_tick() ends a period (a slow tick: every tick with slow_shift 0). Only

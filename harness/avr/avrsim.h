@@ -111,7 +111,7 @@ int avrsim_run_to_tick_end(struct avrsim *h);
 int avrsim_run_to_slow_done(struct avrsim *h);
 /* Runs until the slow steps have run once (the SLOW pin falls) and the servo has taken their
  * results, at the next hand-over (the tick that makes them due again): the queue is taken and
- * the replies published then. With one rate, two ticks (the first runs them). */
+ * the replies published then. With one rate, one tick (it runs them). */
 int avrsim_run_slow_steps(struct avrsim *h);
 /* Runs until the firmware sleeps between two ticks (TICK pin low). */
 int avrsim_run_until_idle(struct avrsim *h);

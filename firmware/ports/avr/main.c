@@ -63,7 +63,6 @@ int main(void)
 		PORTD |= _BV(PIN_TICK_BIT);
 		avr_motor_sense();
 		port_control_tick(&asserv_board);
-		port_slow(&asserv_board); /* the planner, on this tick's snapshot */
 		PORTD &= (uint8_t)~_BV(PIN_TICK_BIT);
 		port_nvm_poll(&avr_nvm, &asserv_board); /* a byte at most, never waited for */
 		wdt_reset();
