@@ -25,7 +25,8 @@ void board_default_config(struct board_config *c)
 	const uint32_t um_per_count_q16 = ROBOT_ENC_UM_PER_COUNT_Q16; /* 78.540 um, * 2^16 */
 
 	c->tick_hz = 1000;
-	c->slow_shift = 0; /* ports whose CPU is short run the slow steps at 125 Hz (3) */
+	c->slow_shift = 0;    /* ports whose CPU is short run the slow steps at 125 Hz (3) */
+	c->planner_ticks = 0; /* the slow steps in the tick itself */
 	c->odometry.left_um_per_count_q16 = um_per_count_q16;
 	c->odometry.right_um_per_count_q16 = um_per_count_q16;
 	c->odometry.track_um = ROBOT_ENC_TRACK_UM;
@@ -248,7 +249,8 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 
 	if (cfg->tick_hz < 100 || cfg->tick_hz > 2000 || cfg->control.tick_hz != cfg->tick_hz ||
 	    cfg->orders.tick_hz != cfg->tick_hz || shift > 3 || (cfg->tick_hz >> shift) < 100 ||
-	    ((cfg->tick_hz >> shift) << shift) != cfg->tick_hz)
+	    ((cfg->tick_hz >> shift) << shift) != cfg->tick_hz ||
+	    cfg->planner_ticks > (1u << shift))
 		return -1;
 	b->cfg = *cfg;
 	b->slow_hz = (uint16_t)(cfg->tick_hz >> shift);
@@ -313,6 +315,8 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	/* The servo: holding where the orders start, nothing handed over, no period begun. */
 	b->motors_off = 0;
 	b->phase = 1;
+	b->since_snapshot = 0;
+	b->awaiting = 0;
 	b->slow_overruns = 0;
 	b->sp_dist = b->orders.sp_dist;
 	b->sp_angle = b->orders.sp_angle;
@@ -926,7 +930,7 @@ void board_slow(struct board *b)
 	BOARD_BARRIER();
 	slow_steps(b);
 	publish(b);
-	b->handover.publish = 1;                        /* made public at the hand-over */
+	b->handover.publish = 1; /* made public at the hand-over, with the servo's new state */
 	period_clear(&b->period[b->period_index ^ 1u]); /* the servo's next period */
 	BOARD_BARRIER();
 	b->slow_due = 0;
@@ -946,23 +950,26 @@ static void sp_advance(struct orders_axis *sp, const struct orders_axis *step,
 	sp->vel_um_s += step->vel_um_s;
 }
 
-/* The slow steps' results, taken by the servo. p: the period that ends at this tick, if its
- * travel is not summed yet (then new wheels keep its old factors). */
-static void take_handover(struct board *b, struct board_snapshot *p)
+/* New wheel factors (SET_ODOMETRIE), at the end of the period p, after its travel: its counts
+ * are worth the old factors, which it keeps. */
+static void take_wheels(struct board *b, struct board_snapshot *p)
 {
 	struct board_handover *h = &b->handover;
 
-	if (h->set_odometry) {
-		if (p) {
-			p->wheels_replaced = 1;
-			p->wheel_k[0][0] = b->odometry.left.k[0];
-			p->wheel_k[0][1] = b->odometry.left.k[1];
-			p->wheel_k[1][0] = b->odometry.right.k[0];
-			p->wheel_k[1][1] = b->odometry.right.k[1];
-		}
-		odometry_install_config(&b->odometry, &h->odometry_cfg, h->odometry_wheels);
-		h->set_odometry = 0;
-	}
+	p->wheels_replaced = 1;
+	p->wheel_k[0][0] = b->odometry.left.k[0];
+	p->wheel_k[0][1] = b->odometry.left.k[1];
+	p->wheel_k[1][0] = b->odometry.right.k[0];
+	p->wheel_k[1][1] = b->odometry.right.k[1];
+	odometry_install_config(&b->odometry, &h->odometry_cfg, h->odometry_wheels);
+	h->set_odometry = 0;
+}
+
+/* The slow steps' results, taken by the servo: set points, gains, the reply's flip. */
+static void take_handover(struct board *b)
+{
+	struct board_handover *h = &b->handover;
+
 	if (h->set_gains) {
 		control_set_gains(&b->control, &h->gains);
 		h->set_gains = 0;
@@ -1015,7 +1022,8 @@ static void take_snapshot(struct board *b, const struct board_inputs *in, int32_
 	b->period[b->period_index].edges.on = p->edges.on;
 }
 
-/* The control's side of the snapshot: this tick's, after the control. */
+/* The control's side of the snapshot: the last tick's (the snapshot is taken before this one's
+ * control). */
 static void snapshot_control(struct board *b, struct board_snapshot *p)
 {
 	p->tick = b->tick;
@@ -1029,7 +1037,7 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 {
 	struct board_snapshot *p = &b->period[b->period_index];
 	const struct odometry_step *step;
-	uint8_t slow_tick = (b->tick & b->slow_mask) == 0, shift = b->cfg.slow_shift;
+	uint8_t period_ends = (b->tick & b->slow_mask) == 0;
 	int32_t dist_um;
 
 	/* 1. Encoders -> odometry (a wheel that jumps more than a tick can travel is a fault). */
@@ -1052,20 +1060,35 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	p->in.basket |= in->basket;
 	recal_sense(&b->lines, &p->edges, in->lines & b->line_mask, dist_um);
 
-	/* 3. At a slow tick, the slow steps' results: with slow_shift 0 those of this tick's
-	 * period, run now; otherwise those of the last period, unless they are still running. */
-	if (shift == 0) {
+	/* 3. At the period's end: new wheel factors (after its travel), then the snapshot the slow
+	 * steps work on next, unless the last one's results are not taken yet (the period goes
+	 * on). With planner_ticks 0 they run here, in this tick. */
+	if (b->since_snapshot < UINT8_MAX)
+		b->since_snapshot++;
+	if (period_ends && !b->slow_due && b->handover.set_odometry)
+		take_wheels(b, p);
+	if (period_ends && !b->slow_due && !b->awaiting) {
+		snapshot_control(b, p);
 		take_snapshot(b, in, dist_um);
-		slow_steps(b);
-		take_handover(b, NULL); /* from the next tick on */
-	} else if (slow_tick) {
-		if (b->slow_due)
-			b->slow_overruns++;
-		else
-			take_handover(b, p);
+		b->since_snapshot = 0;
+		b->awaiting = 1;
+		b->slow_due = 1;
+		if (b->cfg.planner_ticks == 0)
+			board_slow(b);
 	}
 
-	/* 4. The set points of this tick, a step towards the handed-over ones. */
+	/* 4. The slow steps' results, planner_ticks after the snapshot they worked on (later if
+	 * they still run: an overrun). */
+	if (b->awaiting && b->since_snapshot >= b->cfg.planner_ticks) {
+		if (!b->slow_due) {
+			take_handover(b);
+			b->awaiting = 0;
+		} else if (b->since_snapshot == b->cfg.planner_ticks) {
+			b->slow_overruns++;
+		}
+	}
+
+	/* 5. The set points of this tick, a step towards the handed-over ones. */
 	if (b->phase <= b->slow_mask) { /* phase < 2^shift */
 		const struct board_setpoints *s = &b->setpoints[b->setpoints_index];
 		uint8_t last = b->phase == b->slow_mask;
@@ -1075,29 +1098,16 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 		sp_advance(&b->sp_angle, &s->angle_step, &s->angle, last);
 	}
 
-	/* 5. Control: feed-forward + PID on both axes, mixed into the motor duties; none after a
+	/* 6. Control: feed-forward + PID on both axes, mixed into the motor duties; none after a
 	 * motor problem (slow_steps()). */
 	if (b->motors_off)
 		control_off(&b->control);
 	else
 		control_update(&b->control, &b->sp_dist, &b->sp_angle, dist_um, b->angle_um);
 
-	/* 6. Outputs. */
+	/* 7. Outputs. */
 	out->duty_q15[0] = b->control.duty_q15[0];
 	out->duty_q15[1] = b->control.duty_q15[1];
 	b->last_out = *out;
 	b->tick++;
-
-	/* 7. The state the replies are built from: with slow_shift 0 now; otherwise the slow
-	 * steps start on this period (unless the last ones still run: it goes on). */
-	if (shift == 0) {
-		snapshot_control(b, &b->period[b->period_index ^ 1u]);
-		publish(b);
-		proto_flip(&b->proto);
-		period_clear(&b->period[b->period_index ^ 1u]);
-	} else if (slow_tick && !b->slow_due) {
-		snapshot_control(b, p);
-		take_snapshot(b, in, dist_um);
-		b->slow_due = 1;
-	}
 }

@@ -1,14 +1,16 @@
 /* The board: odometry, orders, motion profiles, control and stop conditions. A port samples its
- * inputs, calls board_tick() once per control period and applies the outputs; its I2C interrupt
- * talks to &board.proto (protocol.h).
+ * inputs, calls board_tick() once per control period and applies the outputs, and runs
+ * board_slow() when board_slow_due(); its I2C interrupt talks to &board.proto (protocol.h).
  *
- * Two rates (docs/control.md, "Two rates"): board_tick() is the servo (odometry, set points, the
- * two PIDs, the duties), every tick; board_slow() is the rest (messages, stop conditions, orders
- * and profiles, error radius, recalibrations, reply snapshot), every 2^slow_shift ticks, on a
- * snapshot the servo took, its results handed back to the servo at the next slow tick. With
- * slow_shift 0 board_tick() runs both itself, in the same tick. With slow_shift > 0 a port may
- * run board_slow() in a lower-priority context (the AVR's main loop, preempted by the servo's
- * interrupt); the results do not depend on when, within its period, it runs. */
+ * Two steps (docs/architecture.md, "Two steps"): board_tick() is the servo (odometry, set
+ * points, the two PIDs, the duties), every tick; board_slow() is the planner (messages, stop
+ * conditions, orders and profiles, pose, error radius, recalibrations, reply snapshot), every
+ * 2^slow_shift ticks, on a snapshot the servo took at the period's end; the servo takes its
+ * results planner_ticks ticks after that snapshot. One rate (slow_shift 0) is the same code with
+ * a period of one tick. With planner_ticks 0 board_tick() runs board_slow() itself between the
+ * snapshot and the hand-over; otherwise a port runs it in a lower-priority context (the AVR's
+ * main loop, preempted by the servo's interrupt), and the results do not depend on when it
+ * runs, as long as it is done within planner_ticks. */
 #ifndef ASSERV_BOARD_H
 #define ASSERV_BOARD_H
 
@@ -55,6 +57,11 @@ struct board_calibration {
 struct board_config {
 	uint16_t tick_hz;   /* control rate, 100..2000 */
 	uint8_t slow_shift; /* the slow steps every 2^slow_shift ticks, 0..3, at 100 Hz or more */
+	/* The servo takes the slow steps' results this many ticks after the snapshot they work
+	 * on, 0..2^slow_shift: the time a port gives them. 0: board_tick() runs them itself,
+	 * between the snapshot and the hand-over (one context: the host, the STM32, the AVR at one
+	 * rate); the AVR at 125 Hz runs them in its main loop, preempted by the servo: 2. */
+	uint8_t planner_ticks;
 	struct odometry_config odometry;
 	struct uncertainty_config uncertainty;
 	struct control_config control;
@@ -159,7 +166,9 @@ struct board {
 	uint8_t line_mask;          /* the line sensors in use */
 	uint8_t motors_off;         /* handed over: the duties stay 0 */
 	uint8_t phase;              /* ticks into the set points' period, 1..2^slow_shift */
-	uint16_t slow_overruns;     /* slow ticks whose hand-over waited for board_slow() */
+	uint8_t since_snapshot;     /* ticks since the last snapshot (saturated) */
+	uint8_t awaiting;           /* a snapshot is out: its hand-over is not taken yet */
+	uint16_t slow_overruns;     /* hand-overs that waited for board_slow() past planner_ticks */
 	struct orders_axis sp_dist; /* the set points of this tick */
 	struct orders_axis sp_angle;
 	/* The handed-over set points, setpoints[setpoints_index], and those the slow steps write
@@ -211,10 +220,10 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
  * context, or before the first tick). */
 int board_set_calibration(struct board *b, const struct board_calibration *cal);
 
-/* One control period, the servo: encoders -> odometry -> (slow tick: the hand-over) -> set
- * points -> control -> outputs -> (slow tick: the snapshot). With slow_shift 0 the slow steps
- * run between the odometry and the set points (board_slow()).
- * Interrupt-safe: it is the control interrupt; it must not be re-entered. */
+/* One control period, the servo: encoders -> odometry -> period sums -> (the period's end: the
+ * snapshot, and the planner itself with planner_ticks 0) -> (planner_ticks after the snapshot:
+ * the hand-over) -> set points -> control -> outputs. Interrupt-safe: it is the control
+ * interrupt; it must not be re-entered. */
 void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out);
 
 /* 1 when the next board_tick() ends a period (a slow tick: every tick with slow_shift 0). Only
@@ -233,18 +242,17 @@ static inline struct odometry_pose board_get_pose(const struct board *b)
 	return b->m.pose;
 }
 
-/* 1 when board_slow() has a snapshot to work on (slow_shift > 0). Interrupt-safe: yes. */
+/* 1 when board_slow() has a snapshot to work on. Interrupt-safe: yes. */
 static inline int board_slow_due(const struct board *b)
 {
 	return b->slow_due != 0;
 }
 
-/* The slow steps, on the last snapshot: error radius -> line recalibration -> messages -> the
- * master's silence -> stop conditions -> orders -> profiles -> border/basket recalibration ->
- * reply snapshot. With slow_shift > 0 a port calls it when board_slow_due(), and it must end
- * before the next slow tick (2^slow_shift ticks later; otherwise that tick counts a
- * slow_overrun and hands nothing over). Interrupt-safe: it may be preempted by board_tick(),
- * not re-entered. */
+/* The planner, on the last snapshot: pose -> error radius -> line recalibration -> messages ->
+ * the master's silence -> stop conditions -> orders -> profiles -> border/basket recalibration
+ * -> reply snapshot. A port calls it when board_slow_due(), and it must end within planner_ticks
+ * ticks (otherwise the servo counts a slow_overrun and takes its results when it ends).
+ * Interrupt-safe: it may be preempted by board_tick(), not re-entered. */
 void board_slow(struct board *b);
 
 #endif

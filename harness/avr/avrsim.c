@@ -583,6 +583,18 @@ static int slow_tick_ended(struct avrsim *h)
 	return (((uint16_t)(tick - 1u)) & ((1u << h->slow_shift) - 1u)) == 0;
 }
 
+/* The tick that just ended took the slow steps' results (planner_ticks after its snapshot). */
+static int handover_tick_ended(struct avrsim *h)
+{
+	uint8_t since, planner;
+
+	if (!h->slow_shift)
+		return 0;
+	avrsim_peek(h, (uint16_t)(h->board_addr + h->layout.since_snapshot), &since, 1);
+	avrsim_peek(h, (uint16_t)(h->board_addr + h->layout.planner_ticks), &planner, 1);
+	return since == planner;
+}
+
 static void on_tick_end(struct avrsim *h)
 {
 	uint64_t now = h->avr->cycle, end;
@@ -984,7 +996,9 @@ static void step(struct avrsim *h)
 			add_count(&h->st.tick, len);
 			add_count(&h->st.servo, h->servo_now);
 			on_tick_end(h);
-			add_count(slow_tick_ended(h) ? &h->st.servo_slow : &h->st.servo_other,
+			add_count(slow_tick_ended(h)       ? &h->st.servo_slow
+				  : handover_tick_ended(h) ? &h->st.servo_handover
+							   : &h->st.servo_other,
 				  h->servo_now);
 		}
 	}

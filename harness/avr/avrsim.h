@@ -41,12 +41,14 @@ struct avrsim_count {
 };
 
 struct avrsim_stats {
-	uint64_t cycles;                 /* simulated since the last reset of the stats */
-	uint64_t idle;                   /* of which asleep */
-	struct avrsim_count tick;        /* TICK pin high, rise to fall (interrupts included) */
-	struct avrsim_count servo;       /* the same without the interrupts that ran inside it */
-	struct avrsim_count servo_slow;  /* two rates: servo, at the slow ticks only (the hand-over
-					  * and the snapshot: one tick in 2^slow_shift) */
+	uint64_t cycles;                /* simulated since the last reset of the stats */
+	uint64_t idle;                  /* of which asleep */
+	struct avrsim_count tick;       /* TICK pin high, rise to fall (interrupts included) */
+	struct avrsim_count servo;      /* the same without the interrupts that ran inside it */
+	struct avrsim_count servo_slow; /* two rates: servo, at the slow ticks only (the hand-over
+					 * and the snapshot: one tick in 2^slow_shift) */
+	struct avrsim_count servo_handover; /* two rates: servo, at the ticks that take the slow
+					     * steps' results (planner_ticks after a slow tick) */
 	struct avrsim_count servo_other; /* servo, at the other ticks (all of them with one rate) */
 	struct avrsim_count slow;        /* two rates: each run of the slow steps (SLOW pin high),
 					  * without the servo and the interrupts that preempted it */

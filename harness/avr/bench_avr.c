@@ -57,6 +57,7 @@ static void merge(struct phase *all, const struct avrsim_stats *s, uint64_t tick
 	add(&a->tick, &s->tick);
 	add(&a->servo, &s->servo);
 	add(&a->servo_slow, &s->servo_slow);
+	add(&a->servo_handover, &s->servo_handover);
 	add(&a->servo_other, &s->servo_other);
 	add(&a->slow, &s->slow);
 	add(&a->period, &s->period);
@@ -137,7 +138,8 @@ static void print_one_rate(const struct phase *p, uint32_t tick_hz, double im, d
 
 /* Two rates: the servo (at the slow ticks and at the others), the slow steps, the interrupts, and
  * the load they make together over a slow period of 2^slow_shift ticks: the mean from the means,
- * the worst from each at its worst (a slow tick and the others each at the longest of its kind,
+ * the worst from each at its worst (a slow tick, the hand-over's tick and the others each at the
+ * longest of its kind,
  * the interrupts at their worst rate of cycles, the longest run of the slow steps); then the
  * worst by part, and how far it is from 40 %; the cruder bound of every tick at the servo's worst
  * and every TWI interrupt at the longest of any kind, the same with the busiest period's
@@ -148,8 +150,12 @@ static void print_two_rates(const struct phase *p, uint32_t tick_hz, uint8_t slo
 {
 	const struct avrsim_stats *s = &p->st;
 	uint32_t period = AVRSIM_F_CPU / tick_hz, n = 1u << slow_shift, slow_period = period * n;
+	/* the hand-over at a tick of its own, unless it is the slow tick (planner_ticks 2^shift) */
 	double servo_ticks_worst =
-		(double)s->servo_slow.max + (n - 1u) * (double)s->servo_other.max;
+		(double)s->servo_slow.max +
+		(s->servo_handover.n
+			 ? (double)s->servo_handover.max + (n - 2u) * (double)s->servo_other.max
+			 : (n - 1u) * (double)s->servo_other.max);
 	double load_mean = (mean(&s->servo) + il->mean) / period + mean(&s->slow) / slow_period;
 	double load_worst = (servo_ticks_worst + n * il->worst + (double)s->slow.max) / slow_period;
 	double load_crude = ((double)s->servo.max + il->worst_all_twi) / period +
@@ -160,12 +166,15 @@ static void print_two_rates(const struct phase *p, uint32_t tick_hz, uint8_t slo
 	printf("  servo tick (TICK high, without the interrupts nested in it)\n"
 	       "%35s%8.0f cycles mean %8llu worst\n",
 	       "", mean(&s->servo), (unsigned long long)s->servo.max);
-	printf("    at a slow tick (the hand-over, the snapshot)\n"
+	printf("    at a slow tick (the snapshot, new wheel factors)\n"
 	       "%35s%8.0f cycles mean %8llu worst\n",
 	       "", mean(&s->servo_slow), (unsigned long long)s->servo_slow.max);
+	printf("    at the hand-over (the slow steps' results, planner_ticks after the snapshot)\n"
+	       "%35s%8.0f cycles mean %8llu worst\n",
+	       "", mean(&s->servo_handover), (unsigned long long)s->servo_handover.max);
 	printf("    at the other %u ticks of a slow period\n"
 	       "%35s%8.0f cycles mean %8llu worst\n",
-	       n - 1u, "", mean(&s->servo_other), (unsigned long long)s->servo_other.max);
+	       n - 2u, "", mean(&s->servo_other), (unsigned long long)s->servo_other.max);
 	printf("  slow steps, a run every %u ticks (SLOW high, without what preempted them)\n"
 	       "%35s%8.0f cycles mean %8llu worst  (%llu runs)\n",
 	       n, "", mean(&s->slow), (unsigned long long)s->slow.max,

@@ -25,6 +25,8 @@ struct avr_layout {
 	uint16_t tick;
 	uint16_t slow_due;        /* uint8: the slow steps have a snapshot to work on */
 	uint16_t slow_overruns;   /* uint16 */
+	uint16_t since_snapshot;  /* uint8: ticks since the last snapshot */
+	uint16_t planner_ticks;   /* uint8, cfg.planner_ticks: the hand-over's tick after it */
 	uint16_t odo_x_um;        /* uint32, whole um of the estimate */
 	uint16_t odo_y_um;        /* uint32 */
 	uint16_t odo_x_frac;      /* uint16, [2^-16 um] */

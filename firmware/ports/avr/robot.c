@@ -26,6 +26,10 @@ void avr_robot_config(struct board_config *cfg)
 	/* The slow steps every 2^n ticks: the port's execution model follows it (tick.c), so keep
 	 * the build option. */
 	cfg->slow_shift = CONFIG_AVR_SLOW_SHIFT;
+	/* The slow steps' results three ticks after their snapshot: preempted by the servo and the
+	 * interrupts, their longest run (about 18 500 cycles, docs/avr.md) ends within three
+	 * 1 ms ticks with a margin; bench_avr prints the overruns. One rate: in the tick itself. */
+	cfg->planner_ticks = CONFIG_AVR_SLOW_SHIFT == 0 ? 0 : 3;
 	cfg->control.tick_hz = CONFIG_AVR_TICK_HZ;
 	cfg->orders.tick_hz = CONFIG_AVR_TICK_HZ;
 }

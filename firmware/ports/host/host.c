@@ -275,7 +275,7 @@ static void record(const struct host *h, struct host_sample *r)
 	r->current_left_A = t.current_A[SIM_LEFT];
 	r->current_right_A = t.current_A[SIM_RIGHT];
 	r->contact_force_N = t.contact_force_N;
-	r->status = b->status;
+	r->status = proto_status(&b->proto); /* what CHECK_BUSY answers now */
 	r->order_state = b->orders.state;
 	r->shocks = b->shocks;
 }

@@ -71,9 +71,9 @@ struct host_sample {
 	double duty_left, duty_right;           /* -1..1 of the battery */
 	double current_left_A, current_right_A; /* motor currents */
 	double contact_force_N;                 /* border/basket push on the outline */
-	double status;                          /* the board's status byte (STATUS_*) */
-	double order_state;                     /* ORDER_STATE_* */
-	double shocks;                          /* shock switch mask */
+	double status;      /* what CHECK_BUSY answers after the tick (STATUS_*) */
+	double order_state; /* ORDER_STATE_* */
+	double shocks;      /* shock switch mask */
 };
 
 /* Runs the simulated board for duration_ns: control ticks at multiples of tick_ns (the first at
