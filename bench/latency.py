@@ -49,6 +49,10 @@ START = (-800.0, 0.0, 0.0)  # facing +X on the default table's centre line: 1600
 
 # The board setting of the planner's period: every 2^slow_shift ticks (firmware/core/board.h).
 RATE_SETTING = "slow_shift"
+# When the servo takes the planner's results, in ticks after its snapshot (board_config
+# planner_ticks): 0, in the tick itself, at one rate; 3 at the AVR's rates (firmware/ports/avr/
+# robot.c), where the planner runs in the main loop.
+PLANNER_TICKS = {0: 0, 3: 3}
 BUS_HZ = 100_000  # the I2C bit rate (the simulator's default)
 POLL_S = 0.001  # CHECK_BUSY every 1 ms near the end of a move
 POLL_AHEAD_S = 0.05  # polls start this long before the bound (the move cannot end earlier)
@@ -243,7 +247,7 @@ def run_move(move: Move, slow_shift: int, seed: int = 0) -> MoveResult:
         {"start": START, "enc_noise_mm2_per_m": (0.0, 0.0)},
         seed=seed,
         field=field.Field(),
-        board_config={RATE_SETTING: slow_shift},
+        board_config={RATE_SETTING: slow_shift, "planner_ticks": PLANNER_TICKS.get(slow_shift, 0)},
         bus_hz=BUS_HZ,
     )
     board = Board(sim.bus)

@@ -303,6 +303,7 @@ struct board_unseen {
 struct board_config {
     uint16_t tick_hz;
     uint8_t slow_shift;
+    uint8_t planner_ticks;
     struct odometry_config odometry;
     struct uncertainty_config uncertainty;
     struct control_config control;
