@@ -3,5 +3,8 @@
 # on 200 randomized simulated robots, beside the legacy P-only baseline on the same robots, with
 # the odometry calibration; prints the table and writes PNGs to bench-out/. Arguments go to
 # `asserv bench accuracy` (--robots N, --jobs N, --out DIR, --no-png, ...). Asserts nothing.
-. "$(dirname "$0")/../scripts/setup.sh"
-exec asserv bench accuracy "$@"
+# The arguments are the bench's: setup.sh, sourced, would take the first as its profile.
+args=("$@")
+set --
+. "$(dirname "$0")/../scripts/setup.sh" demo
+exec asserv bench accuracy "${args[@]}"
