@@ -60,7 +60,7 @@ struct board_config {
 	/* The servo takes the slow steps' results this many ticks after the snapshot they work
 	 * on, 0..2^slow_shift: the time a port gives them. 0: board_tick() runs them itself,
 	 * between the snapshot and the hand-over (one context: the host, the STM32, the AVR at one
-	 * rate); the AVR at 125 Hz runs them in its main loop, preempted by the servo: 2. */
+	 * rate); the AVR at 125 Hz runs them in its main loop, preempted by the servo: 3. */
 	uint8_t planner_ticks;
 	struct odometry_config odometry;
 	struct uncertainty_config uncertainty;
