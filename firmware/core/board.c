@@ -296,7 +296,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	b->silent_counts[1] = 0;
 	b->silent_widened[0] = 0;
 	b->silent_widened[1] = 0;
-	/* lost_min_um in motor counts, rounded down; encoder track / drive track, rounded up */
+	/* lost_min_um in motor counts, rounded down */
 	b->silent_min_counts = cfg->faults.motor_um_per_count_q16 == 0
 				       ? UINT32_MAX
 				       : (uint32_t)(((uint64_t)(cfg->faults.lost_min_um > 0
@@ -304,11 +304,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 									: 0)
 						     << 16) /
 						    cfg->faults.motor_um_per_count_q16);
-	b->silent_turn_q16 =
-		(uint32_t)(((uint64_t)cfg->odometry.track_um << 16) / cfg->orders.drive_track_um +
-			   1);
-	if (b->silent_turn_q16 < 0x10000u)
-		b->silent_turn_q16 = 0x10000u;
+	b->silent_turn_q16 = turn_q16_of(cfg, cfg->odometry.track_um);
 	b->calibration = (struct board_calibration){0, 0, 0};
 	b->last_out.duty_q15[0] = 0;
 	b->last_out.duty_q15[1] = 0;

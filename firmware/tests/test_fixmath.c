@@ -339,6 +339,23 @@ static void test_udiv_shl16(void **state)
 	}
 }
 
+/* A duration in ms as periods at a rate: ceil(ms rate / 1000), at least 1, at most 65535, on
+ * random durations and rates and on the edges. */
+static void test_ticks_of_ms(void **state)
+{
+	(void)state;
+	for (int i = 0; i < 100000; i++) {
+		uint16_t ms = (uint16_t)(i < 4 ? (uint32_t[]){0, 1, 999, 65535}[i] : rng_next());
+		uint16_t hz = (uint16_t)(i < 4 ? 1000u : 1u + rng_next() % 65535u);
+		uint64_t want = ((uint64_t)ms * hz + 999u) / 1000u;
+
+		want = want == 0 ? 1 : want > 0xffffu ? 0xffffu : want;
+		assert_int_equal(fx_ticks_of_ms(ms, hz), want);
+	}
+	assert_int_equal(fx_ticks_of_ms(20, 125), 3); /* the settle time at the AVR's 125 Hz */
+	assert_int_equal(fx_ticks_of_ms(128, 125), 16);
+}
+
 static void test_isqrt_edges(void **state)
 {
 	(void)state;
@@ -581,6 +598,7 @@ int main(void)
 		cmocka_unit_test(test_div_round),
 		cmocka_unit_test(test_kernels_match_their_definitions),
 		cmocka_unit_test(test_udiv_shl16),
+		cmocka_unit_test(test_ticks_of_ms),
 		cmocka_unit_test(test_isqrt_edges),
 		cmocka_unit_test(test_sincos_against_reference),
 		cmocka_unit_test(test_atan2_octants_and_edges),
