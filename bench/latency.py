@@ -36,7 +36,7 @@ import numpy as np
 
 from asserv import Status, codec, field
 from asserv.driver import Board
-from asserv.sim import Frame, Simulator
+from asserv.sim import AVR_RATES, Frame, Simulator
 
 # The random moves: distances of issue 23, and the limits SET_VITESSE_TRAJ takes (1..255 cm/s
 # and cm/s^2) at speeds the motors carry (1.5 m/s: above their top speed, about 1.64 m/s, the
@@ -49,10 +49,6 @@ START = (-800.0, 0.0, 0.0)  # facing +X on the default table's centre line: 1600
 
 # The board setting of the planner's period: every 2^slow_shift ticks (firmware/core/board.h).
 RATE_SETTING = "slow_shift"
-# When the servo takes the planner's results, in ticks after its snapshot (board_config
-# planner_ticks): 0, in the tick itself, at one rate; 3 at the AVR's rates (firmware/ports/avr/
-# robot.c), where the planner runs in the main loop.
-PLANNER_TICKS = {0: 0, 3: 3}
 BUS_HZ = 100_000  # the I2C bit rate (the simulator's default)
 POLL_S = 0.001  # CHECK_BUSY every 1 ms near the end of a move
 POLL_AHEAD_S = 0.05  # polls start this long before the bound (the move cannot end earlier)
@@ -247,7 +243,10 @@ def run_move(move: Move, slow_shift: int, seed: int = 0) -> MoveResult:
         {"start": START, "enc_noise_mm2_per_m": (0.0, 0.0)},
         seed=seed,
         field=field.Field(),
-        board_config={RATE_SETTING: slow_shift, "planner_ticks": PLANNER_TICKS.get(slow_shift, 0)},
+        # at the AVR's slow_shift, the AVR's planner_ticks too (the planner in the main loop)
+        board_config=AVR_RATES
+        if slow_shift == AVR_RATES[RATE_SETTING]
+        else {RATE_SETTING: slow_shift},
         bus_hz=BUS_HZ,
     )
     board = Board(sim.bus)
