@@ -5,12 +5,20 @@ the tick the shock switch closed, the speed then, the braking time the grip allo
 time to rest (the last tick faster than 10 mm/s), the most it came back towards the disc once it
 had first stopped, and the largest contact force from 300 ms on, in simulated ticks.
 
-    python bench/shock_stop.py
+Then, with --random N, N random hits at each rate (test_endings_sim.py's `hit()`: a wall or a
+disc within a switch's reach, any start within 5 mm, speed and acceleration, nominal and
+randomized robots), and the worst of each promise's measure over them.
+
+    python bench/shock_stop.py [--random N]
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
+import random
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -59,13 +67,52 @@ def run(speed_cm_s: int, seed: int = 0, randomize: bool = False, slow_shift: int
     )
 
 
+def random_hits(n: int, rates: dict[str, int] | None, min_speed: int) -> str:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "python" / "tests"))
+    from test_endings_sim import SLOW_REST_MS, hit
+
+    rng = random.Random(1)
+    worst_ratio = worst_back = worst_force = worst_extra = 0.0
+    slow_rest = 0
+    back_case = ""
+    for _ in range(n):
+        kind = rng.choice(["wall", "disc"])
+        speed, accel = rng.randint(min_speed, 150), rng.randint(30, 255)
+        dx, lateral = rng.uniform(-5, 5), rng.uniform(-15, 15)
+        seed, randomize = rng.randint(0, 2**16), rng.random() < 0.5
+        _, s = hit(kind, speed, accel, dx, lateral, seed, randomize, rates)
+        if s.braking_ms * 1.1 >= SLOW_REST_MS:
+            worst_ratio = max(worst_ratio, s.rest_ms / s.braking_ms)
+        else:
+            slow_rest = max(slow_rest, s.rest_ms)
+        worst_extra = max(worst_extra, s.rest_ms - 1.1 * s.braking_ms)
+        if s.back_mm > worst_back:
+            worst_back = s.back_mm
+            back_case = f"{kind} {speed} cm/s {accel} cm/s^2 dx {dx:.2f} lateral {lateral:.1f}"
+        worst_force = max(worst_force, s.force_after_300_ms)
+    return (
+        f"{n} hits: rest up to {worst_ratio:.2f}x the braking time (where 1.1x is over "
+        f"{SLOW_REST_MS} ms), {slow_rest} ms below; at most {worst_extra:.0f} ms beyond 1.1x; "
+        f"back {worst_back:.3f} mm at most ({back_case}); {worst_force:.1f} N at most from 300 "
+        "ms on"
+    )
+
+
 def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--random", type=int, default=0, metavar="N", help="N random hits a rate")
+    args = ap.parse_args()
+    if args.random < 0:
+        ap.error("--random: N must be 0 or more")
     for speed in (5, 10, 20, 30, 60, 100, 150):
         print(f"limit {speed:3d} cm/s: {run(speed)}")
     print(f"seed 7, randomized, 100 cm/s: {run(100, seed=7, randomize=True)}")
     print("the AVR board's rates (AVR_RATES: the planner every 8th tick, its results 3 ticks on):")
     for speed in (10, 30, 60, 100, 150):
         print(f"limit {speed:3d} cm/s: {run(speed, slow_shift=3)}")
+    if args.random:
+        print(f"random, 1 kHz, 20-150 cm/s: {random_hits(args.random, None, 20)}")
+        print(f"random, AVR_RATES, 10-150 cm/s: {random_hits(args.random, dict(AVR_RATES), 10)}")
 
 
 if __name__ == "__main__":

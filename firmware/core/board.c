@@ -263,6 +263,13 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	uc.scale_error_ppm = cfg->uncalibrated.scale_error_ppm;
 	fc.rate_hz = b->slow_hz;
 	oc.tick_hz = b->slow_hz;
+	{ /* half the larger free wheel's count [um, rounded up], a slow tick's worth */
+		uint32_t q = cfg->odometry.left_um_per_count_q16;
+
+		if (cfg->odometry.right_um_per_count_q16 > q)
+			q = cfg->odometry.right_um_per_count_q16;
+		oc.count_um_s = (int32_t)(((q >> 17) + 1u) * b->slow_hz);
+	}
 	proto_init(&b->proto);
 	if (odometry_init(&b->odometry, &cfg->odometry, in->free_count[0], in->free_count[1]) ||
 	    uncertainty_init(&b->uncertainty, &uc) || control_init(&b->control, &cfg->control) ||

@@ -97,6 +97,13 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	o->braking = 0;
 	o->rest_ticks = (uint8_t)(cfg->tick_hz >= 250 ? cfg->tick_hz / 125 : 1); /* 8 ms */
 	o->brake_dv_um_s = cfg->grip_um_s2 / (int32_t)cfg->tick_hz;              /* >= 50 */
+	/* Two counts a tick: one reads anything from 0 to 2 counts' speed. At most 0.4 m/s, so
+	 * that brake_away() stays in 32 bits. */
+	o->rebound_um_s = cfg->arrive_speed_um_s + 2 * o->brake_dv_um_s;
+	if (o->rebound_um_s < 2 * cfg->count_um_s)
+		o->rebound_um_s = 2 * cfg->count_um_s;
+	if (o->rebound_um_s > 400000)
+		o->rebound_um_s = 400000;
 	for (uint8_t i = 0; i < 2; i++) {
 		o->shock_side[i] = 0;
 		o->still[i] = 0;
@@ -348,12 +355,31 @@ void orders_shock(struct orders *o, const struct orders_measure *m, uint8_t end_
 	o->reach_um[1] = m->angle_um;
 	o->still[0] = 0;
 	o->still[1] = 0;
+	o->away_um_s[0] = 0;
+	o->away_um_s[1] = 0;
 }
 
 /* a - b, the axes' wrapping difference (the positions compared are close). */
 static int32_t wrap_sub(int32_t a, int32_t b)
 {
 	return (int32_t)((uint32_t)a - (uint32_t)b);
+}
+
+/* An axis that bounced off the obstacle, moving away from it at away_um_s (m's, > 0 away),
+ * before it first comes to rest: braked along its own motion (brake_away()), its hold point
+ * going with it. Returns 0 once it has not moved away for rest_ticks. */
+static int rebound(struct orders *o, uint8_t axis, struct profile *p, int32_t pos_um,
+		   int32_t away_um_s)
+{
+	profile_reset(p, pos_um);
+	o->gave_way = 1;
+	if (away_um_s > o->cfg.arrive_speed_um_s) {
+		o->away_um_s[axis] = away_um_s;
+		o->braking |= (uint8_t)(4u << axis);
+		o->still[axis] = 0;
+		return 1;
+	}
+	return ++o->still[axis] < o->rest_ticks;
 }
 
 /* One axis of the stop after a shock (orders_shock()), at pos_um going towards the obstacle at
@@ -363,6 +389,7 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 {
 	int8_t side = o->shock_side[axis];
 	uint8_t stopped = (uint8_t)(2u << axis);
+	uint8_t rested = (uint8_t)(8u << axis);
 	int32_t slow = o->cfg.arrive_speed_um_s;
 	int32_t further = wrap_sub(pos_um, o->reach_um[axis]);
 	int32_t beyond = wrap_sub(p->out.pos_um, pos_um);
@@ -405,10 +432,17 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 		if (!(o->give_way & stopped))
 			return;
 	}
-	/* Stopped, or bouncing off: a robot moving away is braked by the hold; once it would stop
-	 * within two ticks (the measure's and the hand-over's: slower than arrive_speed and two
-	 * ticks of braking at the grip), it is held where it is, before the hold pulls it back
-	 * (the wheels, spinning against the motion at the grip, carry it on a little). */
+	/* Stopped, or bouncing off. Until it first comes to rest, a robot moving away is braked
+	 * along its own motion, its hold point going with it (rebound(), brake_away()). A hold left
+	 * behind braked it instead: it drove the wheels to full duty, spinning against the motion,
+	 * and they carried the robot back towards the obstacle once it stopped. From then on a
+	 * robot on the far side of its hold point, slower than arrive_speed and two ticks of
+	 * braking, is held where it is, before the hold pulls it back. */
+	if (!(o->give_way & rested)) {
+		if (rebound(o, axis, p, pos_um, -speed_um_s))
+			return;
+		o->give_way |= rested;
+	}
 	if (beyond <= 0 || speed_um_s < -(slow + 2 * o->brake_dv_um_s))
 		return;
 	profile_reset(p, pos_um);
@@ -645,6 +679,22 @@ static int32_t brake_acc(const struct orders *o, uint8_t axis)
 	return o->shock_side[axis] > 0 ? -o->cfg.grip_um_s2 : o->cfg.grip_um_s2;
 }
 
+/* An axis braked while it moves away from the obstacle (rebound()), at v_um_s in the direction
+ * dir of the axis: its set point a period on at that speed, the feed-forward braking at the
+ * grip, or in proportion below rebound_um_s. A tick's measure reads a creeping robot's speed
+ * as 0 or a whole count's: braking it at the grip until it reads 0 would brake on after it has
+ * stopped, back towards the obstacle; in proportion it brakes as much as it moves, on average. */
+static void brake_away(const struct orders *o, struct orders_axis *sp, int32_t v_um_s, int8_t dir)
+{
+	int32_t acc = o->cfg.grip_um_s2;
+
+	if (v_um_s < o->rebound_um_s)
+		acc = (acc >> 8) * ((v_um_s << 8) / o->rebound_um_s);
+	sp->pos_um += dir * (v_um_s / (int32_t)o->cfg.tick_hz);
+	sp->vel_um_s = dir * v_um_s;
+	sp->acc_um_s2 = -dir * acc;
+}
+
 uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 {
 	uint8_t reason = END_REASON_NONE;
@@ -668,6 +718,10 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 			o->sp_dist.acc_um_s2 = brake_acc(o, 0);
 		if (o->braking & 2u)
 			o->sp_angle.acc_um_s2 = brake_acc(o, 1);
+		if (o->braking & 4u)
+			brake_away(o, &o->sp_dist, o->away_um_s[0], (int8_t)-o->shock_side[0]);
+		if (o->braking & 8u)
+			brake_away(o, &o->sp_angle, o->away_um_s[1], (int8_t)-o->shock_side[1]);
 	}
 	return reason;
 }

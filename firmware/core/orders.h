@@ -37,6 +37,9 @@ struct orders_config {
 	uint8_t n_baskets;
 	struct orders_basket baskets[ORDERS_MAX_BASKETS];
 	uint16_t tick_hz;
+	/* The speed one count of the free wheels over a tick of tick_hz reads on the distance axis
+	 * (half a count's travel times tick_hz) [um/s]: board_init() sets it from the odometry. */
+	int32_t count_um_s;
 	uint32_t jerk_um_s3; /* 0: trapezoids; else S-curves with this jerk on both axes */
 	/* The acceleration the drive wheels' grip allows [um/s^2] (mu g times the weight's share
 	 * on the drive wheels), 100000..50000000: the braking after a shock. */
@@ -143,10 +146,14 @@ struct orders {
 	/* After a shock, until the next order: the side of the obstacle on each axis (distance,
 	 * angle: 1 ahead, -1 behind, 0 none), where the hold never pulls the robot back to
 	 * (orders_shock()); gave_way is set when a hold point moved away from it. */
-	uint8_t give_way; /* bit 0: on; bit 1 + axis: that axis has stopped */
+	uint8_t give_way; /* bit 0: on; bit 1 + axis: that axis has stopped; bit 3 + axis: and
+			   * then come to rest after any rebound */
 	int8_t shock_side[2];
 	uint8_t gave_way;
-	uint8_t braking;         /* bit axis: brake at grip_um_s2 this tick (the feed-forward) */
+	uint8_t braking;         /* bit axis: brake at grip_um_s2 this tick (the feed-forward);
+				  * bit 2 + axis: brake that axis's motion away, at away_um_s */
+	int32_t away_um_s[2];    /* each axis's speed away from the obstacle, braked this tick */
+	int32_t rebound_um_s;    /* faster away than this, a rebound is braked at the grip */
 	uint8_t rest_ticks;      /* an axis has stopped after this many ticks of no progress */
 	uint8_t still[2];        /* ticks since each axis last went further towards the obstacle */
 	int32_t brake_dv_um_s;   /* the speed a tick of braking at grip_um_s2 takes away */
@@ -181,10 +188,13 @@ void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_
  * (m's speeds, else the set points' velocities). Each such axis brakes with the grip's
  * deceleration as a feed-forward for as long as that takes from the set point's speed, while it
  * still goes towards the obstacle (within the last 4 ms); once it has gone no
- * further for 8 ms (rest_ticks), its hold point moves to where it stopped. From then on, a robot
- * on the far side of its hold point and about to stop moving away (slower than arrive_speed and
- * two ticks of braking) is held where it is: the hold never pulls it back towards the obstacle.
- * gave_way tells the board that a hold point moved (the integrals go). Interrupt-safe: no. */
+ * further for 8 ms (rest_ticks), its hold point moves to where it stopped. If it bounced off,
+ * until it has not moved away for rest_ticks, it is braked along its motion away, at the grip
+ * above rebound_um_s and in proportion to the speed read below, its hold point going with it.
+ * From then on, a robot on the far side of its hold point and about to stop moving away (slower
+ * than arrive_speed and two ticks of braking) is held where it is: the hold never pulls it back
+ * towards the obstacle. gave_way tells the board that a hold point moved (the integrals go).
+ * Interrupt-safe: no. */
 void orders_shock(struct orders *o, const struct orders_measure *m, uint8_t end_reason);
 
 /* One tick: advance the state machine and the profiles; fills sp_dist and sp_angle.
