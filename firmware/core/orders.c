@@ -365,14 +365,18 @@ static int32_t wrap_sub(int32_t a, int32_t b)
 	return (int32_t)((uint32_t)a - (uint32_t)b);
 }
 
-/* An axis that bounced off the obstacle, moving away from it at away_um_s (m's, > 0 away),
- * before it first comes to rest: braked along its own motion (brake_away()), its hold point
- * going with it. Returns 0 once it has not moved away for rest_ticks. */
+/* An axis that bounced off the obstacle, moving away from it at away_um_s (m's, > 0 away), its
+ * hold point beyond_um towards the obstacle from it, before it first comes to rest: braked along
+ * its motion away (brake_away()), its hold point going with it. A hold point on the obstacle's
+ * side goes with it too; one on the far side stays, so that the hold resists a robot turned
+ * back towards the obstacle. Returns 0 once it has not moved away for rest_ticks. */
 static int rebound(struct orders *o, uint8_t axis, struct profile *p, int32_t pos_um,
-		   int32_t away_um_s)
+		   int32_t away_um_s, int32_t beyond_um)
 {
-	profile_reset(p, pos_um);
-	o->gave_way = 1;
+	if (beyond_um > 0 || away_um_s > o->cfg.arrive_speed_um_s) {
+		profile_reset(p, pos_um);
+		o->gave_way = 1;
+	}
 	if (away_um_s > o->cfg.arrive_speed_um_s) {
 		o->away_um_s[axis] = away_um_s;
 		o->braking |= (uint8_t)(4u << axis);
@@ -439,7 +443,7 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 	 * robot on the far side of its hold point, slower than arrive_speed and two ticks of
 	 * braking, is held where it is, before the hold pulls it back. */
 	if (!(o->give_way & rested)) {
-		if (rebound(o, axis, p, pos_um, -speed_um_s))
+		if (rebound(o, axis, p, pos_um, -speed_um_s, beyond))
 			return;
 		o->give_way |= rested;
 	}

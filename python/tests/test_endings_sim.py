@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from asserv import EndReason, OrderState, Status, field
@@ -154,16 +154,12 @@ def test_goto_panier_that_touches_nothing_ends_on_pb_moteur(
 # ---- a stop that stops (issue 18, Why 3) -------------------------------------------------------
 
 REST_MM_S = 10.0  # at rest: slower than this (a hard brake leaves the tyres relaxing at ~7 mm/s)
-#: "Driving back": returning towards the obstacle by more than this. The tyres relax by about
-#: 0.08 mm after a hard brake, and the rebound's last count is braked a tick late: random hits
-#: come back up to 0.24 mm (docs/failure-model.md).
-BACK_MM = 0.3
+BACK_MM = 0.2  # "driving back": returning towards the obstacle by more than this
 
 
-#: Below 0.2 m/s the robot is thrown back by a hard obstacle before it has braked, and the
-#: rebound of a slow hit is braked in proportion to a speed read a count at a time: at rest
-#: within this, whatever the braking time.
-SLOW_REST_MS = 60
+#: Below 0.2 m/s a hard obstacle throws the robot back before it has braked, and that rebound
+#: is braked too: at rest within this, whatever the braking time.
+SLOW_REST_MS = 40
 
 
 @dataclasses.dataclass
@@ -406,22 +402,28 @@ def hit(
     return int(status), stop_of(sim, c, disc, first=True)
 
 
-@pytest.mark.xfail(strict=True, reason="known, issue 18: docs/failure-model.md")
-@pytest.mark.parametrize(
-    ("kind", "speed", "accel", "dx", "seed"),
-    [
-        pytest.param("wall", 138, 255, -4.0, 2190, id="back-0.31mm"),
-        pytest.param("wall", 54, 132, 4.400390625, 8738, id="rests-pressing-6N"),
-    ],
+@settings(SOAK, max_examples=30)
+@given(
+    kind=st.sampled_from(["wall", "disc"]),
+    speed=st.integers(20, 150),
+    accel=st.integers(30, 255),
+    dx=st.floats(-5, 5),
+    lateral=st.floats(-15, 15),
+    seed=st.integers(0, 2**16),
+    randomize=st.booleans(),
 )
-def test_known_hits_that_break_the_stop_s_promises(
-    kind: str, speed: int, accel: int, dx: float, seed: int
+@example(kind="wall", speed=138, accel=255, dx=-4.0, lateral=0.0, seed=2190, randomize=True)
+@example(kind="wall", speed=54, accel=132, dx=4.400390625, lateral=0.0, seed=8738, randomize=True)
+def test_any_hit_from_any_start_stops_within_the_grip(
+    kind: str, speed: int, accel: int, dx: float, lateral: float, seed: int, randomize: bool
 ) -> None:
-    # Found by a hypothesis soak over random hits at 1 kHz (any start within 5 mm, any speed
-    # from 0.2 m/s and acceleration, walls and discs within a switch's reach, nominal and
-    # randomized robots): the promises do not hold everywhere yet. The soak itself is not in
-    # the suite while they fail; `python bench/shock_stop.py --random N` prints its figures.
-    _, s = hit(kind, speed, accel, dx, 0.0, seed, True)
+    # The stop's promises at 1 kHz for hits from any start (the return after the stop was a
+    # lottery of the last micrometres: 0.10 to 0.28 mm for starts 0.3 mm apart), on nominal and
+    # randomized robots, into a wall or a disc within a switch's reach. The examples are what
+    # this soak found first: a hold point that followed the robot back towards the wall while
+    # the heading's hold turned it (0.31 mm back; 6.1 N resting against the wall).
+    status, s = hit(kind, speed, accel, dx, lateral, seed, randomize)
+    assert status == Status.CHOC_BORD
     check_stop(s)
 
 
