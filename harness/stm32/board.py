@@ -90,6 +90,8 @@ class _Lockstep:
                 if self.trace is not None:
                     self.trace.append(hashlib.blake2b(self.board_state(), digest_size=16).digest())
             nxt = min(self.ticks * TICK_NS, end)
+            if nxt <= self.now_ns:
+                break  # a stall of the CPU on the flash moved the time past the end
             lib.sim_advance_ns(self.sim, nxt - self.now_ns)
             self.time_passes(nxt - self.now_ns)
             self.now_ns = nxt
