@@ -16,7 +16,7 @@ from random import Random
 from typing import Any
 
 import pytest
-from board import Stm32Board, robot
+from board import TICK_NS, Stm32Board, robot
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -171,6 +171,16 @@ def test_a_nearly_full_log_is_compacted_at_start_up(elf: Any) -> None:
     assert calibrated(master) and installed(ram_board(b)) == (used - 1, 28000, 1 - used)
 
 
+def test_a_zeroed_sector_is_erased_at_start_up_and_the_board_runs_uncalibrated(elf: Any) -> None:
+    """What flashing asserv_stm32.bin leaves in sector 1 (objcopy fills the gap between the
+    vectors and the code with zeros): no record, no free slot."""
+    b, master = new_board(elf, nvm=bytes(SLOTS * SLOT))
+    assert b.flash.erases == 1
+    assert bytes(b.flash.data) == b"\xff" * len(b.flash.data)
+    b.sleep(0.02)
+    assert not calibrated(master) and master.check_busy() == 0
+
+
 def test_a_full_log_is_erased_only_when_the_board_is_idle(elf: Any) -> None:
     used = SLOTS - START_FREE  # START_FREE slots free: no erase at start-up
     log = b"".join(encode((i, 28000, 0)) for i in range(used))
@@ -213,57 +223,85 @@ def test_a_full_log_is_erased_only_when_the_board_is_idle(elf: Any) -> None:
     assert installed(ram_board(b)) == CAL
 
 
+@pytest.mark.parametrize("word", [0, 1, 2, 3])
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_cut_inside_each_word_of_a_record_keeps_the_previous_one(
+    elf: Any, word: int, seed: int
+) -> None:
+    older = (-2000, 27990, 400)
+    b, master = new_board(elf, nvm=encode(older))
+    master.set_odometrie(*CAL)
+    b.advance_ns((b.ticks + word) * TICK_NS + 8_000 - b.now_ns)  # 8 us into word `word`
+    assert b.flash.busy() and b.flash.op is not None and b.flash.op[1] == SLOT + 4 * word
+    b.power_cycle(Random(seed))
+    loaded = installed(ram_board(b))
+    assert loaded == last_valid(bytes(b.flash.data))
+    assert loaded in (older, CAL)
+    assert loaded == older or word == 3  # only the last word can complete the record
+    b.sleep(0.02)
+    assert master.check_busy() == 0
+    # The master sends it again: it goes after the torn slot, and survives the next cut.
+    master.set_odometrie(*CAL)
+    b.sleep(0.03)
+    b.power_cycle(Random(seed))
+    assert installed(ram_board(b)) == CAL
+
+
 _CAL = st.tuples(st.integers(-3000, 3000), st.integers(27500, 28500), st.integers(-3000, 3000))
-_OPS = st.lists(
-    st.one_of(
-        st.tuples(st.just("cal"), _CAL),
-        st.tuples(st.just("wait"), st.one_of(st.integers(0, 40), st.integers(0, 12_000))),
-        st.tuples(st.just("cut"), st.integers(0, 2**32 - 1)),
+# A round: maybe a SET_ODOMETRIE, then time up to ``us`` microseconds after the n-th control
+# tick to come (the main loop starts a word at a tick: 0..15 us lands inside its 16 us
+# program), then maybe a power cut (its seed draws what the cut leaves of a word).
+_ROUNDS = st.lists(
+    st.tuples(
+        st.one_of(st.none(), _CAL),
+        st.one_of(st.integers(0, 3), st.integers(0, 3), st.integers(0, 25)),
+        st.one_of(st.integers(0, 15), st.integers(0, 15), st.integers(0, 999)),
+        st.one_of(st.none(), st.integers(0, 2**32 - 1)),
     ),
     min_size=1,
-    max_size=10,
+    max_size=8,
 )
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(ops=_OPS)
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(rounds=_ROUNDS)
 def test_power_cuts_at_any_instant_load_the_last_record_or_the_one_before(
-    elf: Any, ops: list[tuple[str, Any]]
+    elf: Any, rounds: list[tuple[Cal | None, int, int, int | None]]
 ) -> None:
-    """SET_ODOMETRIE and power cuts at any instant ("wait" in microseconds after the last
-    event: 0..40 lands inside a word's 16 us program): after each cut the board installs the
-    calibration of the last record completed before the cut, or the one being written if the
-    cut happened to complete it; it is always one the master sent; and a record sent 20 ms
-    or more before the cut has been written."""
+    """SET_ODOMETRIE and power cuts at any instant, mid-write included: after each cut the
+    board installs the calibration of the last record completed before the cut, or the one
+    being written if the cut happened to complete it; it is always one the master sent; and
+    a record sent 20 ms or more before the cut has been written."""
     b, master = new_board(elf)
     sent: list[Cal] = []
     current: Cal | None = None  # what the board has installed, as the master knows it
     since_ns: int | None = None  # since the last SET_ODOMETRIE, while no cut came after it
-    for op, arg in ops:
-        if op == "cal":
-            master.set_odometrie(*arg)
-            sent.append(arg)
-            current = arg
+    for cal, ticks, us, cut in rounds:
+        if cal is not None:
+            master.set_odometrie(*cal)
+            sent.append(cal)
+            current = cal
             since_ns = 0
-        elif op == "wait":
-            b.advance_ns(arg * 1000)
-            since_ns = None if since_ns is None else since_ns + arg * 1000
-        else:
-            before = last_valid(bytes(b.flash.data))  # completed before the cut
-            mid_write = b.flash.busy()
-            b.power_cycle(Random(arg))
-            after = last_valid(bytes(b.flash.data))
-            loaded = installed(ram_board(b))
-            assert loaded == after, "the board did not install the last valid record"
-            # The cut completed the record being written (the board's calibration), or left
-            # the log as it was.
-            assert loaded == before or (mid_write and loaded == current)
-            assert loaded is None or loaded in sent, f"garbage installed: {loaded}"
-            if since_ns is not None and since_ns >= 20_000_000:
-                assert loaded == current, "a record sent 20 ms before the cut was not written"
-            assert master.check_busy() == 0
-            current = loaded
-            since_ns = None
+        ns = (b.ticks + ticks) * TICK_NS + us * 1000 + 1 - b.now_ns
+        b.advance_ns(ns)
+        since_ns = None if since_ns is None else since_ns + ns
+        if cut is None:
+            continue
+        before = last_valid(bytes(b.flash.data))  # completed before the cut
+        mid_write = b.flash.busy()
+        b.power_cycle(Random(cut))
+        after = last_valid(bytes(b.flash.data))
+        loaded = installed(ram_board(b))
+        assert loaded == after, "the board did not install the last valid record"
+        # The cut completed the record being written (the board's calibration), or left the
+        # log as it was.
+        assert loaded == before or (mid_write and loaded == current)
+        assert loaded is None or loaded in sent, f"garbage installed: {loaded}"
+        if since_ns is not None and since_ns >= 20_000_000:
+            assert loaded == current, "a record sent 20 ms before the cut was not written"
+        assert master.check_busy() == 0
+        current = loaded
+        since_ns = None
     b.sleep(0.03)
     assert installed(ram_board(b)) == current
     assert last_valid(bytes(b.flash.data)) == current
