@@ -19,6 +19,7 @@ import pytest
 from board import TICK_NS, Stm32Board, robot
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from test_sessions import assert_same_runs, pair
 
 from asserv import Board, Capability
 from asserv._core import ffi
@@ -131,6 +132,22 @@ def test_calibration_survives_a_power_cycle_as_on_the_host(elf: Any) -> None:
     assert factors(mine) != nominal
     assert b.flash.programs == programs  # the record loaded is the stored one: not rewritten
     assert master.check_busy() == 0
+
+
+def test_writing_the_record_leaves_the_board_bit_identical_to_the_host_build(elf: Any) -> None:
+    """The main loop's flash writes change nothing the control sees: struct board after every
+    tick and every reply byte stay the native run's while SET_ODOMETRIE is installed and its
+    record written, and VERSION then reads CALIBRATED on both."""
+    b, r = pair(elf, *robot())
+    for dev in (b, r):
+        m = Board(dev.bus)
+        dev.sleep(0.01)
+        m.set_odometrie(*CAL)
+        dev.sleep(0.05)
+        assert calibrated(m)
+        m.check_busy()
+    assert_same_runs(b, r)
+    assert b.flash.programs == SLOT // 4 and bytes(b.flash.data[:SLOT]) == encode(CAL)
 
 
 @pytest.mark.parametrize("bit", [0, 13, 37, 74, 111, 127])
