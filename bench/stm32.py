@@ -70,6 +70,7 @@ class Bench(Stm32Board):
         self._slow_at: int | None = None
         self._slow_ret = 0
         self.slow_insns = 0
+        self.thread_insns = 0  # the main loop's (thread mode): not the handlers'
         cpu.on_block = self._on_block
         cpu.count_instructions(True)
         self.parts: dict[str, dict[str, Stat]] = {
@@ -83,6 +84,8 @@ class Bench(Stm32Board):
 
     def _on_block(self, address: int, n: int) -> None:
         cpu = self.cpu
+        if not cpu.active:
+            self.thread_insns += n
         if address == self.slow_entry:
             self._slow_at = cpu.insns - n
             self._slow_ret = cpu.reg(UC_ARM_REG_LR) & ~1
@@ -91,9 +94,10 @@ class Bench(Stm32Board):
             self._slow_at = None
 
     def control_tick(self) -> None:
-        i0, s0 = self.cpu.insns, self.slow_insns
+        i0, s0, t0 = self.cpu.insns, self.slow_insns, self.thread_insns
         super().control_tick()
-        tick, slow = self.cpu.insns - i0, self.slow_insns - s0
+        tick = self.cpu.insns - i0 - (self.thread_insns - t0)
+        slow = self.slow_insns - s0
         lib.sim_get_truth(self.sim, self.truth)
         v = self.truth.v_mm_s
         if self.phase == "move" and v >= CRUISE_MM_S:
@@ -109,10 +113,11 @@ class Bench(Stm32Board):
             p["slow"].add(slow)
 
     def _timed(self, fn: Any, *args: Any) -> Any:
-        i0 = self.cpu.insns
+        i0, t0 = self.cpu.insns, self.thread_insns
         out = fn(*args)
-        self.i2c_events.add(self.cpu.insns - i0)
-        self.i2c_after[self.ticks] = self.i2c_after.get(self.ticks, 0) + self.cpu.insns - i0
+        n = self.cpu.insns - i0 - (self.thread_insns - t0)
+        self.i2c_events.add(n)
+        self.i2c_after[self.ticks] = self.i2c_after.get(self.ticks, 0) + n
         return out
 
     def worst_period(self) -> int:
@@ -133,6 +138,48 @@ class Bench(Stm32Board):
 
     def ev_read_end(self, ack: bool) -> None:
         self._timed(super().ev_read_end, ack)
+
+
+def flash_figures(elf: str) -> None:
+    """The calibration's log in flash (firmware/ports/stm32/nvm.c): a record's write after
+    SET_ODOMETRIE, and a run-time erase of the full log, in the emulator."""
+    slot, slots, start_free = 16, 1024, 64  # stm32_nvm.h
+    bc, sc, f = robot()
+    b = Stm32Board(elf, sc, f, bc)
+    board = Board(b.bus)
+    board.set_odometrie(1500, 28037, -700)
+    t0 = b.now_ns
+    while b.flash.programs < slot // 4 or b.flash.busy():
+        b.advance_ns(10_000)
+    words = b.flash.programs
+    print("\n---- the calibration in flash (sector 1, a log of 16-byte records) ----")
+    print(
+        f"a record: {words} words of 32 bits, written {(b.now_ns - t0) / 1e6:.1f} ms after "
+        f"SET_ODOMETRIE's last byte; each word stalls the CPU's flash fetches "
+        f"{b.flash.PROGRAM_NS / 1000:.0f} us (data sheet typical, 100 us at most); worst "
+        f"stall of an interrupt in the emulator {max(b.stalls, default=0) / 1000:.1f} us"
+    )
+    # A full log: the next record waits for no order to run, then the erase.
+    log = bytes(b.flash.data[:slot]) * (slots - start_free)
+    b = Stm32Board(elf, sc, f, bc, nvm=log)
+    board = Board(b.bus)
+    for i in range(start_free + 1):
+        board.set_odometrie(i, 28000, 0)
+        b.sleep(0.008)
+    b.sleep(0.6)
+    erase = max(b.stalls, default=0)
+    print(
+        f"a run-time erase (the log full, no order running, motors off): "
+        f"{b.flash.erases} erase, the CPU stalled {erase / 1e6:.0f} ms (data sheet typical "
+        f"at x32; 500 ms at most), {b.lost_ticks} control ticks lost, "
+        f"{b.watchdog_resets} watchdog resets (its window widened to 2.5 s for it)"
+    )
+    log = bytes(b.flash.data[:slot]) * (slots - start_free + 1)
+    b = Stm32Board(elf, sc, f, bc, nvm=log)
+    print(
+        f"start-up with fewer than {start_free} free slots: erased and the record written "
+        f"back before the control starts, the start-up {b.boot_stall_ns / 1e6:.0f} ms longer"
+    )
 
 
 def sizes(b: Stm32Board) -> tuple[int, int]:
@@ -241,6 +288,7 @@ def main() -> int:
         f"{ev.worst()} worst per event"
     )
     print(f"cycles per instruction assumed: {CPI}: {CPI_WHY}")
+    flash_figures(args.elf)
     avr_bench, avr_elf = Path(args.avr_bench), Path(args.avr_elf)
     print("\n---- the AVR beside: ATmega1284P at 16 MHz, one rate (harness/avr/bench_avr) ----")
     cmd = [str(avr_bench), str(avr_elf), "--no-profile"]

@@ -20,10 +20,11 @@ from __future__ import annotations
 
 import hashlib
 from pathlib import Path
+from random import Random
 from typing import Any
 
-from emu import IRQ0, SYSTICK, Cpu, EmuError, struct_padding
-from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Scs, Timer
+from emu import IRQ0, SRAM_BASE, SRAM_SIZE, SYSTICK, Cpu, EmuError, struct_padding
+from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Regs, Scs, Timer
 from unicorn import UC_HOOK_CODE
 from unicorn.arm_const import UC_ARM_REG_R1
 
@@ -89,6 +90,8 @@ class _Lockstep:
                 if self.trace is not None:
                     self.trace.append(hashlib.blake2b(self.board_state(), digest_size=16).digest())
             nxt = min(self.ticks * TICK_NS, end)
+            if nxt <= self.now_ns:
+                break  # a stall of the CPU on the flash moved the time past the end
             lib.sim_advance_ns(self.sim, nxt - self.now_ns)
             self.time_passes(nxt - self.now_ns)
             self.now_ns = nxt
@@ -215,12 +218,27 @@ class Stm32Board(_Lockstep):
         f: Any,
         bc: Any = None,
         byte_ns: int = 90_000,
+        nvm: bytes | None = None,
     ) -> None:
+        """``nvm``: flash sector 1 (the calibration log) at power-on, 16 KiB at most, the
+        rest erased; default: all erased (a new chip)."""
         super().__init__(sc, f, byte_ns)
         cpu = self.cpu = Cpu(elf)
         self.rcc = Rcc(0x4002_3800)
         self.pwr = Pwr(0x4000_7000)
         self.flash = Flash(0x4002_3C00)
+        self.flash.stall_on_sr = True  # the CPU fetches from this flash: see Flash
+        if nvm is not None:
+            if len(nvm) > len(self.flash.data):
+                raise ValueError(f"nvm holds at most {len(self.flash.data)} bytes")
+            self.flash.data[: len(nvm)] = nvm
+        self.flash.attach_sector(cpu.uc)
+        # Runtime stalls of the CPU on a flash operation [ns], and the control ticks they ate.
+        self.stalls: list[int] = []
+        self.stall_duties: list[tuple[int, int]] = []  # the duty the robot had in each
+        self.lost_ticks = 0
+        self.boot_stall_ns = 0
+        self.power_cycles = 0
         self.gpio = {p: Gpio(0x4002_0000 + 0x400 * i) for i, p in enumerate("ABC")}
         self.tim = {
             1: Timer(0x4001_0000, advanced=True),
@@ -230,7 +248,7 @@ class Stm32Board(_Lockstep):
             5: Timer(0x4000_0C00, bits=32),
         }
         self.adc = Adc(0x4001_2000)
-        self.adc_common = Flash(0x4001_2300)  # ADC_CCR: storage only
+        self.adc_common = Regs(0x4001_2300)  # ADC_CCR: storage only
         self.i2c = I2c(0x4000_5400)
         self.iwdg = Iwdg(0x4000_3000)
         self.scs = Scs(self._vtor)
@@ -267,11 +285,15 @@ class Stm32Board(_Lockstep):
         self.padding = struct_padding(elf, "board")
 
     def _boot(self) -> None:
+        stalled = self.flash.stalled_ns
         self.cpu.reset()
         self.cpu.run_until_idle(max_insns=20_000_000)
+        self._check_flash()
+        self.boot_stall_ns = self.flash.stalled_ns - stalled
         self._check_boot()
 
     def time_passes(self, ns: int) -> None:
+        self.flash.advance(ns)  # the CPU sleeps: no fetch waits for the flash
         self.iwdg.advance(ns)
         if self.iwdg.expired:
             self._watchdog_reset()
@@ -279,8 +301,22 @@ class Stm32Board(_Lockstep):
     def _watchdog_reset(self) -> None:
         """The watchdog's reset: every peripheral to its reset state (the PWM stops at once:
         TIM1 off), the CPU from its reset vector, the firmware booting again on the robot as
-        it is (the encoder inputs keep their phase: they are wires)."""
+        it is (the encoder inputs keep their phase: they are wires). A flash operation in
+        progress stops part way (Flash.cut)."""
         self.watchdog_resets += 1
+        self.flash.cut(Random(self.watchdog_resets))
+        self._restart()
+
+    def power_cycle(self, rng: Random | None = None) -> None:
+        """Power off and on now, between two events: as the watchdog's reset, and the RAM
+        lost (filled with 0xA5 here); the flash keeps its contents, but for an operation in
+        progress, which stops part way, drawn from ``rng``."""
+        self.power_cycles += 1
+        self.flash.cut(rng if rng is not None else Random(self.power_cycles))
+        self.cpu.uc.mem_write(SRAM_BASE, b"\xa5" * SRAM_SIZE)
+        self._restart()
+
+    def _restart(self) -> None:
         models = [self.rcc, self.pwr, self.flash, self.adc, self.adc_common, self.i2c, self.iwdg]
         models += [*self.gpio.values(), *self.tim.values(), self.scs]
         phases = {t: self.tim[t].phase for t in self.encoders}
@@ -296,6 +332,44 @@ class Stm32Board(_Lockstep):
         lib.sim_set_duty(self.sim, 0, 0)
         self._drive_inputs(move_encoders=False)
         self._boot()
+
+    # ---- the CPU and the flash ---------------------------------------------------------------
+    def _check_flash(self) -> None:
+        if self.flash.faults:
+            raise EmuError("; ".join(self.flash.faults))
+
+    def _wait_for_flash(self, in_tick: bool) -> bool:
+        """An interrupt while the flash programs or erases: the CPU fetches its handler from
+        the flash, so it stalls until the operation ends (RM0390 3.5). The robot moves on
+        meanwhile; the control ticks that fall in the stall are lost (on the chip, SysTick's
+        pending bit keeps one of them, run at the stall's end: not modelled), and the
+        watchdog counts. Returns False when the watchdog reset the chip during the stall."""
+        wait = max(0, self.flash.busy_ns) if self.flash.busy() else 0
+        if not wait:
+            return True
+        self.stalls.append(wait)
+        self.stall_duties.append(self.duty)
+        resets = self.watchdog_resets
+        if self.iwdg.running and self.iwdg.left_ns < wait:
+            wait = max(1, int(self.iwdg.left_ns) + 1)  # the watchdog resets the chip first
+        else:
+            self.flash.stall()
+        lib.sim_advance_ns(self.sim, wait)
+        self.now_ns += wait
+        self.time_passes(wait)
+        # The tick boundaries passed: the one running now (in_tick) is this late tick.
+        ticks = self.now_ns // TICK_NS if in_tick else -(-self.now_ns // TICK_NS)
+        self.lost_ticks += max(0, ticks - self.ticks)
+        self.ticks = max(self.ticks, ticks)
+        return self.watchdog_resets == resets
+
+    def _run(self, in_tick: bool = False) -> bool:
+        if not self._wait_for_flash(in_tick):
+            return False
+        self.cpu.run_until_idle()
+        self._check_flash()
+        self._outputs()  # the tick's duties; the main loop's, which stops the motors to erase
+        return True
 
     # ---- wiring ---------------------------------------------------------------------------
     def _vtor(self, value: int) -> None:
@@ -384,39 +458,46 @@ class Stm32Board(_Lockstep):
         return duty_of(high, period, sign)
 
     def control_tick(self) -> None:
+        if self.ticks_on and not self._wait_for_flash(in_tick=True):
+            return
         self._drive_inputs()
         if not self.ticks_on:
             return
         self.cpu.pending.add(SYSTICK)
-        self.cpu.run_until_idle()
-        self.tim[1].update_event()  # the PWM period that follows takes the new compares
+        self._run(in_tick=True)
+
+    def _outputs(self) -> None:
+        """After the CPU ran: the duty TIM1 and the direction pins give drives the physics
+        (the PWM period that follows takes the new compares)."""
+        self.tim[1].update_event()
         left = self._motor_duty(0, ("B", 4), ("B", 5))
         right = self._motor_duty(1, ("B", 13), ("B", 14))
-        self.duty = (left, right)
-        lib.sim_set_duty(self.sim, left, right)
+        if (left, right) != self.duty:
+            self.duty = (left, right)
+            lib.sim_set_duty(self.sim, left, right)
 
     # ---- the I2C master -----------------------------------------------------------------
     def ev_start(self, read: bool) -> None:
         if not self.i2c.start(2, read):
             raise OSError("the STM32 did not acknowledge its address")
-        self.cpu.run_until_idle()
+        self._run()
         if self.i2c.addr_pending():
             raise EmuError("ADDR still set: the firmware holds the clock")
 
     def ev_byte(self, b: int) -> None:
         self.i2c.write_byte(b)
-        self.cpu.run_until_idle()
+        self._run()
 
     def ev_stop(self) -> None:
         self.i2c.stop()
-        self.cpu.run_until_idle()
+        self._run()
 
     def ev_read(self) -> int:
         return self.i2c.read_byte_begin()
 
     def ev_read_end(self, ack: bool) -> None:
         self.i2c.read_byte_end(ack)
-        self.cpu.run_until_idle()
+        self._run()
         if not ack:
             self.i2c.stop()
 

@@ -5,8 +5,9 @@
 of unstacking. The harness enters exceptions itself (stack the 8-word frame, LR = EXC_RETURN,
 PC = the vector) and catches the stop at the EXC_RETURN address to unstack the frame.
 
-The CPU runs until it reaches the idle loop (the ``wfi`` of ``stm32_idle``) with no exception
-pending: the lockstep (board.py) then moves the world on and raises the next interrupt.
+The CPU runs until it reaches the main loop's sleep (the ``wfi`` of ``stm32_idle``) with no
+exception pending: the lockstep (board.py) then moves the world on and raises the next
+interrupt, which ends the wfi: the main loop runs after the handler, and sleeps again.
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ from unicorn.unicorn_py3.unicorn import Uc, UcError
 
 FLASH_BASE = 0x0800_0000
 FLASH_SIZE = 512 * 1024
+NVM_BASE = 0x0800_4000  # flash sector 1, the calibration log: the flash model maps it (board.py)
+NVM_SIZE = 0x4000
 SRAM_BASE = 0x2000_0000
 SRAM_SIZE = 128 * 1024
 EXC_RETURN_THREAD_MSP = 0xFFFF_FFF9  # PM0214 Table 17: return to thread mode, main stack
@@ -77,7 +80,10 @@ class Cpu:
     def __init__(self, elf_path: str | Path) -> None:
         self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         self.uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
-        self.uc.mem_map(FLASH_BASE, FLASH_SIZE, UC_PROT_READ | UC_PROT_EXEC)
+        # Flash but its sector 1, which the flash interface's model maps (periph.Flash).
+        self.uc.mem_map(FLASH_BASE, NVM_BASE - FLASH_BASE, UC_PROT_READ | UC_PROT_EXEC)
+        end = NVM_BASE + NVM_SIZE
+        self.uc.mem_map(end, FLASH_BASE + FLASH_SIZE - end, UC_PROT_READ | UC_PROT_EXEC)
         self.uc.mem_map(SRAM_BASE, SRAM_SIZE, UC_PROT_ALL)
         self.symbols: dict[str, int] = {}
         self.sizes: dict[str, int] = {}
@@ -112,6 +118,9 @@ class Cpu:
             for seg in elf.iter_segments():
                 if seg["p_type"] != "PT_LOAD" or not seg["p_filesz"]:
                     continue
+                start = seg["p_paddr"]
+                if start < NVM_BASE + NVM_SIZE and start + seg["p_filesz"] > NVM_BASE:
+                    raise EmuError(f"{path}: code or data linked into flash sector 1 (the log)")
                 # Flash holds every loadable byte at its load address (.data's initial values
                 # too: the reset handler copies them).
                 self.uc.mem_write(seg["p_paddr"], seg.data())
@@ -249,16 +258,22 @@ class Cpu:
                 raise EmuError(f"CPU stopped at 0x{pc:08x}: {e}") from e
             return
 
+    def wake(self, exc: int) -> None:
+        """An exception ends the wfi the CPU sleeps in (PM0214 3.12.11): the wfi completes,
+        and the exception returns to the instruction after it."""
+        self.uc.reg_write(UC_ARM_REG_PC, (self.idle_pc + 2) | 1)
+        self.enter_exception(exc)
+
     def run_until_idle(self, max_insns: int = 5_000_000) -> None:
-        """Runs the firmware, taking pending exceptions, until it sleeps in the idle loop with
-        none left to take."""
+        """Runs the firmware, taking pending exceptions, until it sleeps in the main loop's
+        wfi with none left to take."""
         for _ in range(1000):
             pc = self.reg(UC_ARM_REG_PC) & ~1
             if pc == self.idle_pc and not self.active:
                 exc = self._next_exception()
                 if exc is None:
                     return
-                self.enter_exception(exc)
+                self.wake(exc)
             elif self.active:
                 exc = self._next_exception()
                 if exc is not None:

@@ -5,6 +5,7 @@ the registers and bits the port touches behave, the others read back what was wr
 from __future__ import annotations
 
 from collections.abc import Callable
+from random import Random
 
 from unicorn.unicorn_py3.unicorn import Uc
 
@@ -135,13 +136,215 @@ class Pwr(Regs):
 
 
 class Flash(Regs):
-    """RM0390 3.8.1 FLASH_ACR: LATENCY reads back what was written (3.4.1)."""
+    """The embedded flash interface, RM0390 3 (registers 3.8), and the sector it programs.
+
+    - FLASH_ACR (3.8.1): LATENCY reads back what was written (3.4.1).
+    - Unlock (3.5.1): FLASH_CR is locked at reset (LOCK); KEY1 then KEY2 written to FLASH_KEYR
+      clears LOCK. Any other value, or a key while unlocked, is a bus error (``faults``) and
+      locks FLASH_CR until the next reset. Writing LOCK locks it again. A locked CR ignores
+      writes.
+    - Program (3.5.4): with PG set, a store into the sector of the size PSIZE says (x8, x16,
+      x32) programs it, 1 bits to 0 only (the result is old AND new: 0 to 1 needs an erase);
+      a store of another size sets PGPERR, one not aligned to its size PGAERR, one without PG
+      PGSERR, and nothing is written. BSY for ``PROGRAM_NS``.
+    - Erase (3.5.3): SER, SNB and STRT erase a sector to 0xFF; BSY for ``ERASE_NS`` of the
+      PSIZE (the data sheet's typical tERASE16KB); STRT reads 1 until BSY clears. Erasing
+      another sector than the modelled one, or a mass erase, would erase the firmware's code:
+      a fault. The operation's result appears when it ends (``advance``, ``finish``).
+    - FLASH_SR (3.8.4): BSY; EOP (with EOPIE) and the error flags OPERR, WRPERR, PGAERR,
+      PGPERR, PGSERR, cleared by writing 1 (rc_w1).
+    - While BSY, a write to FLASH_CR and any access to the sector stall the bus until the
+      operation ends (3.5, 3.6): the model ends it first and adds the wait to ``stalled_ns``.
+      With ``stall_on_sr`` (the board), a read of FLASH_SR while BSY does too: the CPU fetches
+      its code from this flash, so a load from FLASH_SR could only run once the flash was
+      free again.
+    - ``cut`` is a power-off or a reset in the middle of an operation: a word being programmed
+      keeps a random part of its 1-to-0 changes, a sector being erased a random part of its
+      0-to-1 changes, word by word.
+    The sector's contents (``data``) survive ``reset_values``: they are the flash."""
+
+    ACR, KEYR, SR, CR = 0x00, 0x04, 0x0C, 0x10
+    KEY1, KEY2 = 0x4567_0123, 0xCDEF_89AB
+    EOP, OPERR, WRPERR, PGAERR, PGPERR, PGSERR, BSY = (
+        1 << 0,
+        1 << 1,
+        1 << 4,
+        1 << 5,
+        1 << 6,
+        1 << 7,
+        1 << 16,
+    )
+    ERRORS = OPERR | WRPERR | PGAERR | PGPERR | PGSERR
+    PG, SER, MER, STRT, EOPIE, ERRIE, LOCK = 1, 2, 4, 1 << 16, 1 << 24, 1 << 25, 1 << 31
+    SNB_POS, PSIZE_POS = 3, 8
+    CR_RW = PG | SER | MER | 0xF << 3 | 3 << 8 | EOPIE | ERRIE
+    PROGRAM_NS = 16_000  # the data sheet's typical word (byte, half-word) programming time
+    ERASE_NS = (400_000_000, 300_000_000, 250_000_000)  # tERASE16KB at x8, x16, x32
+
+    def __init__(
+        self, base: int, sector: int = 1, sector_base: int = 0x0800_4000, size: int = 0x4000
+    ) -> None:
+        self.sector = sector
+        self.sector_base = sector_base
+        self.data = bytearray(b"\xff" * size)
+        self.stall_on_sr = False
+        self.stalled_ns = 0  # total time the bus waited for an operation
+        self.faults: list[str] = []
+        self.programs = 0
+        self.erases = 0
+        super().__init__(base)
 
     def reset_values(self) -> None:
-        self.mem[0] = 0
+        self.mem[self.ACR] = 0
+        self.mem[self.CR] = self.LOCK
+        self.sr = 0
+        self.key_stage = 0
+        self.locked_out = False  # a wrong key: FLASH_CR locked until the next reset
+        self.op: tuple[str, int, int, int] | None = None  # (kind, offset, size, value)
+        self.busy_ns = 0
 
     def latency(self) -> int:
-        return self.mem[0] & 0xF
+        return self.mem[self.ACR] & 0xF
+
+    def psize(self) -> int:
+        return (self.mem[self.CR] >> self.PSIZE_POS) & 3
+
+    def busy(self) -> bool:
+        return self.op is not None
+
+    # ---- time -------------------------------------------------------------------------------
+    def advance(self, ns: int) -> None:
+        if self.op is not None:
+            self.busy_ns -= ns
+            if self.busy_ns <= 0:
+                self.finish()
+
+    def stall(self) -> int:
+        """The bus waits for the operation in progress: it ends now. Returns the wait [ns]."""
+        if self.op is None:
+            return 0
+        wait = max(0, self.busy_ns)
+        self.stalled_ns += wait
+        self.finish()
+        return wait
+
+    def finish(self) -> None:
+        if self.op is None:
+            return
+        kind, off, size, value = self.op
+        if kind == "program":
+            for i in range(size):
+                self.data[off + i] &= (value >> (8 * i)) & 0xFF
+        else:
+            self.data[:] = b"\xff" * len(self.data)
+        self.op = None
+        self.busy_ns = 0
+        self.mem[self.CR] &= ~self.STRT
+        if self.mem[self.CR] & self.EOPIE:
+            self.sr |= self.EOP
+
+    def cut(self, rng: Random) -> None:
+        """A power-off or a reset now: the operation in progress stops part way."""
+        if self.op is None:
+            return
+        kind, off, size, value = self.op
+        if kind == "program":
+            for i in range(size):
+                done = rng.getrandbits(8)  # the 1-to-0 changes that happened
+                self.data[off + i] &= ((value >> (8 * i)) & 0xFF) | ~done & 0xFF
+        else:
+            for i in range(0, len(self.data), 4):
+                done = rng.getrandbits(32)  # the 0-to-1 changes that happened
+                word = int.from_bytes(self.data[i : i + 4], "little") | done
+                self.data[i : i + 4] = word.to_bytes(4, "little")
+        self.op = None
+        self.busy_ns = 0
+
+    # ---- registers ----------------------------------------------------------------------------
+    def read(self, off: int) -> int:
+        if off == self.SR:
+            if self.op is not None and self.stall_on_sr:
+                self.stall()
+            return self.sr | (self.BSY if self.op is not None else 0)
+        if off == self.KEYR:
+            return 0
+        return self.mem.get(off, 0)
+
+    def write(self, off: int, value: int) -> None:
+        if off == self.KEYR:
+            self._key(value)
+        elif off == self.SR:
+            self.sr &= ~(value & (self.ERRORS | self.EOP))
+        elif off == self.CR:
+            self.stall()
+            self._cr(value)
+        else:
+            self.mem[off] = value
+
+    def _key(self, value: int) -> None:
+        cr = self.mem[self.CR]
+        if self.locked_out or not cr & self.LOCK:
+            self._bus_error("a key written to FLASH_KEYR while FLASH_CR is unlocked or locked out")
+            return
+        if self.key_stage == 0 and value == self.KEY1:
+            self.key_stage = 1
+        elif self.key_stage == 1 and value == self.KEY2:
+            self.key_stage = 0
+            self.mem[self.CR] = cr & ~self.LOCK
+        else:
+            self._bus_error(f"wrong flash key 0x{value:08x}")
+
+    def _bus_error(self, why: str) -> None:
+        self.locked_out = True
+        self.key_stage = 0
+        self.faults.append(f"bus error: {why}; FLASH_CR locked until reset (RM0390 3.5.1)")
+
+    def _cr(self, value: int) -> None:
+        cr = self.mem[self.CR]
+        if cr & self.LOCK:
+            return
+        self.mem[self.CR] = (value & self.CR_RW) | (self.LOCK if value & self.LOCK else 0)
+        if value & self.STRT and not value & self.LOCK:
+            if value & self.MER:
+                self.faults.append("a mass erase: it would erase the firmware")
+            elif value & self.SER:
+                snb = (value >> self.SNB_POS) & 0xF
+                if snb != self.sector:
+                    self.faults.append(f"an erase of sector {snb}: it holds the firmware")
+                    return
+                if self.psize() == 3:
+                    self.faults.append("an erase at x64: it needs an external VPP (3.6.2)")
+                    return
+                self.mem[self.CR] |= self.STRT
+                self.op = ("erase", 0, 0, 0)
+                self.busy_ns = self.ERASE_NS[self.psize()]
+                self.erases += 1
+
+    # ---- the sector (mapped at sector_base) ---------------------------------------------------
+    def attach_sector(self, uc: Uc) -> None:
+        uc.mmio_map(self.sector_base, len(self.data), self._array_rd, None, self._array_wr, None)
+
+    def _array_rd(self, uc: object, offset: int, size: int, user: object) -> int:
+        self.stall()
+        return int.from_bytes(self.data[offset : offset + size], "little")
+
+    def _array_wr(self, uc: object, offset: int, size: int, value: int, user: object) -> None:
+        self.program(offset, size, value)
+
+    def program(self, offset: int, size: int, value: int) -> None:
+        """A store of ``size`` bytes into the sector at ``offset``."""
+        self.stall()
+        cr = self.mem[self.CR]
+        if not cr & self.PG:
+            self.sr |= self.PGSERR
+        elif size != 1 << self.psize():
+            self.sr |= self.PGPERR
+        elif offset % size:
+            self.sr |= self.PGAERR
+        else:
+            self.op = ("program", offset, size, value & ((1 << (8 * size)) - 1))
+            self.busy_ns = self.PROGRAM_NS
+            self.programs += 1
 
 
 class Iwdg(Regs):

@@ -48,6 +48,7 @@ def test_exception_entry_and_return_restore_the_interrupted_context(
     board: Stm32Board, misalign: int
 ) -> None:
     cpu = board.cpu
+    lr = cpu.reg(UC_ARM_REG_LR)
     sp = cpu.reg(UC_ARM_REG_SP) - misalign
     cpu.uc.reg_write(UC_ARM_REG_SP, sp)
     values = [0x1111_0000 + i for i in range(len(REGS))]
@@ -55,14 +56,18 @@ def test_exception_entry_and_return_restore_the_interrupted_context(
         cpu.uc.reg_write(r, v)
     cpu.uc.reg_write(UC_ARM_REG_LR, 0x0800_1235)
     returns = cpu.exception_returns
-    cpu.pending.add(SYSTICK)
-    cpu.run_until_idle()
+    cpu.wake(SYSTICK)  # ends the main loop's wfi
+    cpu.step(cpu.idle_pc + 2, 1_000_000)  # the handler, up to its return after the wfi
     assert cpu.exception_returns == returns + 1
     assert cpu.reg(UC_ARM_REG_SP) == sp
     assert [cpu.reg(r) for r in REGS] == values
     assert cpu.reg(UC_ARM_REG_LR) == 0x0800_1235
-    assert cpu.reg(UC_ARM_REG_PC) & ~1 == cpu.idle_pc
+    assert cpu.reg(UC_ARM_REG_PC) & ~1 == cpu.idle_pc + 2
     assert board.ticks == 0 and not cpu.active
+    cpu.uc.reg_write(UC_ARM_REG_SP, sp + misalign)
+    cpu.uc.reg_write(UC_ARM_REG_LR, lr)  # main()'s: the main loop goes on, and sleeps again
+    cpu.run_until_idle()
+    assert cpu.reg(UC_ARM_REG_PC) & ~1 == cpu.idle_pc
 
 
 def test_nested_exception_returns_to_the_handler_it_preempted(board: Stm32Board) -> None:

@@ -2,12 +2,14 @@
 register behaviour the port relies on. The models are driven through their registers as the
 firmware drives them (read/write at offsets), and from the outside as the board's wiring does."""
 
+from random import Random
 from typing import Any
 
+import pytest
 from board import PWM_PERIOD, adc_code, current_ma, duty_of, pwm_counts
 from hypothesis import given
 from hypothesis import strategies as st
-from periph import Adc, Gpio, I2c, Iwdg, Pwr, Rcc, Scs, Timer
+from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Scs, Timer
 
 from asserv import codec
 
@@ -384,3 +386,165 @@ def test_watchdog_counts_only_once_started() -> None:
     w = Iwdg(0)
     w.advance(10**12)
     assert not w.expired
+
+
+# ---- Flash interface (RM0390 3.5, 3.8) ------------------------------------------------------
+def unlocked_flash() -> Flash:
+    fl = Flash(0)
+    fl.write(fl.KEYR, fl.KEY1)
+    fl.write(fl.KEYR, fl.KEY2)
+    return fl
+
+
+def test_flash_cr_is_locked_at_reset_and_opened_by_key1_then_key2() -> None:
+    fl = Flash(0)
+    assert fl.read(fl.CR) & fl.LOCK
+    fl.write(fl.CR, fl.PG)  # ignored while locked
+    assert fl.read(fl.CR) == fl.LOCK
+    fl.write(fl.KEYR, fl.KEY1)
+    assert fl.read(fl.CR) & fl.LOCK  # one key is not enough
+    fl.write(fl.KEYR, fl.KEY2)
+    assert not fl.read(fl.CR) & fl.LOCK
+    fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
+    assert fl.read(fl.CR) == fl.PG | 2 << fl.PSIZE_POS
+    fl.write(fl.CR, fl.LOCK)  # locked again by software
+    assert fl.read(fl.CR) == fl.LOCK and not fl.faults
+
+
+@given(st.integers(0, 0xFFFFFFFF), st.booleans())
+def test_a_wrong_key_is_a_bus_error_and_locks_until_reset(key: int, first: bool) -> None:
+    fl = Flash(0)
+    if not first:
+        fl.write(fl.KEYR, fl.KEY1)
+    if key == (fl.KEY1 if first else fl.KEY2):
+        return
+    fl.write(fl.KEYR, key)
+    assert fl.faults and "bus error" in fl.faults[0]
+    fl.write(fl.KEYR, fl.KEY1)
+    fl.write(fl.KEYR, fl.KEY2)
+    assert fl.read(fl.CR) & fl.LOCK  # the right keys no longer open it
+    fl.mem.clear()
+    fl.reset_values()  # until the next reset
+    fl.write(fl.KEYR, fl.KEY1)
+    fl.write(fl.KEYR, fl.KEY2)
+    assert not fl.read(fl.CR) & fl.LOCK
+
+
+def test_a_key_while_unlocked_is_a_bus_error() -> None:
+    fl = unlocked_flash()
+    fl.write(fl.KEYR, fl.KEY1)
+    assert fl.faults
+
+
+def test_word_program_is_busy_for_its_time_then_written() -> None:
+    fl = unlocked_flash()
+    fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
+    fl.program(16, 4, 0x1234_5678)
+    assert fl.read(fl.SR) & fl.BSY and fl.data[16:20] == b"\xff" * 4  # not yet
+    fl.advance(fl.PROGRAM_NS - 1)
+    assert fl.read(fl.SR) & fl.BSY
+    fl.advance(1)
+    assert not fl.read(fl.SR) & fl.BSY
+    assert fl.data[16:20] == bytes([0x78, 0x56, 0x34, 0x12])  # little-endian
+    assert not fl.read(fl.SR) & fl.EOP  # EOP only with EOPIE
+    fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS | fl.EOPIE)
+    fl.program(20, 4, 0)
+    fl.advance(fl.PROGRAM_NS)
+    assert fl.read(fl.SR) & fl.EOP
+    fl.write(fl.SR, fl.EOP)  # rc_w1
+    assert not fl.read(fl.SR) & fl.EOP
+
+
+@given(st.integers(0, 0xFFFFFFFF), st.integers(0, 0xFFFFFFFF))
+def test_programming_only_clears_bits(old: int, new: int) -> None:
+    fl = unlocked_flash()
+    fl.data[0:4] = old.to_bytes(4, "little")
+    fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
+    fl.program(0, 4, new)
+    fl.advance(fl.PROGRAM_NS)
+    assert int.from_bytes(fl.data[0:4], "little") == old & new
+
+
+@pytest.mark.parametrize(
+    ("cr", "offset", "size", "flag"),
+    [
+        (2 << 8, 0, 4, Flash.PGSERR),  # no PG
+        (Flash.PG | 2 << 8, 0, 2, Flash.PGPERR),  # a half-word at x32
+        (Flash.PG | 0 << 8, 0, 4, Flash.PGPERR),  # a word at x8
+        (Flash.PG | 1 << 8, 1, 2, Flash.PGAERR),  # a half-word not aligned
+    ],
+)
+def test_a_bad_program_sets_its_error_and_writes_nothing(
+    cr: int, offset: int, size: int, flag: int
+) -> None:
+    fl = unlocked_flash()
+    fl.write(fl.CR, cr)
+    fl.program(offset, size, 0)
+    assert fl.read(fl.SR) & fl.ERRORS == flag and not fl.busy()
+    assert fl.data[:8] == b"\xff" * 8
+    fl.write(fl.SR, flag)  # rc_w1
+    assert not fl.read(fl.SR) & fl.ERRORS
+
+
+@pytest.mark.parametrize(("psize", "ms"), [(0, 400), (1, 300), (2, 250)])
+def test_sector_erase_sets_ff_after_its_time_and_strt_reads_until_then(psize: int, ms: int) -> None:
+    fl = unlocked_flash()
+    fl.data[:4] = bytes(4)
+    fl.write(fl.CR, fl.SER | 1 << fl.SNB_POS | psize << fl.PSIZE_POS)
+    assert not fl.busy()  # SER alone does not start it
+    fl.write(fl.CR, fl.read(fl.CR) | fl.STRT)
+    assert fl.read(fl.SR) & fl.BSY and fl.read(fl.CR) & fl.STRT
+    fl.advance(ms * 1_000_000 - 1)
+    assert fl.busy() and fl.data[:4] == bytes(4)
+    fl.advance(1)
+    assert not fl.read(fl.SR) & fl.BSY and not fl.read(fl.CR) & fl.STRT
+    assert fl.data == b"\xff" * len(fl.data)
+
+
+@pytest.mark.parametrize("cr", [Flash.SER | 2 << 3, Flash.SER | 0 << 3, Flash.MER])
+def test_erasing_the_code_is_a_fault(cr: int) -> None:
+    fl = unlocked_flash()
+    fl.write(fl.CR, cr | 2 << fl.PSIZE_POS | fl.STRT)
+    assert fl.faults and not fl.busy()
+
+
+def test_the_bus_stalls_on_the_sector_and_cr_while_busy() -> None:
+    fl = unlocked_flash()
+    fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
+    fl.program(0, 4, 0)
+    fl.advance(6_000)
+    assert fl._array_rd(None, 0, 4, None) == 0  # the read waited for the program's end
+    assert fl.stalled_ns == fl.PROGRAM_NS - 6_000 and not fl.busy()
+    fl.program(4, 4, 0)
+    fl.write(fl.CR, fl.LOCK)  # waits too, then locks
+    assert fl.stalled_ns == 2 * fl.PROGRAM_NS - 6_000 and fl.data[4:8] == bytes(4)
+    fl2 = unlocked_flash()
+    fl2.write(fl2.CR, fl2.PG | 2 << fl2.PSIZE_POS)
+    fl2.program(0, 4, 0)
+    assert fl2.read(fl2.SR) & fl2.BSY  # a register read does not wait...
+    fl2.stall_on_sr = True
+    assert not fl2.read(fl2.SR) & fl2.BSY  # ...but the CPU's load of it, fetched from flash
+
+
+@given(st.integers(0, 0xFFFFFFFF), st.integers(0, 0xFFFFFFFF), st.integers(0, 2**32 - 1))
+def test_a_cut_program_leaves_a_part_of_its_changes(old: int, new: int, seed: int) -> None:
+    fl = unlocked_flash()
+    fl.data[0:4] = old.to_bytes(4, "little")
+    fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
+    fl.program(0, 4, new)
+    fl.cut(Random(seed))
+    got = int.from_bytes(fl.data[0:4], "little")
+    assert got & ~old == 0  # no bit went from 0 to 1
+    assert (old & new) & ~got == 0  # every bit is between the old word and the programmed one
+    assert not fl.busy()
+
+
+@given(st.binary(min_size=16, max_size=16), st.integers(0, 2**32 - 1))
+def test_a_cut_erase_leaves_a_part_of_its_changes(old: bytes, seed: int) -> None:
+    fl = unlocked_flash()
+    fl.data[:16] = old
+    fl.write(fl.CR, fl.SER | 1 << fl.SNB_POS | 2 << fl.PSIZE_POS | fl.STRT)
+    fl.cut(Random(seed))
+    for a, b in zip(old, fl.data[:16], strict=True):
+        assert a & ~b == 0  # erasing only sets bits
+    assert fl.data[16:] == b"\xff" * (len(fl.data) - 16)

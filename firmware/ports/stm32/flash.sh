@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Build the STM32 firmware and flash it into a Nucleo-F446RE plugged in by USB (its ST-LINK):
 #   bash firmware/ports/stm32/flash.sh [F446|F401]
+# The vectors (sector 0) and the code (sector 2 on) are written apart, so that sector 1, the
+# odometry calibration's log (docs/stm32.md, "The calibration in flash"), is kept.
 # Needs Debian's gcc-arm-none-eabi, libnewlib-arm-none-eabi, cmake, ninja-build, stlink-tools.
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/../../.." && pwd)
@@ -22,4 +24,7 @@ BUILD="$ROOT/build-stm32-$CHIP"
 cmake -S "$ROOT/firmware/ports/stm32" -B "$BUILD" -G Ninja \
 	-DCMAKE_TOOLCHAIN_FILE="$ROOT/cmake/stm32f4.cmake" -DSTM32_CHIP="$CHIP" >/dev/null
 cmake --build "$BUILD"
-st-flash --reset write "$BUILD/asserv_stm32.bin" 0x08000000
+arm-none-eabi-objcopy -O binary -j .isr_vector "$BUILD/asserv_stm32.elf" "$BUILD/vectors.bin"
+arm-none-eabi-objcopy -O binary -R .isr_vector "$BUILD/asserv_stm32.elf" "$BUILD/code.bin"
+st-flash write "$BUILD/code.bin" 0x08008000
+st-flash --reset write "$BUILD/vectors.bin" 0x08000000

@@ -1,16 +1,20 @@
-/* The asserv board on an STM32F4 Nucleo-64: start-up, then everything in interrupts. SysTick runs
+/* The asserv board on an STM32F4 Nucleo-64: start-up, then the control in interrupts. SysTick runs
  * the whole control tick at 1 kHz (one rate: the slow steps in it) and feeds the watchdog; the I2C
- * interrupts preempt it; the CPU sleeps in between. Pin map: pinmap.h; clocks: stm32_clock.h; build
- * and flashing: docs/stm32.md. */
+ * interrupts preempt it. The main loop, woken by each interrupt, writes the calibration to flash
+ * (stm32_nvm.h) and sleeps. Pin map: pinmap.h; clocks: stm32_clock.h; build and flashing:
+ * docs/stm32.md. */
 #include <stddef.h>
 
 #include "hal.h"
 #include "pinmap.h"
 #include "port.h"
+#include "stm32_nvm.h"
 #include "stm32_port.h"
 #include "stm32f4_regs.h"
 
 struct board asserv_board;
+/* The calibration's log in flash: loaded at start, written by the main loop (thread mode). */
+static struct stm32_nvm stm32_nvm;
 
 const struct stm32_layout stm32_layout = {
 	.board_size = sizeof(struct board),
@@ -38,10 +42,15 @@ int main(void)
 		for (;;)
 			;
 	}
+	/* Before the bus, the watchdog and the ticks: a start-up erase stalls nothing that runs. */
+	stm32_nvm_load(&stm32_nvm, &asserv_board);
 	hal_i2c_slave_init(PROTO_ADDRESS);
 	stm32_watchdog_start();
 	hal_tick_start(cfg.tick_hz);
-	stm32_idle();
+	for (;;) {
+		stm32_nvm_poll(&stm32_nvm, &asserv_board); /* one flash operation at most */
+		stm32_idle();
+	}
 }
 
 /* The independent watchdog (RM0390 19.3: started, then configured, then reloaded), fed after
@@ -52,9 +61,19 @@ int main(void)
 static void stm32_watchdog_start(void)
 {
 	IWDG_KR = IWDG_KR_START;
+	stm32_watchdog_set(STM32_WDG_PR, STM32_WDG_RLR); /* LSI / 4, 480 counts */
+}
+
+/* RM0390 19.3.2: the access key opens PR and RLR until the next key, so the tick's reload must
+ * not come in between (PRIMASK); the new values are taken once SR's PVU and RVU clear (up to 5
+ * LSI periods), and the reload that follows loads RLR. */
+void stm32_watchdog_set(uint32_t pr, uint32_t rlr)
+{
+	__asm__ volatile("cpsid i" ::: "memory");
 	IWDG_KR = IWDG_KR_ACCESS;
-	IWDG_PR = 0; /* LSI / 4 */
-	IWDG_RLR = 479u;
+	IWDG_PR = pr;
+	IWDG_RLR = rlr;
+	__asm__ volatile("cpsie i" ::: "memory");
 	while (IWDG_SR != 0)
 		;
 	IWDG_KR = IWDG_KR_RELOAD;

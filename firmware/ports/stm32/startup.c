@@ -1,5 +1,5 @@
 /* Start-up of the STM32F4 port: the vector table (RM0390 10.2, Table 38; PM0214 2.3.4), the reset
- * handler that lays out RAM and calls main(), and the idle loop. */
+ * handler that lays out RAM and calls main(), and the main loop's sleep. */
 #include <stdint.h>
 
 #include "stm32_port.h"
@@ -55,9 +55,10 @@ void Default_Handler(void)
 		;
 }
 
-/* The wfi is the function's first instruction: the emulator harness knows the CPU idle when it
- * reaches this address. */
-__attribute__((naked, noreturn)) void stm32_idle(void)
+/* One sleep of the main loop: the wfi is the function's first instruction, and the emulator
+ * harness knows the CPU asleep when it reaches this address; an interrupt ends the wfi, and the
+ * function returns after it. */
+__attribute__((naked)) void stm32_idle(void)
 {
-	__asm__ volatile("1: wfi\n\tb 1b\n");
+	__asm__ volatile("wfi\n\tbx lr\n");
 }

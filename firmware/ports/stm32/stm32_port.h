@@ -33,8 +33,17 @@ void stm32_adc_sample(void);
 /* The robot this binary drives (robot.c). */
 void stm32_robot_config(struct board_config *cfg);
 
-/* The idle loop (startup.c): sleeps between interrupts, forever. */
-void stm32_idle(void) __attribute__((noreturn));
+/* One sleep of the main loop (startup.c): wfi, then return once an interrupt has run. */
+void stm32_idle(void);
+
+/* The independent watchdog's window (main.c): LSI / (4 << pr) counts, (rlr + 1) of them, then
+ * a reload. STM32_WDG_*: 60 ms, fed after each tick; STM32_WDG_ERASE_*: 2.5 s, while a flash
+ * erase (up to 500 ms) stalls the ticks (nvm.c). Thread mode only. */
+#define STM32_WDG_PR 0u
+#define STM32_WDG_RLR 479u
+#define STM32_WDG_ERASE_PR 4u
+#define STM32_WDG_ERASE_RLR 1249u
+void stm32_watchdog_set(uint32_t pr, uint32_t rlr);
 
 /* TIM1 compare counts for a duty [2^-15]: |duty| * (ARR + 1) / 32768, rounded; ARR + 1 is full
  * on (PWM mode 1 keeps the output high while CNT < CCR). */

@@ -78,6 +78,30 @@
 #define FLASH_ACR_ICEN (1u << 9)
 #define FLASH_ACR_DCEN (1u << 10)
 
+/* ---- Flash programming and erase: RM0390 sections 3.5 (unlock 3.5.1, erase 3.5.3, program
+ * 3.5.4), 3.8.2-3.8.5 (registers). Sector 1, 16 KiB at 0x0800 4000 (3.3, Table 4), holds the
+ * calibration log (nvm.c); the linker script keeps code out of it. ---- */
+#define FLASH_KEYR STM32_REG(FLASH_IF_BASE + 0x04u) /* 3.8.2 */
+#define FLASH_KEY1 0x45670123u                      /* 3.5.1: KEY1 then KEY2 clears LOCK */
+#define FLASH_KEY2 0xCDEF89ABu
+#define FLASH_SR STM32_REG(FLASH_IF_BASE + 0x0Cu) /* 3.8.4 */
+#define FLASH_SR_EOP (1u << 0)
+#define FLASH_SR_OPERR (1u << 1)
+#define FLASH_SR_WRPERR (1u << 4)
+#define FLASH_SR_PGAERR (1u << 5)
+#define FLASH_SR_PGPERR (1u << 6)
+#define FLASH_SR_PGSERR (1u << 7)
+#define FLASH_SR_ERRORS                                                                            \
+	(FLASH_SR_OPERR | FLASH_SR_WRPERR | FLASH_SR_PGAERR | FLASH_SR_PGPERR | FLASH_SR_PGSERR)
+#define FLASH_SR_BSY (1u << 16)
+#define FLASH_CR STM32_REG(FLASH_IF_BASE + 0x10u) /* 3.8.5 */
+#define FLASH_CR_PG (1u << 0)
+#define FLASH_CR_SER (1u << 1)
+#define FLASH_CR_SNB_POS 3u          /* sector number, 4 bits */
+#define FLASH_CR_PSIZE_X32 (2u << 8) /* 3.6.2: x32 parallelism, VDD 2.7..3.6 V */
+#define FLASH_CR_STRT (1u << 16)
+#define FLASH_CR_LOCK (1u << 31)
+
 /* ---- GPIO: RM0390 section 7.4 ---- */
 #define GPIO_MODER(base) STM32_REG((base) + 0x00u)  /* 7.4.1: 00 in, 01 out, 10 AF, 11 analog */
 #define GPIO_OTYPER(base) STM32_REG((base) + 0x04u) /* 7.4.2: 1 open-drain */
