@@ -257,7 +257,8 @@ def sweep(
 
 
 def _f(v: float, spec: str) -> str:
-    return "-" if math.isnan(v) else format(v, spec)
+    """``v`` formatted, or "-" at the same width when it is not known (NaN)."""
+    return f"{'-':>{len(format(0.0, spec))}}" if math.isnan(v) else format(v, spec)
 
 
 def table(results: dict[Gains, list[StepResponse]]) -> list[str]:

@@ -76,3 +76,17 @@ def test_a_response_that_stops_short(amp: float, start: float, short: float, tau
     assert not m.settled and tune.cost(m) == math.inf
     assert math.isnan(m.rise_s) == (short > 0.1)
     assert m.overshoot_pct == 0
+
+
+def test_the_table_keeps_its_columns_when_a_figure_is_unknown() -> None:
+    def response(m: tune.StepMetrics) -> tune.StepResponse:
+        e = np.zeros(0)
+        return tune.StepResponse("distance", None, 100.0, e, e, e, e, m)
+
+    known = tune.StepMetrics(0.4, 1.0, 0.8, 0.1, 0.2)
+    unknown = tune.StepMetrics(math.nan, 0.0, math.nan, 5.0, math.nan)
+    lines = tune.table(
+        {tune.Gains(1, 2, 3): [response(known)], tune.Gains(4, 5, 6): [response(unknown)]}
+    )
+    assert len({line.rindex(" mm") for line in lines[1:]}) == 1, lines  # columns aligned
+    assert lines[2].split()[6:8] == ["-s", "-s"]
