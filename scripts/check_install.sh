@@ -5,7 +5,9 @@
 #     gcc and clang replaced by a command that fails and records the attempt; CC=false): it
 #     installs, imports without numpy, matplotlib or cffi, and answers the CLI;
 #  3. asserv[sim] from the wheels: `asserv demo`, a scenario, and the driver's tests;
-#  4. asserv[sim] from the sdists (the extension compiled from the C sources the sdist carries):
+#  4. asserv[view] on the driver's install (no compiler, no simulator): its page and default
+#     field, and `asserv --sim ... log` of a simulator server run from the asserv[sim] install;
+#  5. asserv[sim] from the sdists (the extension compiled from the C sources the sdist carries):
 #     `asserv demo` and a scenario.
 # Needs network access to PyPI for the dependencies (smbus2, numpy, matplotlib, cffi, pytest).
 set -euo pipefail
@@ -89,6 +91,33 @@ say "asserv[sim] from the wheels: demo, a scenario, the driver's tests"
 	cp "$ROOT"/python/tests/test_{driver,bus,codec,cli_bus}.py tests/
 	python -m pytest -q -p no:cacheprovider tests
 )
+
+say "asserv[view] without the simulator (a Pi beside the robot): log a served simulator"
+(
+	export PATH="$WORK/nocc:$WORK/drv-wheel/bin:$PATH" CC=false CXX=false
+	pip install -q "$WHEEL[view]"
+	python -c 'from asserv import field, view; field.load(); assert (view.STATIC / "index.html").is_file()'
+	if pip show -q cffi 2>/dev/null; then fail "asserv[view] pulled in cffi"; fi
+)
+[ ! -s compiler-calls ] || fail "a compiler was called: $(cat compiler-calls)"
+PORT=$((20000 + RANDOM % 20000))
+sim-wheel/bin/asserv sim serve --port "$PORT" --speed 0 --duration 300 >serve.log 2>&1 &
+SERVE=$!
+for _ in $(seq 100); do grep -q listening serve.log && break || sleep 0.1; done
+set +e
+drv-wheel/bin/asserv --sim "127.0.0.1:$PORT" log --mcap served.mcap --duration 1
+rc=$?
+set -e
+kill "$SERVE"
+wait "$SERVE" || true
+[ $rc = 0 ] || fail "asserv --sim log from the driver's install: exit $rc, $(cat serve.log)"
+drv-wheel/bin/python - <<-'EOF'
+	from asserv import log
+	got = log.read_mcap("served.mcap")
+	assert got.field is not None and len(got.rows) >= 45, (got.field, len(got.rows))
+	assert "/field" in got.schemas and "/pose/true" in got.schemas
+	print(f"served.mcap: {len(got.rows)} rows, the field and the truth")
+EOF
 
 say "asserv[sim] from the sdists: the extension compiled from the sources the sdist carries"
 "$PYTHON" -m venv sim-sdist

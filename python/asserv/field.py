@@ -36,6 +36,8 @@ def data_dir(name: str) -> Path:
 #: The field files: field/ of the repository, installed as asserv-sim's package data.
 FIELD_DIR = data_dir("field")
 DEFAULT = FIELD_DIR / "default.toml"
+if not DEFAULT.is_file():  # the driver alone (asserv[view] on a Pi): the default field it carries
+    DEFAULT = Path(__file__).resolve().parent / "field_default.toml"
 
 # Capacities of the C structures the description is copied into.
 MAX_OBSTACLES = 16  # sim.h SIM_MAX_OBSTACLES: baskets and other obstacles together

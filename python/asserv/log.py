@@ -33,7 +33,6 @@ import json
 import math
 import struct
 import sys
-import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,6 +40,7 @@ from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
+from .bus import Clock
 from .field import Field
 
 if TYPE_CHECKING:
@@ -749,13 +749,18 @@ def read_csv(path: str | Path) -> np.ndarray:
 # ---- a real board -----------------------------------------------------------------------------
 
 
-def board_row(board: Board, t_s: float) -> np.void:
-    """One row from a board: POSITION, DEBUG and CHECK_BUSY read now (the truth unknown)."""
+def board_row(
+    board: Board, t_s: float, truth: Callable[[], tuple[float, float, float, float]] | None = None
+) -> np.void:
+    """One row from a board: POSITION, DEBUG and CHECK_BUSY read now. The truth is unknown
+    (NaN) unless ``truth()`` gives it (``RemoteBus.truth``: the simulator server's robot)."""
     pose = board.position()
     d = board.debug()
     status = board.check_busy()
     row: np.void = empty(1)[0]
     row["t_s"] = t_s
+    if truth is not None:
+        _, row["x_mm"], row["y_mm"], row["heading_deg"] = truth()
     # POSITION's angle is in 2-degree steps; DEBUG's heading is finer: take DEBUG's.
     row["est_x_mm"], row["est_y_mm"] = pose.x_mm, pose.y_mm
     row["est_heading_deg"] = d.heading_cdeg / 100
@@ -774,15 +779,18 @@ def board_row(board: Board, t_s: float) -> np.void:
     return row
 
 
-class Clock:
-    """Time for polling: the bus's own clock when it has one (a simulated bus), else the
-    system's."""
+def poll_clock(bus: Any) -> Clock:
+    """Time for polling a board on ``bus``: its own clock (``asserv.bus.clock_of``: a simulated
+    bus's, the simulator server's) or the system's."""
+    from .bus import clock_of
 
-    def __init__(self, bus: Any) -> None:
-        mono = getattr(bus, "monotonic", None)
-        slp = getattr(bus, "sleep", None)
-        self.monotonic: Callable[[], float] = mono if callable(mono) else time.monotonic
-        self.sleep: Callable[[float], None] = slp if callable(slp) else time.sleep
+    return clock_of(bus)
+
+
+def bus_truth(bus: Any) -> Callable[[], tuple[float, float, float, float]] | None:
+    """The bus's ``truth()`` (the simulator server's true pose: ``RemoteBus``), or None."""
+    truth = getattr(bus, "truth", None)
+    return truth if callable(truth) else None
 
 
 def poll_board(
@@ -792,13 +800,17 @@ def poll_board(
     duration_s: float | None = None,
     until: Callable[[], bool] | None = None,
     on_row: Callable[[np.void], None] | None = None,
+    clock: Clock | None = None,
 ) -> Iterator[np.void]:
-    """Poll the board at ``hz`` rows a second (each row: POSITION, DEBUG, CHECK_BUSY) for
-    ``duration_s`` (None: until ``until()`` says so, or forever); yields the rows. On a 100 kHz
-    bus a row takes about 4 ms of bus time, so up to about 200 rows a second fit."""
+    """Poll the board at ``hz`` rows a second (each row: POSITION, DEBUG, CHECK_BUSY, and the
+    truth where the bus knows it) for ``duration_s`` (None: until ``until()`` says so, or
+    forever); yields the rows. ``clock`` paces it (default ``poll_clock(board.bus)``). A row is
+    38 bytes on the bus (44 with PEC), 3.4 ms at 100 kHz: up to about 290 rows a second fit
+    (``bench/poll_rate.py`` prints it; a real adapter adds its own time per transaction)."""
     if not hz > 0:
         raise ValueError(f"hz must be > 0, not {hz}")
-    clock = Clock(board.bus)
+    clock = clock or poll_clock(board.bus)
+    truth = bus_truth(board.bus)
     period = 1.0 / hz
     t0 = clock.monotonic()
     next_t = t0
@@ -808,7 +820,7 @@ def poll_board(
             return
         if until is not None and until():
             return
-        row = board_row(board, now - t0)
+        row = board_row(board, now - t0, truth)
         if on_row is not None:
             on_row(row)
         yield row
@@ -824,16 +836,15 @@ def poll_board(
 
 
 def check_output(path: str | Path, what: str) -> str | None:
-    """Why ``path`` cannot be written as the ``what`` file (None: it can), checked before a run so
-    that a bad path changes nothing."""
-    p = Path(path)
-    if p.is_dir():
-        return f"the {what} file {p} is a directory"
-    parent = p.parent if str(p.parent) else Path(".")
-    if not parent.is_dir():
-        return f"the {what} file's folder {parent} does not exist"
-    if p.exists() and not p.is_file():
-        return f"the {what} file {p} is not a regular file"
+    """Why ``path`` cannot be written as the ``what`` file ("MCAP", "CSV", "PNG": its name must
+    end so) (None: it can), checked before a run by creating it (and removing it again), so
+    that a bad path changes nothing and a long run does not end on it."""
+    from .cli_args import UsageError, check_output_file
+
+    try:
+        check_output_file(str(path), (f".{what.lower()}",))
+    except UsageError as e:
+        return f"the {what} file {e}"
     return None
 
 
@@ -871,33 +882,64 @@ BUS_FACTORY: BusFactory = _smbus
 
 
 def bus_options(parser: argparse.ArgumentParser) -> None:
-    """``--bus``, ``--address``, ``--pec`` after the subcommand too (the main parser has them
-    before it: asserv --bus 1 log ...), with the main CLI's names."""
+    """``--bus``, ``--sim``, ``--address``, ``--pec`` after the subcommand too (the main parser
+    has them before it: asserv --bus 1 log ..., asserv --sim :5021 view), with its names."""
     parser.add_argument("--bus", metavar="N", default=argparse.SUPPRESS, help="I2C bus number")
+    parser.add_argument(
+        "--sim",
+        dest="bus_sim",
+        metavar="HOST:PORT",
+        default=argparse.SUPPRESS,
+        help="the simulated board of `asserv sim serve` instead of an I2C bus",
+    )
     parser.add_argument(
         "--address", dest="bus_address", metavar="ADDR", default=argparse.SUPPRESS, help="7-bit"
     )
     parser.add_argument("--pec", dest="bus_pec", action="store_true", default=argparse.SUPPRESS)
 
 
-def open_board(args: argparse.Namespace, prog: str) -> tuple[Board, Any] | int:
-    """The board of ``--bus N --address A --pec``, and its bus to close; or an exit code (2: a
-    bad argument, 1: the bus cannot be opened), the message printed."""
-    from .driver import Board
+def wants_board(args: argparse.Namespace) -> bool:
+    """True if the command line names a board: ``--bus N`` or ``--sim HOST:PORT``."""
+    return getattr(args, "bus", None) is not None or getattr(args, "bus_sim", None) is not None
 
+
+def board_where(args: argparse.Namespace) -> str:
+    """The board of the command line, in words."""
+    if getattr(args, "bus_sim", None) is not None:
+        return f"the simulator server at {args.bus_sim}"
+    return f"the board on bus {args.bus}"
+
+
+def open_board(args: argparse.Namespace, prog: str) -> tuple[Board, Any] | int:
+    """The board of ``--bus N`` (or ``--sim HOST:PORT``) ``--address A --pec``, and its bus to
+    close; or an exit code (2: a bad argument, 1: the bus cannot be opened), the message
+    printed. Every argument is checked before anything is opened."""
+    from .cli_args import UsageError
+    from .cli_bus import open_error, parse_address, parse_bus
+    from .driver import Board
+    from .server import RemoteBus
+    from .server import parse_address as parse_sim_address
+
+    remote = getattr(args, "bus_sim", None)
     try:
-        number = int(str(args.bus), 0)
-        address = int(str(getattr(args, "bus_address", "2")), 0)
-    except ValueError:
-        print(f"{prog}: --bus and --address take integers", file=sys.stderr)
-        return 2
-    if number < 0 or not 0 <= address <= 0x7F:
-        print(f"{prog}: --bus must be >= 0 and --address 0..0x7f", file=sys.stderr)
+        if remote is not None:
+            if getattr(args, "bus", None) is not None:
+                raise UsageError("give --bus N or --sim HOST:PORT, not both")
+            try:
+                host, port = parse_sim_address(str(remote))
+            except ValueError as e:
+                raise UsageError(f"--sim {e}") from None
+        else:
+            number = parse_bus(str(args.bus))
+        address = parse_address(str(getattr(args, "bus_address", "2")))
+    except UsageError as e:
+        print(f"{prog}: {e}", file=sys.stderr)
         return 2
     try:
-        bus = BUS_FACTORY(number)
+        bus = RemoteBus(host, port) if remote is not None else BUS_FACTORY(number)
     except OSError as e:
-        print(f"{prog}: cannot open /dev/i2c-{number}: {e}", file=sys.stderr)
+        why = e.strerror or str(e) if remote is not None else open_error(number, e)
+        print(f"{prog}: {why}", file=sys.stderr)
         return 1
     return Board(bus, address, pec=bool(getattr(args, "bus_pec", False))), bus
 
@@ -906,9 +948,10 @@ def _log_command(args: argparse.Namespace) -> int:
     from .driver import AsservError
 
     prog = "asserv log"
-    if getattr(args, "bus", None) is None:
+    if not wants_board(args):
         print(
-            f"{prog}: --bus N is required (a real board: asserv --bus 1 log ...)", file=sys.stderr
+            f"{prog}: --bus N (or --sim HOST:PORT) is required: asserv --bus 1 log ...",
+            file=sys.stderr,
         )
         return 2
     if args.mcap is None and args.csv is None:
@@ -934,7 +977,8 @@ def _log_command(args: argparse.Namespace) -> int:
     board, bus = opened
     n = 0
     try:
-        with LogWriter(args.mcap, args.csv, truth=False, field=fld) as w:
+        truth = bus_truth(bus) is not None
+        with LogWriter(args.mcap, args.csv, truth=truth, field=fld) as w:
             print(f"{prog}: polling at {args.hz:g} Hz (Ctrl-C ends the log)", file=sys.stderr)
             for row in poll_board(board, args.hz, duration_s=args.duration):
                 w.add(row)

@@ -12,6 +12,7 @@ matplotlib.use("Agg")  # files only: no display needed, on a Raspberry Pi or in 
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon, Rectangle
 
 from . import accuracy
@@ -110,6 +111,24 @@ def plot_run(
     speed profiles (set-point and true), the status bits with each order's end, and the
     estimate's error beside the error radius, in one PNG. ``zoom`` = (xmin, xmax, ymin, ymax)
     limits the field view; ``outline`` is the robot's rectangle (default: the nominal robot)."""
+    fig = figure_run(trace, field, title=title, targets=targets, zoom=zoom, outline=outline)
+    out = Path(path)
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+    return out
+
+
+def figure_run(
+    trace: np.ndarray,
+    field: Field,
+    *,
+    title: str = "",
+    targets: Sequence[tuple[float, float]] = (),
+    zoom: tuple[float, float, float, float] | None = None,
+    outline: Outline | None = None,
+) -> Figure:
+    """``plot_run``'s figure, not saved: its axes in the order map, error, speed, turn rate,
+    status (the caller closes it)."""
     from .log import Outline
 
     outline = outline or Outline()
@@ -190,11 +209,7 @@ def plot_run(
     ax_w.legend(loc="upper right")
 
     _plot_status(ax_s, trace)
-
-    out = Path(path)
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
-    return out
+    return fig
 
 
 def _plot_status(ax: Axes, trace: np.ndarray) -> None:

@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import log
+from .cli_args import natural
 
 if TYPE_CHECKING:
     from .driver import Board
@@ -256,7 +257,8 @@ def sweep(
 
 
 def _f(v: float, spec: str) -> str:
-    return "-" if math.isnan(v) else format(v, spec)
+    """``v`` formatted, or "-" at the same width when it is not known (NaN)."""
+    return f"{'-':>{len(format(0.0, spec))}}" if math.isnan(v) else format(v, spec)
 
 
 def table(results: dict[Gains, list[StepResponse]]) -> list[str]:
@@ -373,7 +375,7 @@ def _command(args: argparse.Namespace) -> int:
     if len(gain_sets) > 200:
         return usage(f"{len(gain_sets)} gain sets: at most 200 (fewer values in --p --i --d)")
 
-    real = getattr(args, "bus", None) is not None
+    real = log.wants_board(args)
     bus: Any = None
     if real:
         opened = log.open_board(args, prog)
@@ -397,7 +399,7 @@ def _command(args: argparse.Namespace) -> int:
             flush=True,
         )
 
-    where = f"the board on bus {args.bus}" if real else f"the simulated robot {args.seed}"
+    where = log.board_where(args) if real else f"the simulated robot {args.seed}"
     print(f"{prog}: {len(gain_sets)} gain set(s) x {', '.join(axes)} on {where}", file=sys.stderr)
     try:
         results = sweep(
@@ -444,7 +446,7 @@ def register(sub: Any) -> None:
         " towards a point at an angle), print overshoot, rise time, settling time and"
         " steady-state error for each gain set of the sweep, rank them, and with --apply write"
         " the best with SET_FILTRE_RAW. Simulated robot by default; --bus N for a real one"
-        " (it drives: give it room; docs/view.md).",
+        " (it drives: give it room; docs/view.md), --sim HOST:PORT for `asserv sim serve`.",
     )
     log.bus_options(p)
     p.add_argument("--axis", choices=("distance", "angle", "both"), default="both")
@@ -456,7 +458,7 @@ def register(sub: Any) -> None:
     p.add_argument("--accel", type=int, default=100, help="cm/s^2, both loops (default 100)")
     p.add_argument("--window", type=float, default=2.0, help="seconds per step (default 2)")
     p.add_argument("--hz", type=float, default=200.0, help="polls a second (default 200)")
-    p.add_argument("--seed", type=int, default=0, help="the simulated robot (default 0)")
+    p.add_argument("--seed", type=natural, default=0, help="the simulated robot (default 0)")
     p.add_argument("--png", help="plot of the best responses")
     p.add_argument("--apply", action="store_true", help="write the best set (SET_FILTRE_RAW)")
     p.set_defaults(run=_command)

@@ -316,17 +316,25 @@ class SimSource(Source):
 
 
 class BoardSource(Source):
-    """A board on a bus (a real one, or any smbus2-like bus), polled at ``hz`` in a thread; the
-    page's GOTOs go through the same thread. Pause freezes the view (the robot goes on)."""
+    """A board on a bus (a real one, the simulator server's ``RemoteBus``, or any smbus2-like
+    bus), polled at ``hz`` in a thread; the page's GOTOs go through the same thread. Pause
+    freezes the view (the robot goes on). The true pose is drawn where the bus knows it
+    (``RemoteBus.truth``)."""
 
     def __init__(self, board: Board, hz: float = 50.0, field: Field | None = None) -> None:
         from . import field as fieldmod
+        from .bus import SystemClock
 
+        truth = log.bus_truth(board.bus) is not None  # the simulator server knows it
         super().__init__(
-            field or fieldmod.load(), log.Outline(), kind="board", truth=False, can_goto=True
+            field or fieldmod.load(), log.Outline(), kind="board", truth=truth, can_goto=True
         )
         self.board = board
         self.hz = hz
+        # Paced by the simulation where this process runs it (a simulated bus), else by the
+        # wall clock: a view watching the simulator server must not move its time.
+        clock = log.poll_clock(board.bus)
+        self._clock = clock if getattr(clock, "drives_simulation", False) else SystemClock()
         self._rows: queue.Queue[np.void] = queue.Queue()
         self._orders: queue.Queue[tuple[int, int]] = queue.Queue()
         self._stop = threading.Event()
@@ -337,7 +345,8 @@ class BoardSource(Source):
         from .driver import AsservError
 
         try:
-            for row in log.poll_board(self.board, self.hz, until=self._stop.is_set):
+            rows = log.poll_board(self.board, self.hz, until=self._stop.is_set, clock=self._clock)
+            for row in rows:
                 self._rows.put(row)
                 while not self._orders.empty():
                     x, y = self._orders.get()
@@ -586,9 +595,9 @@ def _command(args: argparse.Namespace) -> int:
 
     if not 0 <= args.port <= 65535:
         return usage(f"--port must be 0..65535, not {args.port}")
-    real = getattr(args, "bus", None) is not None
+    real = log.wants_board(args)
     if sum((real, args.replay is not None, args.scenario is not None)) > 1:
-        return usage("give one of SCENARIO, --replay FILE or --bus N")
+        return usage("give one of SCENARIO, --replay FILE, --bus N or --sim HOST:PORT")
     if not 1 <= args.hz <= 500:
         return usage("--hz takes 1..500 polls a second")
     bus: Any = None
@@ -603,6 +612,7 @@ def _command(args: argparse.Namespace) -> int:
                 return opened
             board, bus = opened
             source = BoardSource(board, args.hz, fld)
+            source.message = f"polling {log.board_where(args)} at {args.hz:g} Hz"
         else:
             if args.scenario and args.scenario.endswith(".py"):
                 source = SimSource(strategy=load_strategy(args.scenario))
@@ -639,7 +649,8 @@ def register(sub: Any) -> None:
     """Add ``asserv view`` to the main CLI's subcommands."""
     p = sub.add_parser(
         "view",
-        help="the robot on its field in the browser: simulator, --bus N or --replay RUN.mcap",
+        help="the robot on its field in the browser: simulator, --bus N, --sim HOST:PORT or"
+        " --replay RUN.mcap",
         description="Serve a page that shows the field, the robot (estimate and, simulated, the"
         " truth), the error radius, the path, the target, the status and scrolling plots;"
         " play/pause, speed x1..x50, a click on the field sends a GOTO (docs/view.md).",

@@ -38,7 +38,7 @@ def run(argv: list[str]) -> tuple[int, str, str]:
 @pytest.fixture
 def no_runs(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Iterator[list[int]]:
     """The long runs and the bus replaced by stand-ins that record that they were reached."""
-    from asserv import accuracy, calibration, demo, scenario, sim
+    from asserv import accuracy, calibration, demo, scenario, server, sim
 
     reached: list[int] = []
 
@@ -59,6 +59,7 @@ def no_runs(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Iterator[list[in
     ):
         monkeypatch.setattr(mod, name, ran)
     monkeypatch.setattr(smbus2, "SMBus", no_bus)
+    monkeypatch.setattr(server, "RemoteBus", lambda *_: no_bus(0))  # --sim HOST:PORT
     monkeypatch.chdir(tmp_path)
     yield reached
 
@@ -81,6 +82,20 @@ BAD = [
     (["encode", "goto-panier", "nan"], "is not a number of degrees"),
     (["sim", "run", "no-such-scenario"], "cannot read the scenario"),
     (["sim", "run", "annex", "--zoom", "0", "1", "2", "inf", "--png", "a.png"], "not a finite"),
+    # asserv log, tune and view (issue 20) keep the same convention.
+    (["sim", "run", "annex", "--mcap", "x.txt"], "must end in .mcap"),
+    (["sim", "run", "annex", "--csv", "/proc/x.csv"], "/proc/x.csv: cannot write the file"),
+    (["--bus", "1", "log", "--mcap", "/proc/x.mcap"], "/proc/x.mcap: cannot write the file"),
+    (["--bus", "1", "log", "--csv", "x.txt"], "must end in .csv"),
+    (["--bus", "x", "log", "--csv", "x.csv"], "--bus ('x') is not an integer"),
+    (["--sim", "h:p", "log", "--csv", "x.csv"], "--sim 'h:p': the port 'p' is not a number"),
+    (["tune", "--seed", "-1"], "--seed: '-1' must be within 0..2^64-1"),
+    (["tune", "--png", "x.txt"], "must end in .png"),
+    (["tune", "--png", "/nonexistent/x.png"], "/nonexistent/x.png: cannot write the file"),
+    (["--bus", "1", "tune", "--address", "200"], "not a 7-bit address"),
+    (["view", "--port", "70000"], "--port must be 0..65535"),
+    (["--bus", "1", "view", "--address", "x"], "--address ('x') is not an integer"),
+    (["--sim", ":1", "--bus", "1", "view"], "give --bus N or --sim HOST:PORT, not both"),
 ]
 
 
@@ -253,6 +268,7 @@ def test_the_random_words_cover_the_parser() -> None:
         WORDS
     )
     assert {"goto", "goto-panier", "--png", "--bus", "--raw", "--version"} <= set(WORDS)
+    assert {"view", "tune", "log", "--sim", "--mcap", "--csv", "--replay"} <= set(WORDS)
 
 
 OUTSIDE = st.integers(-(2**31), -32001) | st.integers(32001, 2**31)

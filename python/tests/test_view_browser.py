@@ -79,6 +79,37 @@ def _last(page: Page) -> dict[str, Any]:
     return last
 
 
+#: The scrolling plots and their series' colours (view.js's PLOTS).
+PLOT_SERIES = {
+    "p_speed": {"v_set_mm_s": "#000000", "v_mm_s": "#1565c0"},
+    "p_turn": {"omega_set_deg_s": "#000000", "omega_deg_s": "#1565c0"},
+    "p_err": {"dist_err_mm": "#2e7d32", "angle_err_mm": "#6a1b9a"},
+    "p_duty": {"duty_left": "#ef6c00", "duty_right": "#00838f"},
+    "p_cur": {"current_left_A": "#ef6c00", "current_right_A": "#00838f"},
+}
+
+
+def _drawn(page: Page, canvas: str, colors: list[str]) -> list[int]:
+    """How many pixels of each colour (within 40 of it) the plot's area has, legend apart."""
+    counts: list[int] = page.evaluate(
+        """([id, colors]) => {
+            const cv = document.getElementById(id);
+            const d = cv.getContext('2d').getImageData(49, 20, cv.width - 58, cv.height - 40).data;
+            const rgb = colors.map((c) => [1, 3, 5].map((i) => parseInt(c.slice(i, i + 2), 16)));
+            const n = rgb.map(() => 0);
+            for (let i = 0; i < d.length; i += 4) {
+                if (d[i + 3] < 200) continue;
+                rgb.forEach((c, j) => {
+                    if (Math.hypot(d[i] - c[0], d[i + 1] - c[1], d[i + 2] - c[2]) < 40) n[j] += 1;
+                });
+            }
+            return n;
+        }""",
+        [canvas, colors],
+    )
+    return counts
+
+
 def _shot(page: Page, name: str) -> None:
     if SHOTS:
         Path(SHOTS).mkdir(parents=True, exist_ok=True)
@@ -125,6 +156,11 @@ def test_the_pose_updates_while_the_simulator_runs(browser: Browser, serve: Any)
     t = _last(page)["t_s"]
     page.wait_for_timeout(500)
     assert _last(page)["t_s"] == t
+    # The scrolling plots: speed and turn rate against their set points, the following errors,
+    # the duties and the currents, every series drawn.
+    for canvas, series in PLOT_SERIES.items():
+        counts = _drawn(page, canvas, list(series.values()))
+        assert all(n > 20 for n in counts), (canvas, dict(zip(series, counts, strict=True)))
     _shot(page, "view-sim.png")
 
 

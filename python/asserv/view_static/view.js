@@ -203,12 +203,13 @@ function drawPlot(p) {
   g.fillStyle = "#555"; g.font = "10px sans-serif";
   g.fillText(hi.toPrecision(3), 2, T + 8); g.fillText(lo.toPrecision(3), 2, H - B);
   g.fillText(`${t0.toFixed(1)} s`, L, H - 4); g.fillText(`${tEnd.toFixed(1)} s`, W - R - 40, H - 4);
-  let lx = W - R - 10;
+  // The measured value first, and the set point dashed over it: where they agree, both show.
   for (const [key, color, label] of [...p.series].reverse()) {
     const k = view.ix[key];
     g.save();
     g.beginPath(); g.rect(L, T, W - L - R, H - T - B); g.clip();
     g.strokeStyle = color; g.lineWidth = 1.3;
+    g.setLineDash(label === "set point" ? [5, 4] : []);
     g.beginPath();
     let started = false;
     for (const r of shown) {
@@ -218,6 +219,9 @@ function drawPlot(p) {
     }
     g.stroke();
     g.restore();
+  }
+  let lx = W - R - 10;
+  for (const [, color, label] of [...p.series].reverse()) {
     g.fillStyle = color; g.font = "11px sans-serif";
     lx -= g.measureText(label).width + 12;
     g.fillText(label, lx, 13);
