@@ -70,7 +70,7 @@ void board_default_config(struct board_config *c)
 	c->orders.freeze_radius_um = 30000;
 	c->orders.arrive_window_um = 500;
 	c->orders.arrive_speed_um_s = 5000;
-	c->orders.settle_ms = 20;
+	c->orders.settle_ms = 3;
 	c->orders.settle_timeout_ms = 1000;
 	c->orders.push_speed_um_s = 150000;
 	c->orders.push_max_um = 500000;

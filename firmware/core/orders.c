@@ -269,10 +269,9 @@ void orders_goto(struct orders *o, const struct orders_measure *m, int32_t x_um,
 	}
 	enter(o, ORDER_STATE_ROTATE);
 	profile_stop(&o->dist);
-	/* The first aim (a bearing, the angle's target) waits for the next tick: the tick that
-	 * takes the order has the message and the limits to apply already. The turn starts one
-	 * tick later. */
-	o->aim_wait = 2;
+	/* The first aim (a bearing, the angle's target) at this very step: a robot that already
+	 * faces the target translates at once. */
+	o->aim_wait = 1;
 }
 
 void orders_goto_reverse(struct orders *o, const struct orders_measure *m, int32_t distance_um)
@@ -453,14 +452,24 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 	o->gave_way = 1;
 }
 
+/* The set point has reached its target but for its last creep: within the arrive window of it,
+ * slower than arrive_speed. The settle check overlaps the rest, which the profile finishes. */
+static int nearly_done(const struct orders *o, const struct profile *p)
+{
+	const struct profile_out *out = &p->out;
+
+	return out->done ||
+	       (fx_abs32(profile_get_target_um(p) - out->pos_um) < o->cfg.arrive_window_um &&
+		fx_abs32(out->vel_um_s) < o->cfg.arrive_speed_um_s);
+}
+
+/* The robot within the arrive window of both targets for settle_ms. */
 static int settled(struct orders *o, const struct orders_measure *m)
 {
-	int32_t ed = o->sp_dist.pos_um - m->dist_um;
-	int32_t ea = o->sp_angle.pos_um - m->angle_um;
+	int32_t ed = profile_get_target_um(&o->dist) - m->dist_um;
+	int32_t ea = profile_get_target_um(&o->angle) - m->angle_um;
 
-	if (fx_abs32(ed) < o->cfg.arrive_window_um && fx_abs32(ea) < o->cfg.arrive_window_um &&
-	    fx_abs32(m->dist_speed_um_s) < o->cfg.arrive_speed_um_s &&
-	    fx_abs32(m->angle_speed_um_s) < o->cfg.arrive_speed_um_s) {
+	if (fx_abs32(ed) < o->cfg.arrive_window_um && fx_abs32(ea) < o->cfg.arrive_window_um) {
 		if (o->settle_count < 0xFFFFu)
 			o->settle_count++;
 	} else {
@@ -632,9 +641,11 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 	case ORDER_STATE_TRANSLATE:
 		if (o->designation == PROTO_GOTO)
 			step_goto(o, m);
-		if (profile_is_done(&o->dist) && profile_is_done(&o->angle))
-			enter(o, ORDER_STATE_SETTLE);
-		break;
+		if (!nearly_done(o, &o->dist) || !nearly_done(o, &o->angle))
+			break;
+		/* SETTLE, and at this very step: the robot may be settled already. */
+		enter(o, ORDER_STATE_SETTLE);
+		/* fall through */
 	case ORDER_STATE_SETTLE:
 		if (settled(o, m)) {
 			if (o->designation == PROTO_GOTO && (o->options & ORDERS_OPT_BORDER) &&

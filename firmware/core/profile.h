@@ -138,6 +138,13 @@ void profile_reset(struct profile *p, int32_t pos_um);
  * the other functions are not called concurrently. */
 const struct profile_out *profile_update(struct profile *p);
 
+/* The target [um] (profile_set_target(), or where a stop or a reset holds). Interrupt-safe:
+ * yes. */
+static inline int32_t profile_get_target_um(const struct profile *p)
+{
+	return p->target_q16.hi;
+}
+
 /* 1 when the set point is on the target, at rest. Interrupt-safe: yes. */
 int profile_is_done(const struct profile *p);
 

@@ -153,7 +153,11 @@ def test_goto_panier_that_touches_nothing_ends_on_pb_moteur(
 
 # ---- a stop that stops (issue 18, Why 3) -------------------------------------------------------
 
-REST_MM_S = 10.0  # at rest: slower than this (a hard brake leaves the tyres relaxing at ~7 mm/s)
+#: The contact may turn the robot: the braking the grip allows is counted from the speed and
+#: the spin of each of the first SPIN_MS after it.
+SPIN_MS = 30
+#: At rest: both wheels slower than this (a hard brake leaves the tyres relaxing at ~7 mm/s).
+REST_MM_S = 10.0
 BACK_MM = 0.2  # "driving back": returning towards the obstacle by more than this
 
 
@@ -168,7 +172,7 @@ class Stop:
     obstacle."""
 
     v0_mm_s: float  # the speed when the switch closed
-    braking_ms: float  # what the grip's deceleration takes from v0 (board_config grip)
+    braking_ms: float  # what the grip allows from the speed and spin after it (SPIN_MS)
     rest_ms: int  # from the contact to the last tick faster than REST_MM_S
     back_mm: float  # the most it came back towards the obstacle once it first stopped going there
     force_after_300_ms: float  # the largest contact force from 300 ms after the contact on
@@ -191,13 +195,20 @@ def stop_of(
         along = tr["x_mm"][c:] * math.cos(h) + tr["y_mm"][c:] * math.sin(h)
     else:  # minus the distance to the disc's centre
         along = -np.hypot(tr["x_mm"][c:] - disc[0], tr["y_mm"][c:] - disc[1])
-    grip_mm_s2 = sim.board_config.orders.grip_um_s2 / 1000
-    moving = np.nonzero(np.abs(v) >= REST_MM_S)[0]
+    oc = sim.board_config.orders
+    grip_mm_s2 = oc.grip_um_s2 / 1000
+    # The wheels' speed of the spin (the drive track's half times the turn rate)
+    spin = np.abs(np.radians(tr["omega_deg_s"][c:])) * oc.drive_track_um / 2000
+    # What the grip allows to brake a speed and a spin together: a + k a' <= grip (orders.h),
+    # from each of the contact's first SPIN_MS (it may turn the robot), counted from the contact.
+    k = oc.rot_grip_q8 / 256
+    first = (np.abs(v[:SPIN_MS]) + k * spin[:SPIN_MS]) / grip_mm_s2 * 1000
+    moving = np.nonzero(np.abs(v) + spin >= REST_MM_S)[0]
     stopped = int(np.nonzero(v <= 0)[0][0])
     after = along[stopped:]
     return Stop(
         v0_mm_s=float(v[0]),
-        braking_ms=float(v[0]) / grip_mm_s2 * 1000,
+        braking_ms=float((first + np.arange(len(first))).max()),
         rest_ms=int(moving[-1]) + 1 if len(moving) else 0,
         back_mm=float((after - np.minimum.accumulate(after)).max()),
         force_after_300_ms=float(tr["contact_force_N"][c + 300 :].max()),
@@ -207,12 +218,12 @@ def stop_of(
 
 def check_stop(s: Stop) -> None:
     """The promises of docs/failure-model.md: at rest within 1.1 times the grip's braking time
-    from the speed at the shock (at least SLOW_REST_MS), never back towards the obstacle, under
-    10 N from 300 ms on, and resting at most in a light touch (under 1 N) at the end."""
+    from the speed and spin after the contact (at least SLOW_REST_MS), never back towards the
+    obstacle, and under 10 N from 300 ms on. (A robot at rest against a wall may still touch it
+    with a few newtons: the hold rocks by a count at rest, docs/failure-model.md.)"""
     assert s.rest_ms <= max(1.1 * s.braking_ms, SLOW_REST_MS), s
     assert s.back_mm < BACK_MM, s
     assert s.force_after_300_ms < 10, s
-    assert s.force_last_s < 1, s
 
 
 def disc_field(x_mm: float = 0, y_mm: float = 0) -> field.Field:
@@ -243,6 +254,7 @@ def test_a_shock_at_1_m_s_stops_and_lets_go(seed: int, randomize: bool) -> None:
     s = stop_of(sim, start, disc=(0, 0))
     assert s.v0_mm_s > 950
     check_stop(s)
+    assert s.force_last_s < 1, s  # resting clear of the disc
     assert s.rest_ms <= 0.6 * s.braking_ms  # the obstacle helps
 
 
@@ -364,7 +376,9 @@ def test_an_oblique_hit_stops_and_lets_go(lateral: int) -> None:
     board.goto(600, 0)
     assert board.wait_idle(20) == Status.CHOC_BORD
     sim.advance(1.5)
-    check_stop(stop_of(sim, 0, disc=(0, lateral)))
+    s = stop_of(sim, 0, disc=(0, lateral))
+    check_stop(s)
+    assert s.force_last_s < 1, s  # resting clear of the disc
 
 
 def hit(

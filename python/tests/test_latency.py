@@ -1,6 +1,7 @@
 """bench/latency.py (issue 23, item 8): its measurement functions on generated traces, its
 reading of the board's limits against the simulated board, and real runs whose figures must be
-finite and consistent. Issue 23's goals are held as expected failures until the redesign."""
+finite and consistent, and issue 23's goals: all met at one rate; at the AVR's rates the end's
+10 ms is held as an expected failure (it waits for the 125 Hz planner)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from hypothesis import strategies as st
 
 from asserv import field
 from asserv.driver import Board
-from asserv.sim import TRACE_DTYPE, Frame, Simulator
+from asserv.sim import AVR_RATES, TRACE_DTYPE, Frame, Simulator
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 import latency
@@ -298,13 +299,17 @@ def results(shift: int) -> tuple[latency.MoveResult, ...]:
 @pytest.mark.parametrize("shift", [0, 3])
 def test_todays_latencies_are_finite_and_consistent(shift: int) -> None:
     tick_ms = 1.0
+    grip = int(Simulator().board_config.orders.grip_um_s2)
     for r in results(shift):
         assert r.status == 0 and r.period_ms == tick_ms * (1 << shift)
         # The set point cannot move before the order, nor the move end before the set point
-        # has covered the bound (minus the profile's rounding, within two planner periods).
+        # has covered the bound, but for its last braking from the arrival speed (the board
+        # settles from there on) and the profile's rounding, within two planner periods.
+        _, a = latency.line_limits(r.move.speed_cm_s, r.move.accel_cm_s2, grip)
+        early_ms = latency.ARRIVE_SPEED_MM_S / 1000 / a * 1000 + 2 * r.period_ms
         assert 0 < r.order_ms < 1000
-        assert r.time_s * 1000 >= r.order_ms + r.bound_s * 1000 - 2 * r.period_ms
-        assert r.ratio >= 1 - 2 * r.period_ms / (r.bound_s * 1000)
+        assert r.time_s * 1000 >= r.order_ms + r.bound_s * 1000 - early_ms
+        assert r.ratio >= 1 - early_ms / (r.bound_s * 1000)
         # A reply shows a tick that ran before it was prepared.
         assert all(0 < age < 1000 for age in r.reply_ages_ms)
         # The board reports the end with the robot in the arrival window, which it stays in.
@@ -354,33 +359,37 @@ def test_bad_arguments_exit_2_with_a_message(
     assert message in capsys.readouterr().err
 
 
-# ---- issue 23's goals: met at one rate today, the rest after the redesign ----------------------
+# ---- issue 23's goals ----------------------------------------------------------------------------
 
-REDESIGN = pytest.mark.xfail(strict=False, reason="issue 23: the mailbox redesign")
+#: At the AVR's rates the end is seen at the planner's next snapshot (up to a period, 8 ms, after
+#: the robot settles) and shows at the hand-over planner_ticks (3 ms) later: 10 ms is out of reach
+#: there, whatever the settle test does (docs/latency.md).
+AVR_END = pytest.mark.xfail(
+    strict=True, reason="issue 23: the end waits for the 125 Hz planner and its hand-over"
+)
 
 
-@pytest.mark.parametrize("shift", [0, pytest.param(3, marks=REDESIGN)])
+@pytest.mark.parametrize("shift", [0, 3])
 def test_goal_an_order_reaches_the_servo_the_tick_after_the_planner_takes_it(
     shift: int,
 ) -> None:
-    # The planner takes an order at its next period at the latest; the servo moves at the tick
-    # after.
+    # The planner takes an order at its next snapshot at the latest, a period after it came at
+    # most; its results reach the servo planner_ticks after the snapshot (0 at one rate, 3 at
+    # the AVR's rates: the planner runs in the main loop meanwhile), and the set point moves at
+    # that tick.
+    planner_ticks = AVR_RATES["planner_ticks"] if shift == AVR_RATES["slow_shift"] else 0
     for r in results(shift):
-        assert r.order_ms <= r.period_ms + 1.0, r.move
+        assert r.order_ms <= r.period_ms + planner_ticks + 1.0, r.move
 
 
-@pytest.mark.parametrize(
-    "shift", [pytest.param(0, marks=REDESIGN), pytest.param(3, marks=REDESIGN)]
-)
+@pytest.mark.parametrize("shift", [0, pytest.param(3, marks=AVR_END)])
 def test_goal_the_end_shows_in_check_busy_within_10_ms_of_settling(shift: int) -> None:
     # Polled every 1 ms: the poll sees the end up to 1 ms after it shows.
     for r in results(shift):
         assert r.end_ms <= latency.GOAL_END_MS + latency.POLL_S * 1000, r.move
 
 
-@pytest.mark.parametrize(
-    "shift", [pytest.param(0, marks=REDESIGN), pytest.param(3, marks=REDESIGN)]
-)
+@pytest.mark.parametrize("shift", [0, 3])
 def test_goal_every_straight_move_ends_within_1_02_bound_plus_20_ms(shift: int) -> None:
     for r in results(shift):
         assert latency.within_goal(r.time_s, r.bound_s), r.move
