@@ -62,9 +62,11 @@ LEGACY_CONFIG: dict[str, int] = {
     "control.ff_speed_q15_per_m_s": 0,  # no feed-forward
     "control.ff_accel_q15_per_m_s2": 0,
     "control.ff_angle_accel_q15_per_m_s2": 0,
-    "orders.settle_ms": 1,  # finished on the first tick after both set points end (1 kHz)
+    # finished on the first tick after both set points end (1 kHz): the robot anywhere, and no
+    # set point "nearly done" before it ends (slower than an arrival speed of 0)
+    "orders.settle_ms": 1,
     "orders.arrive_window_um": _BIG,
-    "orders.arrive_speed_um_s": _BIG,
+    "orders.arrive_speed_um_s": 0,
     "faults.following_max_um": _BIG,  # a lag of 67 mm at 1 m/s is its normal behaviour
 }
 

@@ -40,7 +40,9 @@ def test_bench_accuracy_smoke(capsys: pytest.CaptureFixture[str], tmp_path: Path
     assert float(asserv) < 2 and float(calibrated) < 2
     times = cells(out, "trajectory time / time-optimal bound")
     for row in times.values():
-        assert all(1.0 <= float(c) <= 1.05 for c in row[:3])
+        # A move ends once the robot is within the arrival window (0.5 mm) of the target: a few
+        # ms before the bound of the whole distance (2.8 s at 1 m/s) at most.
+        assert all(0.995 <= float(c) <= 1.05 for c in row[:3])
     own = cells(out, "  without the start pose error")
     for row in own.values():
         assert float(row[2]) < 40 and float(row[1]) > float(row[2])  # calibration helps
