@@ -71,6 +71,7 @@ void board_default_config(struct board_config *c)
 	c->orders.arrive_window_um = 500;
 	c->orders.arrive_speed_um_s = 5000;
 	c->orders.settle_ms = 3;
+	c->orders.aim_delay_steps = 0;
 	c->orders.settle_timeout_ms = 1000;
 	c->orders.push_speed_um_s = 150000;
 	c->orders.push_max_um = 500000;

@@ -60,8 +60,9 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	struct profile_config pc;
 
 	if (cfg->drive_track_um < 10000u || cfg->drive_track_um > 1000000u ||
-	    cfg->n_baskets > ORDERS_MAX_BASKETS || cfg->settle_ms == 0 ||
-	    cfg->grip_um_s2 < 100000 || cfg->grip_um_s2 > 50000000 || cfg->rot_grip_q8 == 0)
+	    cfg->aim_delay_steps > 1 || cfg->n_baskets > ORDERS_MAX_BASKETS ||
+	    cfg->settle_ms == 0 || cfg->grip_um_s2 < 100000 || cfg->grip_um_s2 > 50000000 ||
+	    cfg->rot_grip_q8 == 0)
 		return -1;
 	o->cfg = *cfg;
 	/* pi as 355/113 (8e-8 relative). */
@@ -269,9 +270,9 @@ void orders_goto(struct orders *o, const struct orders_measure *m, int32_t x_um,
 	}
 	enter(o, ORDER_STATE_ROTATE);
 	profile_stop(&o->dist);
-	/* The first aim (a bearing, the angle's target) at this very step: a robot that already
-	 * faces the target translates at once. */
-	o->aim_wait = 1;
+	/* The first aim (a bearing, the angle's target) at this very step, or aim_delay_steps
+	 * later: a robot that already faces the target translates then. */
+	o->aim_wait = (uint8_t)(1u + o->cfg.aim_delay_steps);
 }
 
 void orders_goto_reverse(struct orders *o, const struct orders_measure *m, int32_t distance_um)

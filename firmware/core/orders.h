@@ -37,6 +37,10 @@ struct orders_config {
 	uint8_t n_baskets;
 	struct orders_basket baskets[ORDERS_MAX_BASKETS];
 	uint16_t tick_hz;
+	/* Planner steps between the one that takes a GOTO and its first aim, 0 or 1: 0 turns or
+	 * translates at once; 1 spreads the order's first work over two steps, which the AVR's
+	 * 125 Hz planner needs to keep its CPU budget (firmware/ports/avr/robot.c). */
+	uint8_t aim_delay_steps;
 	/* The speed one count of the free wheels over a tick of tick_hz reads on the distance axis
 	 * (half a count's travel times tick_hz) [um/s]: board_init() sets it from the odometry. */
 	int32_t count_um_s;

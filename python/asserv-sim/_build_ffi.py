@@ -290,6 +290,7 @@ struct orders_config {
     int32_t basket_contact_um;
     uint8_t n_baskets;
     uint16_t tick_hz;
+    uint8_t aim_delay_steps;
     uint32_t jerk_um_s3;
     int32_t grip_um_s2;
     uint16_t rot_grip_q8;

@@ -1,7 +1,8 @@
 """bench/latency.py (issue 23, item 8): its measurement functions on generated traces, its
 reading of the board's limits against the simulated board, and real runs whose figures must be
-finite and consistent, and issue 23's goals: all met at one rate; at the AVR's rates the end's
-10 ms is held as an expected failure (it waits for the 125 Hz planner)."""
+finite and consistent, and issue 23's goals: all met at one rate; at the AVR's rates the order's
+and the end's are held as expected failures (the AVR aims a step later for its CPU budget, and
+the end waits for its 125 Hz planner)."""
 
 from __future__ import annotations
 
@@ -369,7 +370,14 @@ AVR_END = pytest.mark.xfail(
 )
 
 
-@pytest.mark.parametrize("shift", [0, 3])
+#: The AVR aims a GOTO a planner step after the one that takes it (orders.aim_delay_steps): its
+#: 125 Hz planner keeps its CPU budget so (firmware/ports/avr/robot.c, docs/latency.md).
+AVR_AIM = pytest.mark.xfail(
+    strict=True, reason="issue 23: the AVR aims a step later, for its CPU budget"
+)
+
+
+@pytest.mark.parametrize("shift", [0, pytest.param(3, marks=AVR_AIM)])
 def test_goal_an_order_reaches_the_servo_the_tick_after_the_planner_takes_it(
     shift: int,
 ) -> None:
