@@ -5,9 +5,9 @@ master polls CHECK_BUSY every 10 ms and reads POSITION every 20 ms over I2C at 1
 counts the instructions the binary executes (a block hook); it has no cycle model, so the CPU load
 is estimated from them with a stated cycles-per-instruction assumption.
 
-Printed: instructions per control tick (the SysTick handler), split into the servo and the slow
-steps (board.c's slow_steps(): orders, planner, faults, uncertainty, the replies; one rate,
-slow_shift 0, they run inside the tick),
+Printed: instructions per control tick (the SysTick handler), split into the servo and the planner
+step (board.c's board_slow(): orders, profiles, faults, uncertainty, the replies; one rate,
+slow_shift 0, it runs inside the tick),
 mean and worst over the move and at 1 m/s (true speed at least 0.95 m/s); the I2C interrupts'
 instructions per bus event; the estimated CPU load at 180 MHz; flash and RAM from the ELF's
 sections. Then the AVR's figures beside, from harness/avr's bench_avr on the one-rate AVR build
@@ -64,9 +64,9 @@ class Bench(Stm32Board):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         cpu = self.cpu
-        # board.c's slow_steps() is static: GCC keeps it out of line today; if a later core
-        # inlines it, the split is not measured (printed as such) and the tick still is.
-        self.slow_entry = cpu.symbols.get("slow_steps", 1) & ~1
+        # The planner step, board.c's board_slow() (called from the tick at one rate); without
+        # its symbol the split is not measured (printed as such) and the tick still is.
+        self.slow_entry = cpu.symbols.get("board_slow", 1) & ~1
         self._slow_at: int | None = None
         self._slow_ret = 0
         self.slow_insns = 0
@@ -260,15 +260,15 @@ def main() -> int:
     )
     print(f"flash {flash} bytes (vectors + .text + .data); RAM {ram} bytes static (.data + .bss)")
     print(f"{b.ticks} ticks ({b.ticks / 1000:.2f} s), 2.4 m at 1 m/s, 1 m/s^2")
-    if "slow_steps" not in b.cpu.symbols:
-        print("(no slow_steps symbol in this ELF: the servo / slow steps split is not measured)")
+    if "board_slow" not in b.cpu.symbols:
+        print("(no board_slow symbol in this ELF: the servo / planner split is not measured)")
     for part, title in (("move", "over the move"), ("cruise", "at 1 m/s")):
         p = b.parts[part]
         print(f"\n{title} ({len(p['tick'].values)} ticks): instructions per tick")
         for k, name in (
             ("tick", "control tick (SysTick handler)"),
-            ("servo", "  servo (the tick without the slow steps)"),
-            ("slow", "  slow steps (slow_steps: orders, planner, faults)"),
+            ("servo", "  servo (the tick without the planner step)"),
+            ("slow", "  planner (board_slow: orders, profiles, faults)"),
         ):
             s = p[k]
             print(f"  {name:<50} {s.mean():8.0f} mean {s.worst():8d} worst")
