@@ -12,8 +12,8 @@ import dataclasses
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
@@ -21,6 +21,9 @@ from hypothesis import strategies as st
 from asserv import EndReason, OrderState, Status, field
 from asserv.driver import Board, GotoOption
 from asserv.sim import AVR_RATES, Simulator
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
+from shock_stop import SLOW_REST_MS, Stop, disc_field, hit, stop_of
 
 MISMATCHED = {"enc_radius_error": (0.0015, -0.0015), "start": (0, -850, 1.0)}
 MOTOR_BITS = Status.PB_MOTEUR | Status.PB_GRAVE
@@ -153,67 +156,7 @@ def test_goto_panier_that_touches_nothing_ends_on_pb_moteur(
 
 # ---- a stop that stops (issue 18, Why 3) -------------------------------------------------------
 
-#: The contact may turn the robot: the braking the grip allows is counted from the speed and
-#: the spin of each of the first SPIN_MS after it.
-SPIN_MS = 30
-#: At rest: both wheels slower than this (a hard brake leaves the tyres relaxing at ~7 mm/s).
-REST_MM_S = 10.0
 BACK_MM = 0.2  # "driving back": returning towards the obstacle by more than this
-
-
-#: Below 0.2 m/s a hard obstacle throws the robot back before it has braked, and that rebound
-#: is braked too: at rest within this, whatever the braking time.
-SLOW_REST_MS = 40
-
-
-@dataclasses.dataclass
-class Stop:
-    """The motion after the first shock, along the heading at the contact, signed towards the
-    obstacle."""
-
-    v0_mm_s: float  # the speed when the switch closed
-    braking_ms: float  # what the grip allows from the speed and spin after it (SPIN_MS)
-    rest_ms: int  # from the contact to the last tick faster than REST_MM_S
-    back_mm: float  # the most it came back towards the obstacle once it first stopped going there
-    force_after_300_ms: float  # the largest contact force from 300 ms after the contact on
-    force_last_s: float  # the largest in the last second of the trace
-
-
-def stop_of(
-    sim: Simulator, start: int, disc: tuple[float, float] | None = None, first: bool = False
-) -> Stop:
-    """The stop after the first shock from trace row start on (from row start itself if
-    first); towards the obstacle is along the heading at the contact (a wall across the path),
-    or towards the centre of disc."""
-    tr = sim.trace[start:]
-    shocked = np.nonzero(tr["shocks"])[0]
-    assert len(shocked), "no shock switch closed"
-    c = 0 if first else int(shocked[0])
-    v = tr["v_mm_s"][c:]
-    if disc is None:
-        h = math.radians(float(tr["heading_deg"][c]))
-        along = tr["x_mm"][c:] * math.cos(h) + tr["y_mm"][c:] * math.sin(h)
-    else:  # minus the distance to the disc's centre
-        along = -np.hypot(tr["x_mm"][c:] - disc[0], tr["y_mm"][c:] - disc[1])
-    oc = sim.board_config.orders
-    grip_mm_s2 = oc.grip_um_s2 / 1000
-    # The wheels' speed of the spin (the drive track's half times the turn rate)
-    spin = np.abs(np.radians(tr["omega_deg_s"][c:])) * oc.drive_track_um / 2000
-    # What the grip allows to brake a speed and a spin together: a + k a' <= grip (orders.h),
-    # from each of the contact's first SPIN_MS (it may turn the robot), counted from the contact.
-    k = oc.rot_grip_q8 / 256
-    first = (np.abs(v[:SPIN_MS]) + k * spin[:SPIN_MS]) / grip_mm_s2 * 1000
-    moving = np.nonzero(np.abs(v) + spin >= REST_MM_S)[0]
-    stopped = int(np.nonzero(v <= 0)[0][0])
-    after = along[stopped:]
-    return Stop(
-        v0_mm_s=float(v[0]),
-        braking_ms=float((first + np.arange(len(first))).max()),
-        rest_ms=int(moving[-1]) + 1 if len(moving) else 0,
-        back_mm=float((after - np.minimum.accumulate(after)).max()),
-        force_after_300_ms=float(tr["contact_force_N"][c + 300 :].max()),
-        force_last_s=float(tr["contact_force_N"][-1000:].max()),
-    )
 
 
 def check_stop(s: Stop) -> None:
@@ -224,12 +167,6 @@ def check_stop(s: Stop) -> None:
     assert s.rest_ms <= max(1.1 * s.braking_ms, SLOW_REST_MS), s
     assert s.back_mm < BACK_MM, s
     assert s.force_after_300_ms < 10, s
-
-
-def disc_field(x_mm: float = 0, y_mm: float = 0) -> field.Field:
-    base = field.load(field.DEFAULT)
-    disc = field.Obstacle("circle", x_mm, y_mm, radius_mm=150)
-    return dataclasses.replace(base, obstacles=(*base.obstacles, disc))
 
 
 @pytest.mark.parametrize(
@@ -335,7 +272,6 @@ def test_any_accepted_accelerations_keep_a_nominal_robot_within_its_grip(
 
 
 def slip_latency_ms(scale: float, wheel: int, at_s: float, seed: int = 0) -> int | None:
-    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
     from slip_latency import latency_ms
 
     return latency_ms(scale, wheel, at_s, seed)
@@ -381,51 +317,22 @@ def test_an_oblique_hit_stops_and_lets_go(lateral: int) -> None:
     assert s.force_last_s < 1, s  # resting clear of the disc
 
 
-def hit(
-    kind: str,
-    speed: int,
-    accel: int,
-    dx: float,
-    lateral: float,
-    seed: int,
-    randomize: bool,
-    board_config: dict[str, int] | None = None,
-) -> tuple[int, Stop]:
-    """A robot from x = -900 mm (-400 below 0.2 m/s) plus dx, along y = 0 at speed and accel,
-    into a wall across its path (its face at x = 0) or a 150 mm disc at (0, lateral); the
-    status it ended with and its stop, measured from the first contact or switch, whichever
-    came first (a switch at the board's slow ticks may be seen after the contact)."""
-    x0 = (-400 if speed < 20 else -900) + dx
-    disc: tuple[float, float] | None = None
-    if kind == "disc":
-        f, disc = disc_field(0, lateral), (0, lateral)
-    else:
-        box = field.Obstacle("box", 20, 0, half_x_mm=20, half_y_mm=200)
-        f = dataclasses.replace(field.load(field.DEFAULT), obstacles=(box,))
-    sim = Simulator(
-        {"start": (x0, 0, 0.0)}, seed=seed, randomize=randomize, field=f, board_config=board_config
-    )
-    board = Board(sim.bus)
-    board.set_vitesse_traj(speed, accel)
-    board.goto(600, 0)
-    status = board.wait_idle(60)
-    sim.advance(1.5)
-    tr = sim.trace
-    c = int(np.nonzero((tr["shocks"] != 0) | (tr["contact_force_N"] > 0))[0][0])
-    assert tr["shocks"][c:].any(), "no switch closed"
-    return int(status), stop_of(sim, c, disc, first=True)
+def hits(min_speed_cm_s: int) -> dict[str, st.SearchStrategy[Any]]:
+    """hit()'s arguments at random: a wall or a disc within a switch's reach, any start within 5
+    mm, any accepted speed from min_speed_cm_s and acceleration, nominal and randomized robots."""
+    return {
+        "kind": st.sampled_from(["wall", "disc"]),
+        "speed": st.integers(min_speed_cm_s, 150),
+        "accel": st.integers(30, 255),
+        "dx": st.floats(-5, 5),
+        "lateral": st.floats(-15, 15),
+        "seed": st.integers(0, 2**16),
+        "randomize": st.booleans(),
+    }
 
 
 @settings(SOAK, max_examples=30)
-@given(
-    kind=st.sampled_from(["wall", "disc"]),
-    speed=st.integers(20, 150),
-    accel=st.integers(30, 255),
-    dx=st.floats(-5, 5),
-    lateral=st.floats(-15, 15),
-    seed=st.integers(0, 2**16),
-    randomize=st.booleans(),
-)
+@given(**hits(20))
 @example(kind="wall", speed=138, accel=255, dx=-4.0, lateral=0.0, seed=2190, randomize=True)
 @example(kind="wall", speed=54, accel=132, dx=4.400390625, lateral=0.0, seed=8738, randomize=True)
 def test_any_hit_from_any_start_stops_within_the_grip(
@@ -459,15 +366,7 @@ def test_the_stop_at_the_avr_s_rate(speed: int) -> None:
 
 
 @settings(SOAK, max_examples=15)
-@given(
-    kind=st.sampled_from(["wall", "disc"]),
-    speed=st.integers(10, 150),
-    accel=st.integers(30, 255),
-    dx=st.floats(-5, 5),
-    lateral=st.floats(-15, 15),
-    seed=st.integers(0, 2**16),
-    randomize=st.booleans(),
-)
+@given(**hits(10))
 def test_any_hit_at_the_avr_s_rates_stops(
     kind: str, speed: int, accel: int, dx: float, lateral: float, seed: int, randomize: bool
 ) -> None:
