@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import os
 import sys
 from collections.abc import Callable
@@ -17,7 +18,15 @@ from typing import Any, NoReturn
 from . import __version__, cli_args, cli_bus, codec
 from .cli_args import Subparsers, UsageError, at_least, finite_float, natural, positive_float
 
-SIMULATOR_MODULES = {"asserv_sim", "asserv_sim._core", "numpy", "matplotlib", "cffi"}
+#: The extra that installs each optional module (numpy is in both: see ``_extra_of``).
+EXTRA_OF = {
+    "asserv_sim": "sim",
+    "cffi": "sim",
+    "matplotlib": "sim",
+    "numpy": "sim",
+    "websockets": "view",
+    "mcap": "view",
+}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -393,21 +402,25 @@ def _add_bench(sub: Subparsers) -> None:
 # main ----------------------------------------------------------------------------------------
 
 
-def _add_optional(module: str, command: str, extra: str, what: str) -> Callable[[Subparsers], None]:
+def _add_optional(
+    module: str, command: str, what: str, options: tuple[str, ...] = ()
+) -> Callable[[Subparsers], None]:
     """A subcommand whose module needs an extra (numpy, mcap, websockets): its own register()
-    when the extra is installed (it sets ``run``), otherwise a parser that says what to install."""
+    when the module imports, otherwise a stand-in that takes any words (``--help`` too) and
+    names the module that is missing; ``main`` then prints the extra to install (exit 1)."""
 
     def add(sub: Subparsers) -> None:
         try:
             mod = importlib.import_module(f".{module}", __package__)
-        except ImportError:
-
-            def missing(args: argparse.Namespace) -> int:
-                raise UsageError(f'{what} is not installed: pip install "asserv[{extra}]"')
-
-            p = sub.add_parser(command, help=f"{what} (needs asserv[{extra}])", add_help=False)
-            p.add_argument("rest", nargs=argparse.REMAINDER)
-            p.set_defaults(func=missing)
+        except ImportError as e:
+            p = sub.add_parser(
+                command, help=f"{what} (needs an extra: {command} --help)", add_help=False
+            )
+            p.add_argument("-h", "--help", action="store_true", default=argparse.SUPPRESS)
+            for option in options:  # what the hint depends on (--replay: no simulator needed)
+                p.add_argument(option, default=argparse.SUPPRESS)
+            cli_bus.add_bus_options(p)
+            p.set_defaults(unavailable=(e.name or "numpy").split(".")[0])
             return
         mod.register(sub)
 
@@ -422,9 +435,9 @@ REGISTER: list[Callable[[Subparsers], None]] = [
     _add_codec,
     _add_calibrate,
     _add_bench,
-    _add_optional("log", "log", "view", "asserv log"),
-    _add_optional("tune", "tune", "sim", "asserv tune"),
-    _add_optional("view", "view", "view", "asserv view"),
+    _add_optional("log", "log", "record a board to MCAP and/or CSV"),
+    _add_optional("tune", "tune", "step responses and a P/I/D sweep"),
+    _add_optional("view", "view", "the robot on its field in the browser", ("--replay",)),
 ]
 
 
@@ -444,16 +457,84 @@ def _prog(args: argparse.Namespace) -> str:
     return " ".join(["asserv", *(w for w in words if w)])
 
 
+def _names_board(args: argparse.Namespace) -> bool:
+    return getattr(args, "bus", None) is not None or getattr(args, "bus_sim", None) is not None
+
+
+def _extra_of(module: str, args: argparse.Namespace) -> str:
+    """The extra that brings ``module`` for this command: numpy comes with asserv[view] (a
+    board: log, view, tune --bus; the lighter one for --help) and with asserv[sim]."""
+    light = args.command in ("log", "view") or _names_board(args) or getattr(args, "help", False)
+    if module == "numpy" and light:
+        return "view"
+    return EXTRA_OF.get(module, "sim")
+
+
+def _installed(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def needs(args: argparse.Namespace) -> dict[str, str]:
+    """The optional modules this command line needs (module: the extra that brings it)."""
+    cmd, board = args.command, _names_board(args)
+    want: list[str] = []
+    if getattr(args, "unavailable", None):
+        want.append(args.unavailable)
+        if getattr(args, "help", False):  # the help of a command this install lacks
+            return {m: _extra_of(m, args) for m in want}
+    replay = getattr(args, "replay", None) is not None
+    if cmd == "view":
+        want += ["numpy", "websockets"] + (["mcap"] if replay else [])
+        if not (board or replay):
+            want.append("asserv_sim")
+    elif cmd == "log":
+        want += ["numpy"] + (["mcap"] if getattr(args, "mcap", None) else [])
+    elif cmd == "tune":
+        want += ["numpy"] + ([] if board else ["asserv_sim"])
+        want += ["matplotlib"] if getattr(args, "png", None) else []
+    elif cmd in ("demo", "sim", "bench") or (cmd == "calibrate" and not board):
+        want += ["asserv_sim", "numpy"]
+        if getattr(args, "mcap", None):
+            want.append("mcap")
+    return {m: _extra_of(m, args) for m in want if not _installed(m)}
+
+
+def missing_hint(prog: str, missing: dict[str, str]) -> str:
+    """One line: what is missing and the extra that installs it."""
+    extras = ",".join(sorted(set(missing.values())))
+    install = f'pip install "asserv[{extras}]"'
+    if set(missing.values()) == {"sim"}:
+        return f"{prog}: the simulator is not installed: {install} {SIM_NOTE}"
+    names = ", ".join(sorted(missing))
+    note = f" {SIM_NOTE}" if "sim" in missing.values() else ""
+    verb = "is" if len(missing) == 1 else "are"
+    return f"{prog}: needs asserv[{extras}] ({names} {verb} not installed): {install}{note}"
+
+
+SIM_NOTE = "(it needs a C compiler and the Python headers)"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code: 0 done, 1 the bus, the board or the run
-    failed, 2 bad usage or input (one line on stderr), 130 interrupted."""
+    failed, or an extra is not installed, 2 bad usage or input (one line on stderr), 130
+    interrupted."""
+    ap = parser()
     try:
-        args = parser().parse_args(argv)
+        args, rest = ap.parse_known_args(argv)
+        if rest and not getattr(args, "unavailable", None):
+            ap.error(f"unrecognized arguments: {' '.join(rest)}")
     except SystemExit as e:  # --help, --version (0) or a usage error (2), already printed
         return e.code if isinstance(e.code, int) else 2
     if cli_bus.is_bus_command(args):
         return cli_bus.run_bus_command(args)
     prog = _prog(args)
+    missing = needs(args)
+    if missing:
+        print(cli_args.one_line(missing_hint(prog, missing)), file=sys.stderr)
+        return 1
     try:
         handler = getattr(args, "func", None) or getattr(args, "run", None) or args.sim_handler
         code: int = handler(args)
@@ -464,13 +545,12 @@ def main(argv: list[str] | None = None) -> int:
         print(cli_args.one_line(f"{prog}: the board would reject this: {e}"), file=sys.stderr)
         return 2
     except ImportError as e:
-        if not (getattr(e, "name", None) in SIMULATOR_MODULES or "asserv[sim]" in str(e)):
+        module = (getattr(e, "name", None) or "").split(".")[0]
+        if "asserv[sim]" in str(e):
+            module = "asserv_sim"
+        if module not in EXTRA_OF:
             raise
-        print(
-            f'{prog}: the simulator is not installed: pip install "asserv[sim]"'
-            " (it needs a C compiler and the Python headers)",
-            file=sys.stderr,
-        )
+        print(missing_hint(prog, {module: _extra_of(module, args)}), file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print(f"{prog}: interrupted (an order already sent goes on; `stop` stops it)")

@@ -32,6 +32,7 @@ from .driver import AsservError, Board, SMBusLike, _flag_names
 __all__ = [
     "BUS_COMMANDS",
     "add_bus_arguments",
+    "add_bus_options",
     "is_bus_command",
     "open_error",
     "parse_address",
@@ -100,6 +101,12 @@ def _bus_options(parser: argparse.ArgumentParser, *, suppress: bool) -> None:
         default=default(False),
         help="add a PEC to every write and check the PEC of every reply",
     )
+
+
+def add_bus_options(parser: argparse.ArgumentParser) -> None:
+    """``--bus``, ``--sim``, ``--address``, ``--pec`` on a subcommand's parser, left out of its
+    namespace when absent (the main parser has them before the subcommand too)."""
+    _bus_options(parser, suppress=True)
 
 
 def add_bus_arguments(
@@ -382,7 +389,10 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = N
                 raise _UsageError(f"--sim {e}") from None
             number = -1
         elif getattr(args, "bus", None) is None:
-            raise _UsageError("--bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi)")
+            raise _UsageError(
+                "--bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi),"
+                " or --sim HOST:PORT for the simulator of `asserv sim serve`"
+            )
         else:
             number = parse_bus(args.bus)
         address = parse_address(args.bus_address)

@@ -48,13 +48,16 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from . import codec
 from . import field as fieldmod
 from ._protocol import EndReason, Filtre, Status
 from .driver import AsservError, Board, GotoOption, Outcome, outcome_of
-from .sim import Frame, Simulator
+
+if TYPE_CHECKING:  # the simulator (asserv[sim]) is imported where a scenario is checked or
+    # played, so that asserv[view] without it imports this module (asserv --bus 1 view)
+    from .sim import Frame, Simulator
 
 SCENARIO_DIR = fieldmod.data_dir("scenarios")
 
@@ -228,6 +231,8 @@ class Scenario:
     events: list[Event] = dataclasses.field(default_factory=list)
 
     def simulator(self, record: bool = True) -> Simulator:
+        from .sim import Simulator
+
         config = dict(self.config)
         if self.start is not None:
             config["start"] = self.start
@@ -334,6 +339,8 @@ def parse(
     """Check a whole scenario; ScenarioError names the first bad line. ``setup_only``: the
     world of a scenario without bus commands (the robot, the field, opponents, events), for
     ``asserv sim serve --scenario``: a bus command is then refused."""
+    from .sim import Simulator
+
     base = base or Path.cwd()
     scn = Scenario(source, fieldmod.load())
     dry = Board(_DryBus(), check=False)
