@@ -53,6 +53,7 @@ from typing import TYPE_CHECKING, Any
 from . import codec
 from . import field as fieldmod
 from ._protocol import EndReason, Filtre, Status
+from .codec import Pose
 from .driver import AsservError, Board, GotoOption, Outcome, outcome_of
 
 if TYPE_CHECKING:  # the simulator (asserv[sim]) is imported where a scenario is checked or
@@ -686,6 +687,7 @@ class Result:
     wall_s: float
     targets: list[tuple[float, float]]
     ok: bool
+    position: Pose | None = None  # the reply of the scenario's last ``position`` line
 
 
 def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
@@ -704,6 +706,7 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
     ok = True
     status = 0
     outcome: Outcome | None = None
+    position: Pose | None = None
     t0 = time.perf_counter()
     steps = scn.steps
     for k, step in enumerate(steps):
@@ -759,6 +762,8 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
                 value = getattr(board, method)(*step.args)
                 if step.command == "goto":
                     targets.append((float(step.args[0]), float(step.args[1])))
+                if step.command == "position":
+                    position = value
                 if value is not None:
                     printer.end_run()
         except AsservError as e:
@@ -777,7 +782,7 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
             f"warning: {scn.source}: the scenario ended with the robot still busy"
             f" ({_flags(int(busy))}): end it with a 'wait' to see how the order ends"
         )
-    return Result(sim, board, status, time.perf_counter() - t0, targets, ok)
+    return Result(sim, board, status, time.perf_counter() - t0, targets, ok, position)
 
 
 def _outcome_name(outcome: Outcome) -> str:
@@ -801,7 +806,8 @@ def summary(res: Result, out: Callable[[str], None] = print) -> float:
     error of the estimate in mm."""
     sim, tr = res.sim, res.sim.trace
     truth = sim.true_pose()
-    pose = res.board.position()
+    # the scenario's own POSITION, the one its log shows; a new read would be a later one
+    pose = res.position or res.board.position()
     last = tr[-1]
     err = math.hypot(last["est_x_mm"] - last["x_mm"], last["est_y_mm"] - last["y_mm"])
     out("")
