@@ -65,7 +65,7 @@ def expectations(profile: str, scenario: str) -> list[tuple[list[str], tuple[int
         (["sim", "run", scenario], (0, "estimate - truth") if sim else hint("sim")),
         (
             ["sim", "run", scenario, "--mcap", "run.mcap"],
-            (0, "mcap: run.mcap") if profile == "both" else hint("view") if sim else hint("sim"),
+            (0, "mcap: run.mcap") if view and sim else hint(*lacks),
         ),
         (["calibrate", "--bus", "1", "--dry-run"], NO_BUS),
         (

@@ -17,6 +17,8 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 PYTHON=${PYTHON:-python3}
 SCENARIO="$ROOT/scenarios/annex.txt"
+# The dependencies at the versions the tests pin (pyproject.toml has the ranges)
+export PIP_CONSTRAINT="$ROOT/constraints.txt"
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 say() { printf -- '-- %s %s\n' "$(date +%T)" "$*"; }
