@@ -7,11 +7,13 @@ subcommand are in ``cli_args``; the commands that drive a board over I2C are in 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import importlib.util
 import os
+import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -174,7 +176,7 @@ def _sim_run(args: argparse.Namespace) -> int:
             zoom=box,
             outline=log.Outline.of(res.sim),
         )
-        print(f"plot: {out}")
+        print(f"plot: {Path(out).resolve()}")
     if args.mcap or args.csv:
         rows, outline = log.from_sim(res.sim), log.Outline.of(res.sim)
         if log.write_outputs("asserv sim run", rows, args.mcap, args.csv, scn.field, outline):
@@ -517,10 +519,49 @@ def missing_hint(prog: str, missing: dict[str, str]) -> str:
 SIM_NOTE = "(it needs a C compiler and the Python headers)"
 
 
+#: What Ctrl-C leaves, by command (``interrupted`` for the others); printed on stderr.
+INTERRUPTED = {
+    "asserv view": "stopped serving the page (Ctrl-C)",
+    "asserv sim serve": "stopped serving (Ctrl-C)",
+    "asserv log": "interrupted: the log is closed with the rows so far",
+    "asserv calibrate": "interrupted (the robot may still be moving: `asserv --bus N stop`)",
+    "asserv tune": "interrupted (the robot may still be moving: `asserv --bus N stop`)",
+}
+
+
+@contextlib.contextmanager
+def _sigint(seen: list[bool]) -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt as usual, and is noted in ``seen``: a command that
+    catches it to close its files or its server still ends with 130."""
+
+    def on_sigint(signum: int, frame: object) -> None:
+        seen.append(True)
+        raise KeyboardInterrupt
+
+    try:
+        before = signal.signal(signal.SIGINT, on_sigint)
+    except ValueError:  # not the main thread: left as it is
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code: 0 done, 1 the bus, the board or the run
     failed, or an extra is not installed, 2 bad usage or input (one line on stderr), 130
-    interrupted."""
+    interrupted by Ctrl-C (one line on stderr that says what it left: INTERRUPTED)."""
+    try:
+        return _main(argv)
+    except BrokenPipeError:  # asserv demo | head: the reader has gone, so has the output
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+
+
+def _main(argv: list[str] | None) -> int:
     ap = parser()
     try:
         args, rest = ap.parse_known_args(argv)
@@ -528,13 +569,28 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"unrecognized arguments: {' '.join(rest)}")
     except SystemExit as e:  # --help, --version (0) or a usage error (2), already printed
         return e.code if isinstance(e.code, int) else 2
-    if cli_bus.is_bus_command(args):
-        return cli_bus.run_bus_command(args)
-    prog = _prog(args)
-    missing = needs(args)
+    prog = "asserv " + args.bus_command if cli_bus.is_bus_command(args) else _prog(args)
+    missing = {} if cli_bus.is_bus_command(args) else needs(args)
     if missing:
         print(cli_args.one_line(missing_hint(prog, missing)), file=sys.stderr)
         return 1
+    seen: list[bool] = []
+    try:
+        with _sigint(seen):
+            code = _run(args, prog)
+    except KeyboardInterrupt:
+        seen.append(True)
+        code = -1
+    if seen and code != 130:  # a command that says 130 has said what it left
+        sys.stdout.flush()
+        print(f"{prog}: {INTERRUPTED.get(prog, 'interrupted')}", file=sys.stderr)
+        return 130
+    return code
+
+
+def _run(args: argparse.Namespace, prog: str) -> int:
+    if cli_bus.is_bus_command(args):
+        return cli_bus.run_bus_command(args)
     try:
         handler = getattr(args, "func", None) or getattr(args, "run", None) or args.sim_handler
         code: int = handler(args)
@@ -552,7 +608,4 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(missing_hint(prog, {module: _extra_of(module, args)}), file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted (an order already sent goes on; `stop` stops it)")
-        return 130
     return code

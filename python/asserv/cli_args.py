@@ -1,7 +1,8 @@
 """The ``asserv`` command line's conventions, as helpers every subcommand uses.
 
-- **Exit codes.** 0 done; 1 the bus or the board failed (or the simulator is not installed);
-  2 bad usage or input: one line on stderr, ``asserv COMMAND: what is wrong``, nothing done.
+- **Exit codes.** 0 done; 1 the bus or the board failed, or an extra is not installed (one
+  line naming it: ``cli.needs``); 2 bad usage or input: one line on stderr, ``asserv COMMAND:
+  what is wrong``, nothing done; 130 Ctrl-C, one line on stderr (``cli.INTERRUPTED``).
 - **Checked first.** Every argument and output path is checked before the bus opens or a long
   run starts: raise ``UsageError`` (or use the ``type=`` checkers below with argparse).
 - **Names and units.** Message names in any case (``message_name``); angles in degrees, raw
