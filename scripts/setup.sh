@@ -24,6 +24,8 @@ test)
 		libnewlib-arm-none-eabi
 		chromium # asserv view's browser tests (Playwright drives it: no browser download)
 	)
+	# the reference MCAP reader (@mcap/core) reads the logs in python/tests/test_log_mcap_js.py
+	command -v npm >/dev/null || DEBIAN_PACKAGES+=(nodejs npm)
 	;;
 *)
 	echo "setup: unknown profile '$SETUP_PROFILE' (demo or test)" >&2
@@ -89,4 +91,14 @@ if [ "$(cat "$STAMP" 2>/dev/null)" != "$stamp" ]; then
 	echo "setup: installing the asserv package ($PIP_EXTRAS) into .venv (pip)"
 	quiet_pip install -q "${PIN[@]}" -e ".[$PIP_EXTRAS]"
 	echo "$stamp" >"$STAMP"
+fi
+if [ "$SETUP_PROFILE" = test ]; then
+	# The npm packages of the tests, at the exact versions of their package-lock.json.
+	NPM_DIR=python/tests/mcap_js
+	npm_stamp=$(sha256sum "$NPM_DIR/package-lock.json" | cut -d' ' -f1)
+	if [ "$(cat "$NPM_DIR/node_modules/.asserv-setup" 2>/dev/null)" != "$npm_stamp" ]; then
+		echo "setup: installing the reference MCAP reader (@mcap/core) into $NPM_DIR (npm ci)"
+		npm ci --prefix "$NPM_DIR" --no-audit --no-fund --loglevel=error >/dev/null
+		echo "$npm_stamp" >"$NPM_DIR/node_modules/.asserv-setup"
+	fi
 fi

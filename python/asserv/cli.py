@@ -13,6 +13,7 @@ import importlib.util
 import os
 import signal
 import sys
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, NoReturn
@@ -163,6 +164,7 @@ def _sim_run(args: argparse.Namespace) -> int:
         scn = scenario.load(path)
     except scenario.ScenarioError as e:
         raise UsageError(str(e)) from None
+    start_ns = time.time_ns()  # the logs' times: the wall clock at the start, plus the run's
     res = scenario.play(scn)
     scenario.summary(res)
     if args.png:
@@ -179,7 +181,10 @@ def _sim_run(args: argparse.Namespace) -> int:
         print(f"plot: {Path(out).resolve()}")
     if args.mcap or args.csv:
         rows, outline = log.from_sim(res.sim), log.Outline.of(res.sim)
-        if log.write_outputs("asserv sim run", rows, args.mcap, args.csv, scn.field, outline):
+        wrote = log.write_outputs(
+            "asserv sim run", rows, args.mcap, args.csv, scn.field, outline, start_ns
+        )
+        if wrote:
             return 2
     return 0 if res.ok else 1
 

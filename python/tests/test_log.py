@@ -175,7 +175,11 @@ _value = st.one_of(
 )
 
 
-@given(st.lists(st.tuples(*[_value] * len(log.LOG_FIELDS)), max_size=30))
+_integer = st.one_of(st.integers(0, 255).map(float), st.just(math.nan))
+_row = st.tuples(*[_integer if n in log.INTEGER else _value for n in log.LOG_FIELDS])
+
+
+@given(st.lists(_row, max_size=30))
 @settings(suppress_health_check=[HealthCheck.function_scoped_fixture], deadline=None)
 def test_any_rows_round_trip(tmp_path: Path, data: list[tuple[float, ...]]) -> None:
     rows = np.array(data, dtype=log.LOG_DTYPE) if data else log.empty(0)
@@ -185,6 +189,19 @@ def test_any_rows_round_trip(tmp_path: Path, data: list[tuple[float, ...]]) -> N
     log.save(rows, mcap=m, csv=c)
     _same(log.read_mcap(m).rows, rows)
     _same(log.read_csv(c), rows)
+    # the integer columns are written as integers: no "5.0" in the CSV or the JSON
+    lines = c.read_text().splitlines()
+    k = [log.LOG_FIELDS.index(n) for n in sorted(log.INTEGER)]
+    for line in lines[1:]:
+        cells = line.split(",")
+        assert all("." not in cells[i] for i in k), line
+
+
+def test_an_integer_column_refuses_a_fraction(tmp_path: Path) -> None:
+    rows = log.empty(1)
+    rows["t_s"], rows["status"] = 0.0, 2.5
+    with pytest.raises(log.LogError, match="the column status holds integers, not 2.5"):
+        log.save(rows, csv=tmp_path / "r.csv")
 
 
 @given(
