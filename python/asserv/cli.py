@@ -20,6 +20,7 @@ from typing import Any, NoReturn
 
 from . import __version__, cli_args, cli_bus, codec
 from .cli_args import Subparsers, UsageError, at_least, finite_float, natural, positive_float
+from .goals import add_strict_flag
 
 #: The extra that installs each optional module (numpy is in both: see ``_extra_of``).
 EXTRA_OF = {
@@ -357,27 +358,27 @@ def _bench_accuracy(args: argparse.Namespace) -> int:
         cli_args.check_output_dir(args.out)
     from . import accuracy
     from .calibration import Plan
+    from .goals import Goals
 
     plan = Plan(turns=args.turns, round_trips=args.round_trips)
-
-    def progress(done: int, total: int) -> None:
-        if done == total or done % max(1, total // 10) == 0:
-            print(f"  {done}/{total} robots", file=sys.stderr, flush=True)
-
-    res = accuracy.bench(
-        args.robots,
-        args.first_seed,
-        plan=plan,
-        jobs=args.jobs,
-        examples=not args.no_png,
-        progress=progress,
-    )
-    for line in accuracy.report(res):
+    with cli_args.progress_bar(args.robots, "robots") as bar:
+        res = accuracy.bench(
+            args.robots,
+            args.first_seed,
+            plan=plan,
+            jobs=args.jobs,
+            examples=not args.no_png,
+            progress=lambda done, total: bar.update(done - bar.n),
+        )
+    goals = Goals("asserv bench accuracy")
+    lines = accuracy.report(res, goals)
+    for line in lines[:-1]:
         print(line)
     if not args.no_png:
         for path in accuracy.plot(res, args.out):
-            print(f"plot: {path}")
-    return 0
+            print(f"plot: {Path(path).resolve()}")
+    print(lines[-1])  # the summary line, last
+    return goals.exit_code(args.strict)
 
 
 def _add_bench(sub: Subparsers) -> None:
@@ -403,6 +404,7 @@ def _add_bench(sub: Subparsers) -> None:
         "--out", default="bench-out", help="directory of the PNGs (default %(default)s)"
     )
     acc.add_argument("--no-png", action="store_true", help="do not write the plots")
+    add_strict_flag(acc)
     acc.set_defaults(func=_bench_accuracy)
 
 
