@@ -3,8 +3,12 @@ them and names the missed ones, and an exit code that only --strict makes 1."""
 
 from __future__ import annotations
 
+import importlib
 import math
 import operator
+import re
+import sys
+from pathlib import Path
 
 import pytest
 from hypothesis import given
@@ -45,3 +49,32 @@ def test_bad_goals_are_refused() -> None:
         Goals("b").check("x", 1, "=<", 2)
     with pytest.raises(ValueError, match="a bench has a name"):
         Goals("")
+
+
+# ---- the benches of bench/ print their goals the same way ----------------------------------------
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
+
+
+@pytest.mark.parametrize(
+    ("module", "argv"),
+    [
+        ("latency", ["--moves", "2", "--shift", "0", "3"]),
+        ("soak", ["--matches", "2", "--seconds", "3", "--jobs", "1"]),
+    ],
+)
+def test_a_bench_marks_its_goals_and_ends_with_the_summary(
+    module: str, argv: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    bench = importlib.import_module(module)
+    assert bench.main(argv) == 0  # a miss is reported, not an error, without --strict
+    out = capsys.readouterr().out
+    marks = re.findall(r"\b(met|MISSED)\b", out.rsplit("\n", 2)[0])
+    last = out.strip().splitlines()[-1]
+    m = re.fullmatch(rf"bench/{module}\.py: goals met: (\d+) of (\d+)(; MISSED: .+)?", last)
+    assert m is not None, last
+    assert len(marks) == int(m[2]) > 0
+    assert marks.count("met") == int(m[1])
+    strict = bench.main([*argv, "--strict"])
+    capsys.readouterr()
+    assert strict == (1 if "MISSED" in marks else 0)
