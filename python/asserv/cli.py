@@ -11,6 +11,7 @@ import contextlib
 import importlib
 import importlib.util
 import os
+import re
 import signal
 import sys
 import time
@@ -411,6 +412,26 @@ def _add_bench(sub: Subparsers) -> None:
 # main ----------------------------------------------------------------------------------------
 
 
+def _completion_command(args: argparse.Namespace) -> int:
+    import shtab
+
+    print(shtab.complete(parser(), args.shell), end="")
+    return 0
+
+
+def _add_completion(sub: Subparsers) -> None:
+    """``asserv completion bash|zsh``: the shell's completion script (shtab), installed as
+    docs/driver.md says."""
+    p = sub.add_parser(
+        "completion",
+        help="print the bash or zsh completion script (docs/driver.md)",
+        description="Print the completion script of the shell: asserv completion bash >"
+        " ~/.local/share/bash-completion/completions/asserv (docs/driver.md).",
+    )
+    p.add_argument("shell", choices=("bash", "zsh"), help="the shell")
+    p.set_defaults(func=_completion_command)
+
+
 def _add_optional(
     module: str, command: str, what: str, options: tuple[str, ...] = ()
 ) -> Callable[[Subparsers], None]:
@@ -447,18 +468,51 @@ REGISTER: list[Callable[[Subparsers], None]] = [
     _add_optional("log", "log", "record a board to MCAP and/or CSV"),
     _add_optional("tune", "tune", "step responses and a P/I/D sweep"),
     _add_optional("view", "view", "the robot on its field in the browser", ("--replay",)),
+    _add_completion,
 ]
 
 
 def parser() -> argparse.ArgumentParser:
     """The whole command line's parser."""
-    ap: argparse.ArgumentParser = _Parser(prog="asserv", description=__doc__.splitlines()[0])
+    ap: argparse.ArgumentParser = _Parser(
+        prog="asserv",
+        description="The asserv command line: the annex demonstration, simulated scenarios,"
+        " protocol tools, and the commands that drive a board (--bus N or --sim HOST:PORT).",
+    )
     ap.add_argument("--version", action="version", version=f"asserv {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for register in REGISTER:
         register(sub)
     cli_bus.add_bus_arguments(ap, sub)
+    _plain_text(ap)
     return ap
+
+
+_MARKUP = re.compile(r"``?([^`]+?)``?")
+
+
+def _plain_text(ap: argparse.ArgumentParser) -> None:
+    """The help as plain text: ``x`` and `x` (docstring and Markdown markup) become 'x', in
+    every parser's description and every argument's help, whoever registered them."""
+    seen: set[int] = set()
+
+    def walk(p: argparse.ArgumentParser) -> None:
+        if id(p) in seen:
+            return
+        seen.add(id(p))
+        if p.description:
+            p.description = _MARKUP.sub(r"'\1'", p.description)
+        for action in p._actions:
+            if isinstance(action.help, str):
+                action.help = _MARKUP.sub(r"'\1'", action.help)
+            if isinstance(action, argparse._SubParsersAction):
+                for choice in action._choices_actions:
+                    if isinstance(choice.help, str):
+                        choice.help = _MARKUP.sub(r"'\1'", choice.help)
+                for child in action.choices.values():
+                    walk(child)
+
+    walk(ap)
 
 
 def _prog(args: argparse.Namespace) -> str:

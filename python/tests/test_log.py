@@ -200,7 +200,7 @@ def test_any_rows_round_trip(tmp_path: Path, data: list[tuple[float, ...]]) -> N
 def test_an_integer_column_refuses_a_fraction(tmp_path: Path) -> None:
     rows = log.empty(1)
     rows["t_s"], rows["status"] = 0.0, 2.5
-    with pytest.raises(log.LogError, match="the column status holds integers, not 2.5"):
+    with pytest.raises(log.LogError, match=r"the column status holds integers, not 2\.5"):
         log.save(rows, csv=tmp_path / "r.csv")
 
 
