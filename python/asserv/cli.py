@@ -21,6 +21,7 @@ from typing import Any, NoReturn
 
 from . import __version__, cli_args, cli_bus, codec
 from .cli_args import Subparsers, UsageError, at_least, finite_float, natural, positive_float
+from .driver import GotoOption
 from .goals import add_strict_flag
 
 #: The extra that installs each optional module (numpy is in both: see ``_extra_of``).
@@ -67,6 +68,12 @@ def _encode(args: argparse.Namespace) -> int:
                 values.append(finite_float(w))
             except argparse.ArgumentTypeError:
                 raise UsageError(f"param {i} ({w!r}) is not a number of degrees") from None
+            continue
+        if f is not None and msg.name == "GOTO" and f.name == "options":
+            try:  # ligne, bord, ligne+bord, as in scenario files and --options
+                values.append(GotoOption.parse(w))
+            except ValueError as e:
+                raise UsageError(f"param {i}: {e}") from None
             continue
         try:
             values.append(int(w, 0))

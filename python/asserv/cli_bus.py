@@ -27,7 +27,7 @@ from . import codec
 from ._protocol import ADDRESS, Filtre, Status
 from .cli_args import UsageError as _UsageError
 from .cli_args import one_line
-from .driver import AsservError, Board, SMBusLike, _flag_names
+from .driver import AsservError, Board, GotoOption, SMBusLike, _flag_names
 
 __all__ = [
     "BUS_COMMANDS",
@@ -133,7 +133,9 @@ def add_bus_arguments(
     p.add_argument("x", metavar="X", help="target X, mm (-32000..32000)")
     p.add_argument("y", metavar="Y", help="target Y, mm (-32000..32000)")
     p.add_argument(
-        "--options", default="0", help="option bits: 1 line recalibration, 2 border recalibration"
+        "--options",
+        default="0",
+        help="recalibration: ligne (1), bord (2), ligne+bord (3), or the number",
     )
     add("goto-reverse").add_argument("distance", metavar="D", help="distance, mm (0..255)")
     p = add("goto-panier")
@@ -242,7 +244,10 @@ def _action(args: argparse.Namespace) -> Action:
         return info_choc
     if cmd == "goto":
         x, y = _int("X", args.x), _int("Y", args.y)
-        opts = _int("--options", args.options)
+        try:
+            opts = GotoOption.parse(args.options)  # the scenario files' names too
+        except ValueError as e:
+            raise _UsageError(f"--options {e}") from None
         _checked("GOTO", x, y, opts)
         return order(lambda b: b.goto(x, y, opts), f"GOTO ({x}, {y}) options {opts}")
     if cmd == "goto-reverse":

@@ -79,18 +79,7 @@ def _num(word: str) -> float:
 
 
 def _options(word: str) -> int:
-    try:
-        return int(word, 0)
-    except ValueError:
-        pass
-    value = 0
-    for part in word.replace("|", "+").split("+"):
-        name = {"ligne": "RECALAGE_LIGNE", "bord": "RECALAGE_BORD"}.get(part.lower(), part.upper())
-        try:
-            value |= GotoOption[name]
-        except KeyError:
-            raise ValueError(word) from None
-    return value
+    return GotoOption.parse(word)  # the same names as the CLI's --options
 
 
 def _filtre(word: str) -> int:
