@@ -21,6 +21,9 @@ ruff check python protocol field bench fuzz
 ruff format --check python protocol field bench fuzz
 mypy
 
+step "structure: no function of firmware/core over 80 lines (Universal Ctags)"
+bash scripts/function_lengths.sh
+
 step "C: build (AddressSanitizer + UndefinedBehaviorSanitizer) and ctest"
 cmake -S . -B build -G Ninja -DASSERV_SANITIZE=ON >/dev/null
 cmake --build build

@@ -395,7 +395,7 @@ class Simulator:
     @property
     def calibration(self) -> Calibration | None:
         """The odometry calibration the board has installed, or None (uncalibrated)."""
-        b = self._h.board
+        b = self._h.board.planner
         if not b.calibrated:
             return None
         c = b.calibration
@@ -540,7 +540,7 @@ class Simulator:
         wheels. With q = configured factor / true factor per wheel, a straight line is seen
         turning by (qR - qL) s / b, and a turn as mean(q) b_true / b times itself: the track the
         heading needs is mean(q) times the true one (docs/calibration.md)."""
-        sc, oc = self._sc, self._h.board.odometry.cfg
+        sc, oc = self._sc, self._h.board.servo.counter.cfg
         q = []
         for i, k in enumerate((oc.left_um_per_count_q16, oc.right_um_per_count_q16)):
             true_um = 2 * math.pi * sc.enc_radius_mm * 1000 * (1 + sc.enc_radius_error[i])
