@@ -1108,9 +1108,9 @@ static void soak_check(struct soak *s, const struct orders *o, uint8_t before, u
 	assert_true(abs(o->sp_angle.pos_um - pa->pos_um - o->sp_angle.vel_um_s / s->hz) <= 2);
 }
 
-/* An upper bound of any order's duration [s] from where the robot is: the farthest target and
- * a half turn, at the slowest speeds and accelerations the soak gives (1 cm/s, 1 cm/s^2), plus
- * the settle timeout, a border's square and back-off, and margin. */
+/* An upper bound of an order's duration [updates]: its distance, a half turn and three pushes'
+ * lengths at the lower of the speeds in effect, four accelerations to it at the lower of the
+ * accelerations, the settle timeout, a border's square, and twice that as margin. */
 static uint32_t order_bound(const struct soak *s, uint32_t dist_um)
 {
 	int32_t v = s->traj_v < s->rot_v ? s->traj_v : s->rot_v;
@@ -1194,7 +1194,7 @@ static void soak(uint16_t hz, uint8_t aim_delay, uint64_t seed, uint32_t n_order
 			int traj = rng_range(0, 1);
 
 			if (sp > 0 && sp < 5)
-				sp = 5; /* the bound below assumes 5 cm/s at least */
+				sp = 5; /* at least 5 cm/s: bounds of seconds, not minutes */
 			if (ac > 0 && ac < 5)
 				ac = 5;
 			if (traj)
