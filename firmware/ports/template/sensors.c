@@ -5,10 +5,11 @@
 #include "template_port.h"
 
 /* The eight shock switches ("capteurs de choc"), bit n = CAPTEUR_n pressed, whatever the pins'
- * polarity. Debounced by the port to at most one control period: the core stops the robot on
- * the first tick that shows a shock switch pressed, so a bounce must not show as a release and
- * a press again, and the debounce must not delay a press by more than a tick. Which switches
- * are on the border side or the basket side is board configuration, not port code. */
+ * polarity. Debounced by the port to at most one control period: the core ORs the ticks of a
+ * planner period and stops the robot in the first period where a switch reads pressed, so a
+ * debounce longer than a tick delays the stop, and a bounce that shows as a release and a press
+ * again re-arms a switch the core had set aside. Which switches are on the border side or the
+ * basket side is board configuration, not port code. */
 uint8_t hal_shock_read(void)
 {
 	return 0; /* no switch pressed */
