@@ -4,6 +4,7 @@
 
 #include <errno.h>
 #include <stddef.h>
+#include <string.h>
 
 #include "board_parts.h"
 #include "fixmath.h"
@@ -46,6 +47,9 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 
 	if (board_config_check(cfg))
 		return -1;
+	/* As a chip's start-up clears its RAM: a board initialised again in place (a power
+	 * cycle of the host port) starts from the same state as a fresh one. */
+	memset(b, 0, sizeof(*b));
 	b->cfg = *cfg;
 	proto_init(&b->proto);
 	if (planner_init(&b->planner, cfg, in, 0) ||

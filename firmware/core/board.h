@@ -227,7 +227,9 @@ void board_default_config(struct board_config *cfg);
 
 /* Power-on: the pose at cfg->start, the specification's initial limits (10 cm/s, 40 cm/s^2),
  * FILTRE_STD, no order; in gives the encoder counts to start from (no jump at the first tick).
- * Returns 0, or -1 when the configuration is out of range. Interrupt-safe: no. */
+ * Every field of b is set, whatever b held: b is cleared first, as a chip's start-up clears its
+ * RAM, so cfg must not point into b. Returns 0, or -1 when the configuration is out of range.
+ * Interrupt-safe: no. */
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
 
 /* Install an odometry calibration, as SET_ODOMETRIE does (a port calls it after board_init()

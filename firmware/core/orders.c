@@ -1,6 +1,8 @@
 /* Orders: the state machine of GOTO, GOTO_REVERSE, GOTO_PANIER and STOP (see orders.h). */
 #include "orders.h"
 
+#include <string.h>
+
 #include "fixmath.h"
 #include "protocol_defs.h"
 
@@ -64,6 +66,9 @@ int orders_init(struct orders *o, const struct orders_config *cfg, uint16_t rate
 	    cfg->settle_ms == 0 || cfg->grip_um_s2 < 100000 || cfg->grip_um_s2 > 50000000 ||
 	    cfg->rot_grip_q8 == 0)
 		return -1;
+	/* Every field from a known value, whatever the memory held (a power cycle re-inits a
+	 * board in place): no recalibration, border push or frozen target carried over. */
+	memset(o, 0, sizeof(*o));
 	o->cfg = *cfg;
 	o->rate_hz = rate_hz;
 	/* pi as 355/113 (8e-8 relative). */

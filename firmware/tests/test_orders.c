@@ -61,17 +61,13 @@ static void base_config(struct orders_config *c)
 	c->border_heading_bound_turn32 = fx_deg_to_turn32(1) / 4;
 }
 
-/* The one place that creates the module (its rate is an argument of orders_init() once the
- * config no longer carries it). The speed of one free-wheel count: half of a 78.54 um count,
- * rounded up, per update, as board_init() derives it. */
+/* The one place that creates the module, at rate_hz updates a second. The speed of one
+ * free-wheel count: half of a 78.54 um count, rounded up, per update, as planner_init()
+ * derives it. */
 static int init_orders(struct orders *o, const struct orders_config *cfg, uint16_t rate_hz,
 		       int32_t dist_um, int32_t angle_um)
 {
-	struct orders_config c = *cfg;
-
-	c.tick_hz = rate_hz;
-	c.count_um_s = 40 * (int32_t)rate_hz;
-	return orders_init(o, &c, dist_um, angle_um);
+	return orders_init(o, cfg, rate_hz, 40 * (int32_t)rate_hz, dist_um, angle_um);
 }
 
 static void make_orders(struct orders *o, const struct orders_config *cfg, uint16_t rate_hz)
