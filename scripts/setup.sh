@@ -20,6 +20,7 @@ test)
 	PIP_EXTRAS=dev,sim
 	DEBIAN_PACKAGES+=(
 		cmake ninja-build pkg-config libcmocka-dev clang-format valgrind clang libclang-rt-14-dev
+		universal-ctags # scripts/function_lengths.sh
 		gcc-avr avr-libc simavr libsimavr-dev libelf-dev bc gcc-arm-none-eabi
 		libnewlib-arm-none-eabi
 		chromium # asserv view's browser tests (Playwright drives it: no browser download)

@@ -36,7 +36,8 @@ int main(void)
 	stm32_adc_sample();
 	port_sample(&in);
 	port_sample_period(&in);
-	/* One rate only: SysTick runs board_slow() through port_slow() right after the tick. */
+	/* One rate only (planner_ticks 0): board_tick() runs board_slow() itself, inside
+	 * port_control_tick(); the port_slow() after it in SysTick then finds nothing due. */
 	if (board_init(&asserv_board, &cfg, &in) != 0) {
 		/* A configuration the core refuses: motors off, no bus, wait for a new binary. */
 		for (;;)
