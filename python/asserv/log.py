@@ -41,6 +41,7 @@ from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._columns import INTEGER, LOG_FIELDS, UNITS
 from .bus import Clock
 from .field import Field
 
@@ -62,35 +63,12 @@ __all__ = [
     "save",
 ]
 
-#: The columns of a log, in order. ``dist_err_mm`` and ``angle_err_mm`` are the following errors
-#: of the distance loop and of the angle loop (as the arc at the drive wheels), as DEBUG reports
-#: them; ``end_reason`` is DEBUG's (the end_reason table of protocol/messages.toml).
-LOG_FIELDS = (
-    "t_s",
-    "x_mm",
-    "y_mm",
-    "heading_deg",
-    "est_x_mm",
-    "est_y_mm",
-    "est_heading_deg",
-    "radius_mm",
-    "v_mm_s",
-    "omega_deg_s",
-    "v_set_mm_s",
-    "omega_set_deg_s",
-    "dist_err_mm",
-    "angle_err_mm",
-    "duty_left",
-    "duty_right",
-    "current_left_A",
-    "current_right_A",
-    "status",
-    "order_state",
-    "end_reason",
-)
+#: The columns of a log, in order, what each is, and those that hold integers: one table,
+#: firmware/ports/host/trace.toml, generated into _columns.py. ``dist_err_mm`` and
+#: ``angle_err_mm`` are the following errors of the distance loop and of the angle loop (as the
+#: arc at the drive wheels), as DEBUG reports them; ``end_reason`` is DEBUG's (the end_reason
+#: table of protocol/messages.toml).
 LOG_DTYPE = np.dtype([(name, "<f8") for name in LOG_FIELDS])
-#: The columns that hold integers (a byte, an enum): written as integers in the CSV and the MCAP.
-INTEGER = frozenset({"status", "order_state", "end_reason"})
 
 #: The MCAP header's profile: JSON messages with JSON schemas, Foxglove's well-known schemas and
 #: asserv.Sample; times are wall-clock ns since 1970 (UTC).
@@ -101,32 +79,6 @@ def _version() -> str:
     from . import __version__
 
     return __version__
-
-
-#: What each column is, for the CSV header's companion and the JSON schema.
-UNITS = {
-    "t_s": "s since the start of the log",
-    "x_mm": "true x (simulator)",
-    "y_mm": "true y (simulator)",
-    "heading_deg": "true heading (simulator)",
-    "est_x_mm": "the board's estimate",
-    "est_y_mm": "the board's estimate",
-    "est_heading_deg": "the board's estimate",
-    "radius_mm": "the board's error radius",
-    "v_mm_s": "forward speed (true in the simulator, measured on a board)",
-    "omega_deg_s": "turn rate (true in the simulator, measured on a board)",
-    "v_set_mm_s": "set-point speed (simulator)",
-    "omega_set_deg_s": "set-point turn rate (simulator)",
-    "dist_err_mm": "following error of the distance loop",
-    "angle_err_mm": "following error of the angle loop, as arc at the drive wheels",
-    "duty_left": "-1..1",
-    "duty_right": "-1..1",
-    "current_left_A": "motor current",
-    "current_right_A": "motor current",
-    "status": "CHECK_BUSY status byte",
-    "order_state": "DEBUG order_state",
-    "end_reason": "DEBUG end_reason",
-}
 
 
 class LogError(ValueError):

@@ -191,7 +191,7 @@ def test_any_rows_round_trip(tmp_path: Path, data: list[tuple[float, ...]]) -> N
     _same(log.read_csv(c), rows)
     # the integer columns are written as integers: no "5.0" in the CSV or the JSON
     lines = c.read_text().splitlines()
-    k = [log.LOG_FIELDS.index(n) for n in sorted(log.INTEGER)]
+    k = [log.LOG_FIELDS.index(n) for n in sorted(log.INTEGER & set(log.LOG_FIELDS))]
     for line in lines[1:]:
         cells = line.split(",")
         assert all("." not in cells[i] for i in k), line
