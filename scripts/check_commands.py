@@ -68,6 +68,7 @@ def expectations(profile: str, scenario: str) -> list[tuple[list[str], tuple[int
             (0, "mcap: run.mcap") if view and sim else hint(*lacks),
         ),
         (["calibrate", "--bus", "1", "--dry-run"], NO_BUS),
+        (["completion", "bash"], (0, "_shtab_asserv")),  # shtab: a dependency of every install
         (
             ["calibrate", "--turns", "1", "--round-trips", "2"],
             (0, "measured") if sim else hint("sim"),
