@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -268,7 +269,9 @@ def test_log_a_board(
     Board(sim.bus).goto(400, -850)
     monkeypatch.setattr(log, "BUS_FACTORY", lambda n: sim.bus)
     m, c = tmp_path / "b.mcap", tmp_path / "b.csv"
+    before = time.time_ns()
     code = cli.main(["--bus", "1", "log", "--mcap", str(m), "--csv", str(c), "--duration", "2"])
+    after = time.time_ns()
     assert code == 0, capsys.readouterr().err
     rows = log.read_csv(c)
     assert 95 <= len(rows) <= 101
@@ -281,6 +284,9 @@ def test_log_a_board(
     back = log.read_mcap(m)
     _same(back.rows, rows)
     assert "/pose/true" not in back.schemas
+    # a board's log is dated on the wall clock too: the log opened between before and after
+    assert back.start_ns is not None and before <= back.start_ns <= after
+    assert back.profile == log.PROFILE
 
 
 @pytest.mark.parametrize(
