@@ -18,6 +18,7 @@ how it runs:
 - ``<!-- example: output asserv ARGS -->``: the block is what ``asserv ARGS`` prints: its lines
   must appear in that output, in order and next to each other; a line ``...`` stands for any
   number of lines left out. A figure quoted in a page is so checked against the command.
+  ``<!-- example: output python bench/NAME.py ARGS -->``: the same for a bench script.
 """
 
 from __future__ import annotations

@@ -8,8 +8,11 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import runpy
 import shlex
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -73,7 +76,11 @@ def test_every_page_has_its_examples_collected() -> None:
     assert all(e.marker in known for e in EXAMPLES), [
         (e.id, e.marker) for e in EXAMPLES if e.marker not in known
     ]
-    assert all(e.marker_arg.startswith("asserv ") for e in EXAMPLES if e.kind == "output")
+    assert all(
+        e.marker_arg.startswith(("asserv ", "python bench/"))
+        for e in EXAMPLES
+        if e.kind == "output"
+    )
 
 
 #: The output of each command an ``output`` block quotes, run once for all its blocks.
@@ -81,6 +88,18 @@ _PRINTED: dict[str, list[str]] = {}
 
 
 def _printed(command: str) -> list[str]:
+    if command not in _PRINTED and command.startswith("python bench/"):
+        argv = shlex.split(command)
+        p = subprocess.run(
+            [sys.executable, str(ROOT / argv[1]), *argv[2:]],
+            capture_output=True,
+            text=True,
+            timeout=1800,
+            check=False,
+            env={**os.environ, "MPLBACKEND": "Agg"},
+        )
+        assert p.returncode == 0, (command, p.stderr[-2000:])
+        _PRINTED[command] = p.stdout.splitlines()
     if command not in _PRINTED:
         out = io.StringIO()
         with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
