@@ -28,7 +28,6 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
@@ -519,10 +518,3 @@ def calibration_report(res: BenchResult, goals: Goals | None = None) -> list[str
             + "; ".join(f"seed {r.seed}: {r.calibration_error}" for r in failed[:3])
         )
     return lines
-
-
-def plot(res: BenchResult, out_dir: str | Path) -> list[Path]:
-    """PNG files: the distributions of the figures, and one robot's runs at the top speed."""
-    from . import plots
-
-    return plots.plot_accuracy(res, Path(out_dir))

@@ -383,7 +383,9 @@ def _bench_accuracy(args: argparse.Namespace) -> int:
     for line in lines[:-1]:
         print(line)
     if not args.no_png:
-        for path in accuracy.plot(res, args.out):
+        from . import plots
+
+        for path in plots.plot_accuracy(res, Path(args.out)):
             print(f"plot: {Path(path).resolve()}")
     print(lines[-1])  # the summary line, last
     return goals.exit_code(args.strict)
