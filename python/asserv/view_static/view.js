@@ -19,6 +19,10 @@ const view = {
   pendingTarget: null,
   sent: [], // commands sent (tests)
   frames: 0, // field drawings
+  access: { commands: false, drive: false, mode: "" }, // what the server lets this page do
+  refused: [], // why the server refused this page's messages
+  notice: "", // a refusal, shown for a few seconds
+  noticeUntil: 0,
 };
 window.asserv = view;
 
@@ -250,7 +254,7 @@ function updatePanel() {
   }
   text("outcome", st.outcome || "none yet");
   text("orders", st.orders ? `(${st.orders} orders)` : "");
-  text("message", st.message || "");
+  text("message", performance.now() < view.noticeUntil ? view.notice : (st.message || ""));
   const target = st.target || view.pendingTarget;
   text("target", target ? `(${target[0].toFixed(0)}, ${target[1].toFixed(0)})` : "none");
   document.getElementById("play").textContent = st.paused ? "play" : "pause";
@@ -259,13 +263,18 @@ function updatePanel() {
   }
 }
 
-function setup(info) {
+function setup(info, access) {
   view.info = info;
+  view.access = access;
   info.fields.forEach((n, i) => { view.ix[n] = i; });
   text("kind", { sim: "simulator", board: "board", replay: "replay" }[info.kind] || info.kind);
+  text("mode", access.mode);
+  document.getElementById("mode").classList.toggle("drive", access.drive);
+  fieldCanvas.classList.toggle("drive", access.drive);
+  document.getElementById("play").disabled = !access.commands;
   document.getElementById("truerow").style.display = info.truth ? "" : "none";
-  document.getElementById("hint").textContent = info.can_goto ?
-    "click on the field: GOTO there" : "replay: no GOTO";
+  document.getElementById("hint").textContent = access.drive ?
+    "click on the field: GOTO there" : "clicks on the field send nothing here";
   const bits = document.getElementById("bits");
   bits.innerHTML = "";
   for (const [name] of info.status_bits) {
@@ -281,6 +290,7 @@ function setup(info) {
     const b = document.createElement("button");
     b.type = "button"; b.className = "speed"; b.dataset.speed = s; b.textContent = `x${s}`;
     b.onclick = () => send({ type: "speed", speed: s });
+    b.disabled = !access.commands;
     sp.appendChild(b);
   }
   drawScene();
@@ -313,7 +323,7 @@ function send(msg) {
 }
 
 fieldCanvas.addEventListener("click", (ev) => {
-  if (!view.info || !view.info.can_goto) return;
+  if (!view.info || !view.access.drive) return;
   const rect = fieldCanvas.getBoundingClientRect();
   const px = (ev.clientX - rect.left) * fieldCanvas.width / rect.width;
   const py = (ev.clientY - rect.top) * fieldCanvas.height / rect.height;
@@ -324,12 +334,21 @@ fieldCanvas.addEventListener("click", (ev) => {
 
 document.getElementById("play").onclick = () => send({ type: "pause", paused: !view.state.paused });
 
+// The token of this run comes in the page's address (asserv view prints it) and goes with the
+// stream's: without it the server lets the page watch, on loopback only, and send nothing.
 function connect() {
-  ws = new WebSocket(`ws://${location.host}/ws`);
+  const token = new URLSearchParams(location.search).get("token");
+  const query = token === null ? "" : `?token=${encodeURIComponent(token)}`;
+  ws = new WebSocket(`ws://${location.host}/ws${query}`);
   ws.onmessage = (ev) => {
     const msg = JSON.parse(ev.data);
-    if (msg.type === "hello") setup(msg.info);
+    if (msg.type === "hello") setup(msg.info, msg.access);
     else if (msg.type === "rows") onRows(msg);
+    else if (msg.type === "refused") {
+      view.refused.push(msg.why);
+      view.notice = `refused: ${msg.why}`;
+      view.noticeUntil = performance.now() + 5000;
+    }
   };
   ws.onclose = () => { text("kind", "disconnected: is asserv view still running?"); };
 }
