@@ -74,6 +74,7 @@ _CONTENT_TYPES = {
     ".html": "text/html; charset=utf-8",
     ".js": "text/javascript; charset=utf-8",
     ".css": "text/css; charset=utf-8",
+    ".svg": "image/svg+xml",
 }
 MAX_MESSAGE_BYTES = 4096  # a page's command is under 100 bytes; a longer message ends the socket
 RATE_HZ = 10.0  # a page's commands a second, sustained (a click, a button)

@@ -197,6 +197,8 @@ def test_server_serves_the_page_and_the_stream() -> None:
         code, ctype, body = _get(srv.url)
         assert code == 200 and ctype.startswith("text/html") and b"view.js" in body
         assert _get(srv.base_url + "view.js")[0] == 200
+        code, ctype, _ = _get(srv.base_url + "favicon.svg")
+        assert code == 200 and ctype == "image/svg+xml"
         for bad in ("nothing.js", "..%2Fview.py", "../view.py", "view_static/view.js"):
             assert _get(srv.base_url + bad)[0] == 404, bad
 

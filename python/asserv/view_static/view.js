@@ -167,9 +167,13 @@ function drawScene() {
 }
 
 // ---- the plots ----------------------------------------------------------------------------
+// Each plot's series, drawn in this order: the first wide and solid, the second thin and dashed
+// over it, so that where the two agree (a set point met, both wheels alike) both still show.
+const UNDER = { width: 3, dash: [] };
+const OVER = { width: 1.3, dash: [5, 4] };
 const PLOTS = [
-  { id: "p_speed", title: "speed [mm/s]", series: [["v_set_mm_s", "#000", "set point"], ["v_mm_s", "#1565c0", "measured"]] },
-  { id: "p_turn", title: "turn rate [deg/s]", series: [["omega_set_deg_s", "#000", "set point"], ["omega_deg_s", "#1565c0", "measured"]] },
+  { id: "p_speed", title: "speed [mm/s]", series: [["v_mm_s", "#1565c0", "measured"], ["v_set_mm_s", "#000", "set point"]] },
+  { id: "p_turn", title: "turn rate [deg/s]", series: [["omega_deg_s", "#1565c0", "measured"], ["omega_set_deg_s", "#000", "set point"]] },
   { id: "p_err", title: "following error [mm at the wheels]", series: [["dist_err_mm", "#2e7d32", "distance"], ["angle_err_mm", "#6a1b9a", "angle"]] },
   { id: "p_duty", title: "duty [-1..1]", series: [["duty_left", "#ef6c00", "left"], ["duty_right", "#00838f", "right"]] },
   { id: "p_cur", title: "current [A]", series: [["current_left_A", "#ef6c00", "left"], ["current_right_A", "#00838f", "right"]] },
@@ -207,13 +211,13 @@ function drawPlot(p) {
   g.fillStyle = "#555"; g.font = "10px sans-serif";
   g.fillText(hi.toPrecision(3), 2, T + 8); g.fillText(lo.toPrecision(3), 2, H - B);
   g.fillText(`${t0.toFixed(1)} s`, L, H - 4); g.fillText(`${tEnd.toFixed(1)} s`, W - R - 40, H - 4);
-  // The measured value first, and the set point dashed over it: where they agree, both show.
-  for (const [key, color, label] of [...p.series].reverse()) {
+  p.series.forEach(([key, color], i) => {
     const k = view.ix[key];
+    const style = i === 0 ? UNDER : OVER;
     g.save();
     g.beginPath(); g.rect(L, T, W - L - R, H - T - B); g.clip();
-    g.strokeStyle = color; g.lineWidth = 1.3;
-    g.setLineDash(label === "set point" ? [5, 4] : []);
+    g.strokeStyle = color; g.lineWidth = style.width;
+    g.setLineDash(style.dash);
     g.beginPath();
     let started = false;
     for (const r of shown) {
@@ -223,7 +227,7 @@ function drawPlot(p) {
     }
     g.stroke();
     g.restore();
-  }
+  });
   let lx = W - R - 10;
   for (const [, color, label] of [...p.series].reverse()) {
     g.fillStyle = color; g.font = "11px sans-serif";
@@ -252,8 +256,9 @@ function updatePanel() {
       el.classList.toggle("on", (status & bit) !== 0);
     }
   }
-  text("outcome", st.outcome || "none yet");
-  text("orders", st.orders ? `(${st.orders} orders)` : "");
+  // The last order that ended; before the first one ends, whether one is under way.
+  text("outcome", st.outcome || (st.orders ? "under way" : "none yet"));
+  text("orders", st.orders ? `(${st.orders} ${st.orders === 1 ? "order" : "orders"} so far)` : "");
   text("message", performance.now() < view.noticeUntil ? view.notice : (st.message || ""));
   const target = st.target || view.pendingTarget;
   text("target", target ? `(${target[0].toFixed(0)}, ${target[1].toFixed(0)})` : "none");
