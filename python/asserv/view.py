@@ -13,8 +13,10 @@ of ``asserv.log.LOG_FIELDS``) and takes the page's commands (``goto``, ``pause``
 ``BoardSource`` runs on any smbus2-like bus, so a simulated bus served by another process is one
 more bus object, not a new source.
 
-Messages on ``/ws`` are JSON. Server to page: ``{"type": "hello", "info": {...}}`` once, then
-``{"type": "rows", "rows": [[...], ...], "state": {...}}`` about 30 times a second. Page to
+Messages on ``/ws`` are JSON. Server to page: ``{"type": "hello", "info": {...}, "access":
+{"commands": bool, "drive": bool, "mode": text}}`` once, then ``{"type": "rows", "rows": [[...],
+...], "state": {...}}`` about 30 times a second, and ``{"type": "refused", "why": text}`` for
+a message refused. Page to
 server: ``{"type": "goto", "x": mm, "y": mm}``, ``{"type": "pause", "paused": bool}``,
 ``{"type": "speed", "speed": 1..50}``. The simulator's and the replay's time stands still
 while no page is open.

@@ -397,3 +397,24 @@ def test_another_host_than_loopback_says_control_is_exposed() -> None:
 def test_each_run_has_its_own_token() -> None:
     tokens = {view.ViewServer(view.SimSource(), "127.0.0.1", 0).token for _ in range(5)}
     assert len(tokens) == 5 and all(len(t) >= 32 for t in tokens)
+
+
+def test_at_most_max_clients_pages(served: Callable[..., Served]) -> None:
+    s = served()
+
+    async def many() -> int:
+        opened = []
+        try:
+            for _ in range(view.MAX_CLIENTS):
+                ws = await connect(s.ws())
+                opened.append(ws)
+                await ws.recv()  # the hello: it is one of the clients now
+            with pytest.raises(InvalidStatus) as e:
+                await connect(s.ws())
+            return e.value.response.status_code
+        finally:
+            for ws in opened:
+                await ws.close()
+
+    assert asyncio.run(many()) == 503
+    assert s.log[-1].endswith(f"{view.MAX_CLIENTS} pages are open already")
