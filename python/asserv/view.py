@@ -619,7 +619,8 @@ class ViewServer:
             # Another host: the page's own origin is the address it was opened at (the Host
             # header). A page of another site that resolves to this machine passes this check,
             # which is why the token is required here for everything.
-            host = request.headers.get("Host", "")
+            hosts = request.headers.get_all("Host")
+            host = hosts[0] if len(hosts) == 1 else ""  # two Host headers: no origin passes
             connection.protocol.origins = [*self.origins, Origin(f"http://{host}")]
         try:
             connection.protocol.process_origin(request.headers)

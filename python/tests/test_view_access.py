@@ -149,6 +149,27 @@ def test_beyond_loopback_the_token_is_needed_even_to_watch(
     assert s.source.target == (500.0, 300.0)
     with pytest.raises(InvalidStatus):
         asyncio.run(_session(s.ws(), [GOTO], origin="http://evil.example"))
+    # A handshake with two Host headers, or two Origin headers: refused, no traceback.
+    two_hosts = "Origin: http://evil.example\r\nHost: evil.example"
+    two_origins = f"Origin: {origin}\r\nOrigin: {origin}"
+    for extra in (two_hosts, two_origins):
+        reply = _raw_handshake(s.srv.port, extra, s.srv.token)
+        assert reply.startswith(("HTTP/1.1 403", "HTTP/1.1 400")), reply
+    assert not any("Traceback" in line for line in s.log)
+
+
+def _raw_handshake(port: int, headers: str, token: str) -> str:
+    """The status line of a WebSocket handshake with these extra header lines."""
+    import socket
+
+    request = (
+        f"GET /ws?token={token} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\n"
+        "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+        f"Sec-WebSocket-Version: 13\r\n{headers}\r\n\r\n"
+    )
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as sock:
+        sock.sendall(request.encode())
+        return sock.recv(4096).decode("latin-1").split("\r\n")[0]
 
 
 def test_a_board_is_watched_unless_control(served: Callable[..., Served]) -> None:
