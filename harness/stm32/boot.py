@@ -323,6 +323,13 @@ class BootBoard(Stm32Board):
         self.system_resets += 1
         self._restart()
 
+    def power_on(self, image: bytes) -> None:
+        """Power off, the flash replaced by ``image`` (as another chip's), power on."""
+        self.wflash.op = None
+        self.wflash.image[:] = image
+        self.wflash._mirror(0, FLASH_SIZE)
+        self.power_cycle()
+
     def running_version(self) -> int | None:
         """The version of the application running (its record in the run slot), or None in
         the bootloader."""

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from smbus2 import i2c_msg
 
@@ -111,8 +111,7 @@ class Image:
         return zlib.crc32(self.data) & 0xFFFF_FFFF
 
 
-@dataclass(frozen=True)
-class BootStatus:
+class BootStatus(NamedTuple):
     state: State
     result: Result
     next: int  # bytes of the download received and programmed
