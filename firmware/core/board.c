@@ -526,6 +526,12 @@ static void apply(struct board *b, const struct proto_msg *msg, struct orders_me
 	case PROTO_SET_ODOMETRIE:
 		(void)set_odometrie(b, msg); /* in range by the message table; see set_odometrie */
 		break;
+	case PROTO_BOOTLOADER:
+		/* The port leaves for its bootloader after this tick (docs/update.md); an order
+		 * started since the protocol layer's check keeps the board here. */
+		if (!orders_busy(&b->orders))
+			b->boot_request = 1;
+		break;
 	default:
 		break; /* ETAT messages never reach the queue */
 	}

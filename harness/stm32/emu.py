@@ -173,8 +173,9 @@ class Cpu:
         """PM0214 2.3.1 (reset): SP from vector 0, PC from vector 1 (the boot alias of flash)."""
         self.uc.reg_write(UC_ARM_REG_SP, self.read32(self.reset_base))
         self.uc.reg_write(UC_ARM_REG_PC, self.read32(self.reset_base + 4))
-        self.halt = False
         self.uc.reg_write(UC_ARM_REG_LR, 0xFFFF_FFFF)
+        self.uc.reg_write(UC_ARM_REG_PRIMASK, 0)  # PM0214 2.1.3: PRIMASK is 0 at reset
+        self.halt = False
 
     def _current_priority(self) -> int:
         return self.priority(self.active[-1]) if self.active else THREAD_PRIORITY

@@ -31,7 +31,7 @@ from smbus2 import i2c_msg
 from test_nvm import CAL, encode
 from test_sessions import assert_same_runs, play
 
-from asserv import Board
+from asserv import Board, OrderRejected, Reject, Status
 from asserv.codec import crc8
 from asserv.scenario import load
 from asserv.update import (
@@ -98,11 +98,42 @@ def test_power_on_without_an_application_enters_the_bootloader(elf: Path, boot_e
     assert b.boot_stalled_ns == 0  # no flash stall while the bootloader ran: the bus never held
 
 
+def test_the_application_enters_the_bootloader_only_when_no_order_runs(
+    elf: Path, boot_elf: Path
+) -> None:
+    """BOOTLOADER (protocol/messages.toml) through the driver: refused with REFUSED_BUSY while
+    an order drives the robot, which goes on; with a wrong key, OUT_OF_RANGE; accepted when the
+    robot is idle: the motors off, a system reset, the bootloader answering."""
+    b = new_board(elf, boot_elf)
+    master = Board(b.bus)
+    master.goto(500, -850)
+    b.sleep(0.2)
+    with pytest.raises(OrderRejected) as e:
+        master.bootloader()
+    assert e.value.reason == Reject.REFUSED_BUSY
+    b.sleep(0.05)
+    assert not b.in_boot() and b.duty != (0, 0) and master.check_busy() & Status.BUSY_TRAJET
+    b.bus.i2c_rdwr(i2c_msg.write(2, bytes([17, 0x12, 0x34])))
+    assert master.last_reject().reason == Reject.OUT_OF_RANGE
+    master.wait_idle(10.0)
+    b.sleep(0.05)
+    assert not b.in_boot() and b.system_resets == 0
+    master.bootloader()
+    b.sleep(0.01)
+    assert b.in_boot() and b.system_resets == 1 and b.duty == (0, 0)
+    info = Updater(b.bus).info()
+    assert info.run_valid and info.run_version == 1 and info.state == State.IDLE
+    Updater(b.bus).start()  # nothing new: the same application again
+    b.sleep(0.05)
+    app_runs(b, 1)
+
+
 def updated(elf: Path, boot_elf: Path) -> tuple[BootBoard, Image]:
     """A board with version 1 running, updated to version 2 over the bus."""
     b = new_board(elf, boot_elf)
     app_runs(b, 1)
-    b.request_bootloader()
+    Board(b.bus).bootloader()  # BOOTLOADER: the application leaves for the bootloader
+    b.sleep(0.01)
     assert b.in_boot()
     new = with_version(load_image(elf), 2)
     seen: list[int] = []
