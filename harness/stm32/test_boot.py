@@ -422,3 +422,69 @@ def test_a_power_cut_at_any_instant_then_the_update_again(
     Updater(b.bus).start()
     b.sleep(2.0)
     app_runs(b, 2)
+
+
+class Unclosed:
+    """The board's bus for the CLI, which closes its bus at the end: left open here."""
+
+    def __init__(self, bus: Any) -> None:
+        self.bus = bus
+        self.clock = bus.clock
+
+    def i2c_rdwr(self, *msgs: Any) -> None:
+        self.bus.i2c_rdwr(*msgs)
+
+    def close(self) -> None:
+        pass
+
+
+def test_asserv_flash_updates_the_board_and_says_what_runs(
+    elf: Path, boot_elf: Path, tmp_path: Path, capsys: Any
+) -> None:
+    from asserv.cli import parser
+    from asserv.cli_bus import run_bus_command
+
+    b = new_board(elf, boot_elf)
+    new = with_version(load_image(elf), 3)
+    path = tmp_path / "asserv_stm32.bin"
+    path.write_bytes(new.data)
+    args = parser().parse_args(["--bus", "1", "flash", str(path)])
+    assert run_bus_command(args, bus_factory=lambda n: Unclosed(b.bus)) == 0
+    out = capsys.readouterr()
+    assert "board 0xf446: runs version 1" in out.out
+    assert "verified: the board read the 46" in out.out
+    assert "running: application version 3" in out.out and "power is cut" in out.out
+    app_runs(b, 3)
+    # The same image again: nothing written, started again.
+    writes = len(b.wflash.log)
+    assert run_bus_command(args, bus_factory=lambda n: Unclosed(b.bus)) == 0
+    assert "has this image already" in capsys.readouterr().out
+    assert len(b.wflash.log) == writes
+    app_runs(b, 3)
+    # An order runs: refused with its reason, the robot goes on.
+    Board(b.bus).goto(500, -850)
+    b.sleep(0.1)
+    assert run_bus_command(args, bus_factory=lambda n: Unclosed(b.bus)) == 1
+    err = capsys.readouterr().err
+    assert "REFUSED_BUSY" in err and "stop the robot" in err and len(err.splitlines()) == 1
+    assert not b.in_boot()
+
+
+def test_asserv_flash_refuses_bad_files_in_one_line(
+    tmp_path: Path, boot_elf: Path, capsys: Any
+) -> None:
+    from asserv.cli import main
+
+    avr = tmp_path / "asserv_avr.elf"
+    avr.write_bytes(b"\x7fELF\x01\x01\x01" + bytes(11) + b"\x53\x00" + bytes(40))
+    junk = tmp_path / "junk.bin"
+    junk.write_bytes(bytes(600))
+    for path, words in (
+        (avr, "ISP"),
+        (junk, "no application record"),
+        (boot_elf, "outside the run slot"),
+        (tmp_path / "none.elf", "No such file"),
+    ):
+        assert main(["--bus", "1", "flash", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert words in err and len(err.splitlines()) == 1 and "Traceback" not in err

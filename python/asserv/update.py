@@ -19,6 +19,7 @@ from smbus2 import i2c_msg
 
 from .bus import clock_of
 from .codec import crc8
+from .driver import AsservError
 
 __all__ = [
     "BOARD_IDS",
@@ -93,7 +94,7 @@ class Result(IntEnum):
     NO_APPLICATION = 14
 
 
-class UpdateError(Exception):
+class UpdateError(AsservError):
     """A refusal (bad image, another board's, a board that says no) or an update that failed:
     the message says what and what to do."""
 
@@ -133,6 +134,11 @@ def _elf_bytes(raw: bytes, name: str) -> bytes:
     """The loadable bytes of a 32-bit little-endian ARM ELF from IMAGE_BASE on (their load
     addresses: .data's initial values too), gaps filled with zeros as objcopy -O binary fills
     them, so that the ELF and its .bin are the same image."""
+    if raw[18:20] == b"\x53\x00":  # EM_AVR
+        raise UpdateError(
+            f"{name}: an AVR image; the ATmega1284P board has no bootloader: flash it with an"
+            " ISP programmer (docs/update.md, 'The AVR')"
+        )
     if raw[4:6] != b"\x01\x01":
         raise UpdateError(f"{name}: not a 32-bit little-endian ELF")
     (machine,) = struct.unpack_from("<H", raw, 18)
@@ -339,3 +345,121 @@ class Updater:
         if st.state != State.READY:
             raise UpdateError(f"END refused: {st.result.name} (the application that ran stays)")
         return st
+
+
+class Progress:
+    """One line on a terminal, rewritten: bytes done, percent, time left (from the rate so far).
+    Quiet when the stream is not a terminal (a log, a pipe)."""
+
+    def __init__(self, stream: Any, clock: Any) -> None:
+        self.stream = stream
+        self.on = bool(getattr(stream, "isatty", lambda: False)())
+        self.clock = clock
+        self.t0 = clock.monotonic()
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.on:
+            return
+        spent = self.clock.monotonic() - self.t0
+        left = spent * (total - done) / done if done else 0.0
+        self.stream.write(
+            f"\r{done / 1024:6.1f}/{total / 1024:.1f} KiB {100 * done // total:3d} %"
+            f"  {left:4.0f} s left "
+        )
+        if done == total:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+AFTER_A_CUT = (
+    "if the power is cut during an update, the board starts the application it had (or the new "
+    "one, if its download was whole): run the same command again"
+)
+
+
+def flash(
+    board: Any, image: Image, progress: Callable[[int, int], None] | None = None
+) -> list[str]:
+    """As _flash, a bus that fails past the retries reported as an UpdateError."""
+    try:
+        return _flash(board, image, progress)
+    except OSError as e:
+        raise UpdateError(f"the bus failed ({e}); " + AFTER_A_CUT) from None
+
+
+def _flash(
+    board: Any, image: Image, progress: Callable[[int, int], None] | None = None
+) -> list[str]:
+    """``asserv flash``: the board (an asserv.Board on its bus) into its bootloader, the image
+    checked against it, downloaded, read back by the board, started; the lines to print.
+    Raises UpdateError (the board refused, or has no bootloader) and OSError (the bus)."""
+    from .driver import Board, OrderRejected
+
+    lines = [
+        f"image: {len(image.data)} bytes, version {image.version}, board 0x{image.board_id:04x}"
+        f" ({BOARD_IDS.get(image.board_id, 'unknown')}), CRC-32 0x{image.crc32:08x}"
+    ]
+    clock = clock_of(board.bus)
+    u = Updater(board.bus, board.address)
+    try:
+        u.info()
+        lines.append("the board is in its bootloader already")
+    except (UpdateError, OSError):
+        try:
+            board.bootloader()
+        except OrderRejected as e:
+            raise UpdateError(
+                f"the board refused to leave its application ({e.reason.name}): an order runs;"
+                " stop the robot (asserv stop), wait, and flash again"
+            ) from None
+        clock.sleep(0.05)
+    try:
+        info: BootInfo = u._retry(u.info, tries=5)
+    except (UpdateError, OSError):
+        raise UpdateError(
+            "the board took BOOTLOADER but no bootloader answers: a board without one (the AVR"
+            " board has none: docs/update.md gives its ISP route), or its bootloader is not flashed"
+        ) from None
+    if info.board_id != image.board_id:
+        raise UpdateError(
+            f"this board is 0x{info.board_id:04x} ({BOARD_IDS.get(info.board_id, 'unknown')}),"
+            f" the image is for 0x{image.board_id:04x}: nothing written; the board stays in its"
+            " bootloader until it is reset or sent `asserv flash` with its own image"
+        )
+    lines.append(
+        f"board 0x{info.board_id:04x}: runs "
+        + (f"version {info.run_version} ({info.run_length} bytes)" if info.run_valid else "nothing")
+    )
+    if info.run_valid and (info.run_crc, info.run_version) == (image.crc32, image.version):
+        lines.append("the board has this image already: started again, nothing written")
+    else:
+        st = u.update(image, progress)
+        lines.append(
+            f"verified: the board read the {st.next} bytes back, CRC-32 0x{image.crc32:08x},"
+            " and wrote their header"
+        )
+    u._retry(u.start)
+    # The bootloader copies the download into the run slot (up to 3 s), then starts it.
+    t_end = clock.monotonic() + 8.0
+    while True:
+        clock.sleep(0.1)
+        try:
+            # A plain read changes nothing in either: the application gives its status, its
+            # PEC, then 0xFF; the bootloader its STATUS, whose offset is never 0xFFFFFFFF.
+            msg = i2c_msg.read(board.address, 7)
+            board.bus.i2c_rdwr(msg)
+            if bytes(msg)[2:6] == b"\xff" * 4:
+                version = Board(board.bus, board.address, pec=True).version()
+                break
+        except (AsservError, OSError):
+            pass
+        if clock.monotonic() > t_end:
+            raise UpdateError(
+                "the new application did not answer within 8 s: read `asserv version`; "
+                + AFTER_A_CUT
+            )
+    lines.append(
+        f"running: application version {image.version} (protocol {version.major}.{version.minor})"
+    )
+    lines.append(AFTER_A_CUT)
+    return lines
