@@ -354,7 +354,7 @@ class FlakyBus:
             ctypes.memmove(msgs[0].buf, bytes(raw), len(raw))
 
 
-@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(faults=st.lists(st.sampled_from([0, 0, 0, 0, 0, 0, 1, 2, 3, 4]), min_size=5, max_size=40))
 def test_lost_resent_and_garbled_frames_never_corrupt_the_image(
     elf: Path, boot_elf: Path, faults: list[int]
@@ -375,7 +375,7 @@ def test_lost_resent_and_garbled_frames_never_corrupt_the_image(
     app_runs(b, 2)
 
 
-@settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     phase=st.sampled_from(["download", "copy"]),
     at=st.floats(0.0, 1.0),
