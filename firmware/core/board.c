@@ -259,8 +259,8 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 	case PROTO_BOOTLOADER:
 		/* The port leaves for its bootloader after this tick (docs/update.md); an order
 		 * started since the protocol layer's check keeps the board here. */
-		if (!orders_busy(&b->orders))
-			b->boot_request = 1;
+		if (!orders_busy(&pl->orders))
+			pl->boot_request = 1;
 		break;
 	default:
 		break; /* ETAT messages never reach the queue */
