@@ -11,7 +11,7 @@
 #define PROTO_QUEUE_DEPTH 8
 #define PROTO_MAX_PARAMS 3
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 17
+#define PROTO_N_MSGS 18
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -31,6 +31,7 @@
 #define PROTO_LAST_REJECT 14 /* extension */
 #define PROTO_SET_TIMEOUT 15 /* extension */
 #define PROTO_SET_ODOMETRIE 16 /* extension */
+#define PROTO_BOOTLOADER 30 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -61,6 +62,7 @@
 #define REJECT_REFUSED_PB_GRAVE 6 /* an order was sent while PB_GRAVE is set */
 #define REJECT_QUEUE_FULL 7 /* more writes than the board can take before its next control tick */
 #define REJECT_ABORTED 8 /* the write was cut short by a bus error */
+#define REJECT_REFUSED_BUSY 16 /* BOOTLOADER was sent while an order runs (the motors driving): stop the robot first */
 
 /* filter codes. */
 #define FILTRE_STD 0 /* standard gains for trajectories */
@@ -110,6 +112,7 @@
 #define ARG_SET_ODOMETRIE_RATIO_PPM 0
 #define ARG_SET_ODOMETRIE_TRACK_10UM 1
 #define ARG_SET_ODOMETRIE_SCALE_PPM 2
+#define ARG_BOOTLOADER_KEY 0
 
 /* Reply lengths [bytes], without PEC. */
 #define PROTO_CHECK_BUSY_REPLY_LEN 1

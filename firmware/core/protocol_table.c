@@ -24,6 +24,7 @@ const struct proto_param_desc proto_params[] = {
 	{-30000, 30000, PROTO_S16, 0x00}, /* SET_ODOMETRIE.ratio_ppm */
 	{1639, 65535, PROTO_U16, 0x00}, /* SET_ODOMETRIE.track_10um */
 	{-30000, 30000, PROTO_S16, 0x00}, /* SET_ODOMETRIE.scale_ppm */
+	{45063, 45063, PROTO_U16, 0x00}, /* BOOTLOADER.key */
 };
 
 const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
@@ -43,7 +44,8 @@ const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
 	{PROTO_LAST_REJECT, PROTO_KIND_ETAT, 0, 0, 1, 1, 3, 16},
 	{PROTO_SET_TIMEOUT, PROTO_KIND_SET, 1, 1, 3, 3, 0, 16},
 	{PROTO_SET_ODOMETRIE, PROTO_KIND_SET, 3, 3, 7, 7, 0, 17},
-	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 20},
+	{PROTO_BOOTLOADER, PROTO_KIND_SET, 1, 1, 3, 3, 0, 20},
+	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 21},
 };
 
 const struct proto_msg_desc *proto_lookup(uint8_t designation)
@@ -82,8 +84,10 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[14];
 	case 16:
 		return &proto_msgs[15];
-	case 200:
+	case 30:
 		return &proto_msgs[16];
+	case 200:
+		return &proto_msgs[17];
 	default:
 		return NULL;
 	}

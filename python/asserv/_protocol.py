@@ -215,6 +215,17 @@ MESSAGES: tuple[Message, ...] = (
         'odometry calibration: right/left wheel-factor ratio, encoder track and common wheel scale (docs/calibration.md)',
     ),
     Message(
+        'BOOTLOADER',
+        30,
+        'SET',
+        (Field('key', 'u16', 45063, 45063), ),
+        1,
+        (),
+        (),
+        True,
+        'leave the application for the bootloader, which takes a firmware update (docs/update.md); refused with REFUSED_BUSY while an order runs; a board without a bootloader ignores it',
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
@@ -263,6 +274,7 @@ class Reject(enum.IntEnum):
     REFUSED_PB_GRAVE = 6
     QUEUE_FULL = 7
     ABORTED = 8
+    REFUSED_BUSY = 16
 
 
 class Filtre(enum.IntEnum):

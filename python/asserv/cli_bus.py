@@ -67,6 +67,7 @@ BUS_COMMANDS: dict[str, str] = {
     "set-odometrie": "SET_ODOMETRIE RATIO_PPM TRACK_MM SCALE_PPM: odometry calibration",
     "wait": "poll the status until the trajectory is over (the annex's while (BUSY_TRAJET))",
     "debug": "read the DEBUG telemetry frame",
+    "flash": "FIRMWARE.elf|bin: update the STM32 board's application over the bus (docs/update.md)",
 }
 
 
@@ -158,6 +159,7 @@ def add_bus_arguments(
     p.add_argument("ratio", metavar="RATIO_PPM", help="right/left wheel factor correction, ppm")
     p.add_argument("track", metavar="TRACK_MM", help="encoder track, mm (to 0.01 mm)")
     p.add_argument("scale", metavar="SCALE_PPM", help="common wheel factor correction, ppm")
+    add("flash").add_argument("firmware", metavar="FIRMWARE", help="the application's ELF or .bin")
     p = add("wait")
     p.add_argument("--timeout", default="30", help="give up after S seconds (default 30)")
     p.add_argument("--poll", default="0.01", help="poll period, seconds (default 0.01)")
@@ -224,6 +226,15 @@ def _action(args: argparse.Namespace) -> Action:
 
     if cmd == "status":
         return lambda b: [_flags(b.check_busy())]
+    if cmd == "flash":
+        from .bus import clock_of
+        from .update import Progress, UpdateError, flash, load_image
+
+        try:
+            image = load_image(args.firmware)
+        except UpdateError as e:
+            raise _UsageError(str(e)) from None
+        return lambda b: flash(b, image, Progress(sys.stderr, clock_of(b.bus)))
     if cmd == "position":
 
         def position(b: Board) -> list[str]:
