@@ -624,7 +624,9 @@ def main(argv: list[str] | None = None) -> int:
     failed, or an extra is not installed, 2 bad usage or input (one line on stderr), 130
     interrupted by Ctrl-C (one line on stderr that says what it left: INTERRUPTED)."""
     try:
-        return _main(argv)
+        code = _main(argv)
+        sys.stdout.flush()  # here, so that a closed pipe is met while it can be handled
+        return code
     except BrokenPipeError:  # asserv demo | head: the reader has gone, so has the output
         with contextlib.suppress(OSError):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
