@@ -125,7 +125,7 @@ def add_bus_arguments(
 
     def add(name: str) -> argparse.ArgumentParser:
         p = subparsers.add_parser(name, parents=[common], help=BUS_COMMANDS[name])
-        p.set_defaults(bus_command=name)
+        p.set_defaults(bus_command=name, func=run_bus_command)
         return p
 
     for name in ("status", "position", "info-choc", "stop", "version", "last-reject", "debug"):

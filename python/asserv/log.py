@@ -1040,4 +1040,4 @@ def register(sub: Any) -> None:
     p.add_argument("--hz", type=float, default=50.0, help="rows a second (default 50)")
     p.add_argument("--duration", type=float, help="seconds (default: until Ctrl-C)")
     p.add_argument("--field", help="field file drawn in the MCAP (default field/default.toml)")
-    p.set_defaults(run=_log_command)
+    p.set_defaults(func=_log_command)
