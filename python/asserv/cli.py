@@ -261,10 +261,10 @@ def _calibrate(args: argparse.Namespace) -> int:
         before = sim.odometry_errors()
         bus: Any = sim.bus
     else:
-        import smbus2
+        from .bus import open_bus
 
         try:
-            bus = smbus2.SMBus(number)
+            bus = open_bus("smbus2", number)
         except OSError as e:
             print(f"{prog}: {cli_bus.open_error(number, e)}", file=sys.stderr)
             return 1

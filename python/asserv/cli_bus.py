@@ -21,10 +21,9 @@ import sys
 from collections.abc import Callable
 from typing import Protocol
 
-import smbus2
-
 from . import codec
 from ._protocol import ADDRESS, Filtre, Status
+from .bus import open_bus
 from .cli_args import UsageError as _UsageError
 from .cli_args import one_line
 from .driver import AsservError, Board, GotoOption, SMBusLike, _flag_names
@@ -383,8 +382,8 @@ def _opened(bus: ClosableBus) -> BusFactory:
 
 def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = None) -> int:
     """Run a parsed bus command; return the exit code (0 done, 1 bus or board error, 2 bad
-    arguments). ``bus_factory(N)`` opens bus N: ``smbus2.SMBus`` (looked up at each call), or a
-    VirtualBus in tests."""
+    arguments). ``bus_factory(N)`` opens bus N: the registry's (``asserv.bus.BACKENDS``) by
+    default, or a VirtualBus in tests."""
     cmd = getattr(args, "bus_command", None) or "?"
     prog = f"asserv {cmd}"
 
@@ -419,15 +418,13 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = N
         return fail(2, str(e))
 
     if remote is not None:
-        from .server import RemoteBus
-
         try:
-            bus: ClosableBus = RemoteBus(host, port)
+            bus: ClosableBus = open_bus("sim", (host, port))
         except OSError as e:
             return fail(1, e.strerror or str(e))
         bus_factory = _opened(bus)
     try:
-        bus = (bus_factory or smbus2.SMBus)(number)
+        bus = bus_factory(number) if bus_factory else open_bus("smbus2", number)
     except OSError as e:
         return fail(1, open_error(number, e))
     try:

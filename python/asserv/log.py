@@ -890,19 +890,6 @@ def write_outputs(
     return 0
 
 
-BusFactory = Callable[[int], Any]
-
-
-def _smbus(number: int) -> Any:
-    import smbus2
-
-    return smbus2.SMBus(number)
-
-
-#: How ``asserv --bus N log`` opens bus N (tests put a simulated bus here).
-BUS_FACTORY: BusFactory = _smbus
-
-
 def bus_options(parser: argparse.ArgumentParser) -> None:
     """``--bus``, ``--sim``, ``--address``, ``--pec`` after the subcommand too (the main parser
     has them before it: asserv --bus 1 log ..., asserv --sim :5021 view), with its names."""
@@ -936,10 +923,10 @@ def open_board(args: argparse.Namespace, prog: str) -> tuple[Board, Any] | int:
     """The board of ``--bus N`` (or ``--sim HOST:PORT``) ``--address A --pec``, and its bus to
     close; or an exit code (2: a bad argument, 1: the bus cannot be opened), the message
     printed. Every argument is checked before anything is opened."""
+    from .bus import open_bus
     from .cli_args import UsageError
     from .cli_bus import open_error, parse_address, parse_bus
     from .driver import Board
-    from .server import RemoteBus
     from .server import parse_address as parse_sim_address
 
     remote = getattr(args, "bus_sim", None)
@@ -958,7 +945,7 @@ def open_board(args: argparse.Namespace, prog: str) -> tuple[Board, Any] | int:
         print(f"{prog}: {e}", file=sys.stderr)
         return 2
     try:
-        bus = RemoteBus(host, port) if remote is not None else BUS_FACTORY(number)
+        bus = open_bus("sim", (host, port)) if remote is not None else open_bus("smbus2", number)
     except OSError as e:
         why = e.strerror or str(e) if remote is not None else open_error(number, e)
         print(f"{prog}: {why}", file=sys.stderr)
