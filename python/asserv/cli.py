@@ -261,7 +261,7 @@ def _calibrate(args: argparse.Namespace) -> int:
         before = sim.odometry_errors()
         bus: Any = sim.bus
     else:
-        from .bus import open_bus
+        from .backends import open_bus
 
         try:
             bus = open_bus("smbus2", number)

@@ -23,7 +23,7 @@ from typing import Protocol
 
 from . import codec
 from ._protocol import ADDRESS, Filtre, Status
-from .bus import open_bus
+from .backends import open_bus
 from .cli_args import UsageError as _UsageError
 from .cli_args import one_line
 from .driver import AsservError, Board, GotoOption, SMBusLike, _flag_names

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from asserv import bus as bus_mod
+from asserv import backends as bus_mod
 from asserv import cli, log, scenario
 from asserv.driver import Board
 from asserv.sim import Simulator

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from asserv import bus as bus_mod
+from asserv import backends as bus_mod
 from asserv import cli, tune
 from asserv.sim import Simulator
 
