@@ -32,7 +32,7 @@ from test_nvm import CAL, encode
 from test_sessions import assert_same_runs, play
 
 from asserv import Board, OrderRejected, Reject, Status
-from asserv.codec import crc8
+from asserv.codec import crc8, message
 from asserv.scenario import load
 from asserv.update import (
     IMAGE_MAX,
@@ -113,7 +113,7 @@ def test_the_application_enters_the_bootloader_only_when_no_order_runs(
     assert e.value.reason == Reject.REFUSED_BUSY
     b.sleep(0.05)
     assert not b.in_boot() and b.duty != (0, 0) and master.check_busy() & Status.BUSY_TRAJET
-    b.bus.i2c_rdwr(i2c_msg.write(2, bytes([17, 0x12, 0x34])))
+    b.bus.i2c_rdwr(i2c_msg.write(2, bytes([message("BOOTLOADER").designation, 0x12, 0x34])))
     assert master.last_reject().reason == Reject.OUT_OF_RANGE
     master.wait_idle(10.0)
     b.sleep(0.05)
@@ -452,7 +452,7 @@ def test_asserv_flash_updates_the_board_and_says_what_runs(
     assert run_bus_command(args, bus_factory=lambda n: Unclosed(b.bus)) == 0
     out = capsys.readouterr()
     assert "board 0xf446: runs version 1" in out.out
-    assert "verified: the board read the 46" in out.out
+    assert f"verified: the board read the {len(new.data)} bytes back" in out.out
     assert "running: application version 3" in out.out and "power is cut" in out.out
     app_runs(b, 3)
     # The same image again: nothing written, started again.
