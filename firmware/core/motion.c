@@ -96,10 +96,8 @@ void motion_order(struct planner *pl, const struct proto_msg *msg)
 		return;
 	}
 	if (d == PROTO_RESUME) {
-		mo->paused = 0;
+		mo->paused = 0; /* a waiting order starts after the orders (motion_after()) */
 		orders_resume(&pl->orders);
-		if (!mo->running)
-			run_next(pl);
 		return;
 	}
 	if (d == PROTO_STOP) { /* abandons everything; the running order ends STOPPED */
@@ -197,23 +195,34 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 		o->corner_window_turn32 = MOTION_CORNER_WINDOW_TURN32;
 }
 
+/* The robot at rest: an order that ended on a contact (a basket) ended at speed, held where it
+ * was measured; the next one waits until the hold has stopped it. */
+static int at_rest(const struct planner *pl)
+{
+	int32_t slow = pl->orders.cfg.arrive_speed_um_s;
+
+	return fx_abs32(pl->m.dist_speed_um_s) < slow && fx_abs32(pl->m.angle_speed_um_s) < slow;
+}
+
 void motion_after(struct planner *pl)
 {
 	struct motion *mo = &pl->motion;
 	uint8_t end;
 
-	if (!mo->running || orders_busy(&pl->orders))
-		return;
-	end = pl->timed_out ? END_REASON_TIMEOUT : pl->orders.end_reason;
-	mo->running = 0;
-	mo->from_queue = 0;
-	mo->stale_bits = 0;
-	mo->last_seq = mo->running_seq;
-	mo->last_end = end;
-	if (end == END_REASON_DONE || end == END_REASON_BORDER || end == END_REASON_BASKET)
+	if (mo->running) {
+		if (orders_busy(&pl->orders))
+			return;
+		end = pl->timed_out ? END_REASON_TIMEOUT : pl->orders.end_reason;
+		mo->running = 0;
+		mo->from_queue = 0;
+		mo->stale_bits = 0;
+		mo->last_seq = mo->running_seq;
+		mo->last_end = end;
+		if (end != END_REASON_DONE && end != END_REASON_BORDER && end != END_REASON_BASKET)
+			drop_queue(mo);
+	}
+	if (mo->count && at_rest(pl))
 		run_next(pl);
-	else
-		drop_queue(mo);
 }
 
 /* Braking from v_um_s at PAUSE's deceleration a_um_s2 on a profile of n_filt ticks'
@@ -252,6 +261,8 @@ void motion_publish(const struct planner *pl, struct proto_snapshot *s)
 	out->braking_ms = 0;
 	if (mo->running && mo->from_queue)
 		s->status |= mo->stale_bits; /* CHECK_BUSY: the end bits of the last order ended */
+	if (mo->count)
+		s->status |= STATUS_BUSY_TRAJET; /* waiting (paused) is busy too */
 	if (o->sp_dist.vel_um_s == 0 && o->sp_angle.vel_um_s == 0)
 		return;
 	out->braking_ms =
