@@ -398,9 +398,17 @@ def decode_reply(
             end_reason=EndReason(v["end_reason"]),
         )
     if msg.name == "MOTION":
-        v = dict(zip((f.name for f in msg.reply), values, strict=True))
-        v["last_end"] = EndReason(v["last_end"])
-        return Motion(**v)
+        m = dict(zip((f.name for f in msg.reply), values, strict=True))
+        return Motion(
+            running_seq=m["running_seq"],
+            pending=m["pending"],
+            flags=m["flags"],
+            last_seq=m["last_seq"],
+            last_end=EndReason(m["last_end"]),
+            braking_mm=m["braking_mm"],
+            braking_ms=m["braking_ms"],
+            scale_percent=m["scale_percent"],
+        )
     raise AssertionError(f"no decoder for {msg.name}")  # the table check keeps this unreachable
 
 
