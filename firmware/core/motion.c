@@ -199,8 +199,6 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 	mo->last_end = END_REASON_DONE;
 	pl->status &= (uint8_t)~STATUS_END_BITS;
 	run_next(pl);
-	if (o->designation == PROTO_GOTO)
-		o->corner_window_turn32 = MOTION_CORNER_WINDOW_TURN32;
 }
 
 /* The robot at rest: an order that ended on a contact (a basket) ended at speed, held where it

@@ -44,7 +44,4 @@ struct motion {
 /* The default corner tolerance (SET_CORNER), [mm]. */
 #define MOTION_CORNER_DEFAULT_MM 30
 
-/* The heading error within which the line after a corner starts (orders.h), 30 degrees. */
-#define MOTION_CORNER_WINDOW_TURN32 ((uint32_t)357913941u)
-
 #endif
