@@ -296,21 +296,25 @@ void motion_publish(const struct planner *pl, struct proto_snapshot *s)
  * or the smoothing changed (a cruise costs nothing). */
 static void update_braking(struct motion *mo, const struct orders *o)
 {
+	/* Each speed rounded up to a step of 2^14 um/s (16.4 mm/s): the figures are those of the
+	 * step's top, bounds still, computed again a few times in an acceleration rather than at
+	 * each period (bench_avr). */
+	int32_t kd = (int32_t)((fx_mag32(o->sp_dist.vel_um_s) + 16383u) >> 14);
+	int32_t ka = (int32_t)((fx_mag32(o->sp_angle.vel_um_s) + 16383u) >> 14);
+	int32_t kf = o->dist.prm.n_filt + o->angle.prm.n_filt;
 	uint16_t ta;
 
-	if (o->sp_dist.vel_um_s == mo->braking_key[0] &&
-	    o->sp_angle.vel_um_s == mo->braking_key[1] &&
-	    o->dist.prm.n_filt + o->angle.prm.n_filt == mo->braking_key[2])
+	if (kd == mo->braking_key[0] && ka == mo->braking_key[1] && kf == mo->braking_key[2])
 		return;
-	mo->braking_key[0] = o->sp_dist.vel_um_s;
-	mo->braking_key[1] = o->sp_angle.vel_um_s;
-	mo->braking_key[2] = o->dist.prm.n_filt + o->angle.prm.n_filt;
+	mo->braking_key[0] = kd;
+	mo->braking_key[1] = ka;
+	mo->braking_key[2] = kf;
 	mo->braking_mm = 0;
 	mo->braking_ms = 0;
-	if (o->sp_dist.vel_um_s != 0)
-		mo->braking_ms = braking(mo, &o->dist, o->sp_dist.vel_um_s, 0, &mo->braking_mm);
-	if (o->sp_angle.vel_um_s != 0) {
-		ta = braking(mo, &o->angle, o->sp_angle.vel_um_s, 1, NULL);
+	if (kd != 0)
+		mo->braking_ms = braking(mo, &o->dist, kd << 14, 0, &mo->braking_mm);
+	if (ka != 0) {
+		ta = braking(mo, &o->angle, ka << 14, 1, NULL);
 		if (ta > mo->braking_ms)
 			mo->braking_ms = ta;
 	}
