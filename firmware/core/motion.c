@@ -299,11 +299,16 @@ static void update_braking(struct motion *mo, const struct orders *o)
 	/* Each speed rounded up to a step of 2^14 um/s (16.4 mm/s): the figures are those of the
 	 * step's top, bounds still, computed again a few times in an acceleration rather than at
 	 * each period (bench_avr). */
-	int32_t kd = (int32_t)((fx_mag32(o->sp_dist.vel_um_s) + 16383u) >> 14);
-	int32_t ka = (int32_t)((fx_mag32(o->sp_angle.vel_um_s) + 16383u) >> 14);
-	int32_t kf = o->dist.prm.n_filt + o->angle.prm.n_filt;
+	int32_t kd, ka, kf;
 	uint16_t ta;
 
+	if (o->sp_dist.vel_um_s == mo->braking_vel[0] && o->sp_angle.vel_um_s == mo->braking_vel[1])
+		return; /* a cruise, a turn at its speed, a hold: the speeds did not change */
+	mo->braking_vel[0] = o->sp_dist.vel_um_s;
+	mo->braking_vel[1] = o->sp_angle.vel_um_s;
+	kd = (int32_t)((fx_mag32(o->sp_dist.vel_um_s) + 16383u) >> 14);
+	ka = (int32_t)((fx_mag32(o->sp_angle.vel_um_s) + 16383u) >> 14);
+	kf = o->dist.prm.n_filt + o->angle.prm.n_filt;
 	if (kd == mo->braking_key[0] && ka == mo->braking_key[1] && kf == mo->braking_key[2])
 		return;
 	mo->braking_key[0] = kd;

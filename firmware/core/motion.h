@@ -39,6 +39,7 @@ struct motion {
 	uint16_t braking_mm; /* MOTION's, and the set points' speeds and smoothing they are of */
 	uint16_t braking_ms;
 	int32_t braking_key[3];
+	int32_t braking_vel[2];
 };
 
 /* The default corner tolerance (SET_CORNER), [mm]. */
