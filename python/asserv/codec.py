@@ -173,6 +173,7 @@ def encode(name: str, *args: int, pec: bool = False, address: int = ADDRESS) -> 
     for f, value in zip(msg.params, args, strict=False):
         _check(msg, f, value)
         out += _pack(f, value)
+    _check_options(msg, list(args))
     if pec:
         out.append(crc8(bytes([write_address(address)]) + out))
     return bytes(out)
@@ -235,7 +236,22 @@ def decode_write(frame: bytes | bytearray | list[int], address: int = ADDRESS) -
         _check(msg, f, value)
         args.append(value)
         pos += size
+    _check_options(msg, args)
     return Write(msg, tuple(args), pec)
+
+
+#: GOTO's recalibration bits, which PASS_THROUGH cannot combine with (issue 31).
+_RECAL_BITS = 0x03
+_PASS_THROUGH = 0x08
+
+
+def _check_options(msg: Message, args: list[int]) -> None:
+    # The board's check after the table's (firmware/core/protocol.c, check_motion()): the
+    # queue's room is the board's state, not the frame's, so MOTION_QUEUE_FULL is not judged here.
+    if msg.name == "GOTO" and len(args) == 3 and args[2] & _PASS_THROUGH and args[2] & _RECAL_BITS:
+        raise FrameError(
+            Reject.BAD_OPTIONS, "GOTO: PASS_THROUGH cannot combine with a recalibration option"
+        )
 
 
 @dataclass(frozen=True, repr=False)
@@ -295,7 +311,29 @@ class Debug:
     end_reason: EndReason
 
 
-Reply = Status | Pose | int | Version | LastReject | Debug
+@dataclass(frozen=True)
+class Motion:
+    """MOTION (extension, issue 31): the queue, the pause, the braking distance, the scale."""
+
+    running_seq: int
+    pending: int
+    flags: int  # bit 0 paused, bit 1 an order runs
+    last_seq: int
+    last_end: EndReason
+    braking_mm: int
+    braking_ms: int
+    scale_percent: int
+
+    @property
+    def paused(self) -> bool:
+        return bool(self.flags & 1)
+
+    @property
+    def running(self) -> bool:
+        return bool(self.flags & 2)
+
+
+Reply = Status | Pose | int | Version | LastReject | Debug | Motion
 
 
 class PecError(ValueError):
@@ -359,11 +397,23 @@ def decode_reply(
             order_state=OrderState(v["order_state"]),
             end_reason=EndReason(v["end_reason"]),
         )
+    if msg.name == "MOTION":
+        m = dict(zip((f.name for f in msg.reply), values, strict=True))
+        return Motion(
+            running_seq=m["running_seq"],
+            pending=m["pending"],
+            flags=m["flags"],
+            last_seq=m["last_seq"],
+            last_end=EndReason(m["last_end"]),
+            braking_mm=m["braking_mm"],
+            braking_ms=m["braking_ms"],
+            scale_percent=m["scale_percent"],
+        )
     raise AssertionError(f"no decoder for {msg.name}")  # the table check keeps this unreachable
 
 
 def reply_fields(reply: Reply) -> dict[str, int]:
     """The reply's values by table field name, for printing and for comparing with the table."""
-    if isinstance(reply, Pose | Version | LastReject | Debug):
+    if isinstance(reply, Pose | Version | LastReject | Debug | Motion):
         return {f.name: int(getattr(reply, f.name)) for f in fields(reply)}
     return {"value": int(reply)}

@@ -333,7 +333,9 @@ class Board:
 
     def goto_reverse(self, distance_mm: int) -> None:
         """GOTO_REVERSE: drive straight backwards over 0..255 mm."""
-        self._command("GOTO_REVERSE", _integer("distance_mm", distance_mm))
+        # With PEC the board needs the full form: the options byte (issue 31), 0.
+        extra = (0,) if self.pec else ()
+        self._command("GOTO_REVERSE", _integer("distance_mm", distance_mm), *extra)
 
     def goto_panier(self, angle_deg: float) -> None:
         """GOTO_PANIER: turn to an absolute heading, drive forwards until the basket is touched.
@@ -348,7 +350,8 @@ class Board:
                 Reject.OUT_OF_RANGE, f"GOTO_PANIER.angle_deg={angle_deg} is outside -180..180"
             )
         steps = math.ceil(abs(angle_deg) / 2 - 0.5)  # nearest, a half step towards zero
-        self._command("GOTO_PANIER", -steps if angle_deg < 0 else steps)
+        extra = (0,) if self.pec else ()  # with PEC, the full form (issue 31's options byte)
+        self._command("GOTO_PANIER", -steps if angle_deg < 0 else steps, *extra)
 
     def stop(self) -> None:
         """STOP (extension): decelerate at the current limits and hold the position reached."""
