@@ -488,3 +488,16 @@ def test_asserv_flash_refuses_bad_files_in_one_line(
         assert main(["--bus", "1", "flash", str(path)]) == 2
         err = capsys.readouterr().err
         assert words in err and len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+def test_asserv_flash_says_when_no_bootloader_answers(elf: Path) -> None:
+    """A board without a bootloader (the AVR's, the simulator's: the host build here) takes
+    BOOTLOADER and carries on; `asserv flash` says so, naming the AVR's ISP route."""
+    from asserv.sim import Simulator
+    from asserv.update import flash
+
+    sim = Simulator(seed=0)
+    board = Board(sim.bus)
+    with pytest.raises(UpdateError, match=r"no bootloader answers.*ISP route"):
+        flash(board, load_image(elf))
+    assert board.check_busy() == 0 and board.last_reject().count == 0  # the board runs on
