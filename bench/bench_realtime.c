@@ -149,9 +149,9 @@ static int tick(struct robot *r)
 	if (r->rec) {
 		/* port_sample() reads the HAL, which still answers this tick's sensors. */
 		port_sample(&r->rec->in[k]);
-		r->rec->duty[k][0] = r->h.board.last_out.duty_q15[0];
-		r->rec->duty[k][1] = r->h.board.last_out.duty_q15[1];
-		r->mix->state_ticks[r->h.board.orders.state % 6]++;
+		r->rec->duty[k][0] = r->h.board.servo.last_out.duty_q15[0];
+		r->rec->duty[k][1] = r->h.board.servo.last_out.duty_q15[1];
+		r->mix->state_ticks[r->h.board.planner.orders.state % 6]++;
 	}
 	return 1;
 }
@@ -184,7 +184,7 @@ static void wait_idle(struct robot *r)
 		}
 	}
 	if (r->mix)
-		r->mix->ends[r->h.board.orders.end_reason & 7]++;
+		r->mix->ends[r->h.board.planner.orders.end_reason & 7]++;
 }
 
 static int32_t rand_in(struct robot *r, int32_t lo, int32_t hi)
@@ -195,7 +195,7 @@ static int32_t rand_in(struct robot *r, int32_t lo, int32_t hi)
 /* The beacon fix: SET_NEW_POS with the estimate's error (estimate - truth), mm and degrees. */
 static void fix_pose(struct robot *r)
 {
-	struct odometry_pose est = odometry_get_pose(&r->h.board.odometry);
+	struct odometry_pose est = board_get_pose(&r->h.board);
 	struct sim_truth t;
 	double ex, ey, ea;
 	int16_t e[3];
@@ -243,7 +243,7 @@ static void leg(struct robot *r)
 /* A short leg (150..300 mm) in a random direction: mostly the turn before it. */
 static void turn(struct robot *r)
 {
-	struct odometry_pose p = odometry_get_pose(&r->h.board.odometry);
+	struct odometry_pose p = board_get_pose(&r->h.board);
 	int32_t x = 0, y = 0;
 
 	if (r->mix)

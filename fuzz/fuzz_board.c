@@ -106,17 +106,19 @@ static const struct proto_snapshot *published(const struct board *x)
 
 static void check_tick(const struct board_outputs *oa, const struct board_outputs *ob)
 {
-	struct odometry_pose pa = odometry_get_pose(&a.odometry);
-	struct odometry_pose pb = odometry_get_pose(&b.odometry);
+	struct odometry_pose pa = board_get_pose(&a);
+	struct odometry_pose pb = board_get_pose(&b);
 	const uint8_t end_bits = STATUS_CHOC_PANIER | STATUS_CHOC_BORD | STATUS_PB_MOTEUR;
 	const struct proto_snapshot *pub = published(&a);
-	uint8_t s = a.cfg.slow_shift ? pub->status : a.status;
+	uint8_t s = a.cfg.slow_shift ? pub->status : a.planner.status;
 
 	FUZZ_CHECK(oa->duty_q15[0] == ob->duty_q15[0] && oa->duty_q15[1] == ob->duty_q15[1]);
 	FUZZ_CHECK(fuzz_snap_equal(published(&a), published(&b)));
-	FUZZ_CHECK(a.status == b.status);
+	FUZZ_CHECK(a.planner.status == b.planner.status);
 	FUZZ_CHECK(pa.x_um == pb.x_um && pa.y_um == pb.y_um &&
 		   pa.heading_turn32 == pb.heading_turn32);
+	FUZZ_CHECK(odometry_get_heading_turn32(&a.servo.counter) ==
+		   odometry_get_heading_turn32(&b.servo.counter));
 
 	if (s & (STATUS_PB_GRAVE | STATUS_PB_MOTEUR))
 		FUZZ_CHECK(oa->duty_q15[0] == 0 && oa->duty_q15[1] == 0);
@@ -142,7 +144,7 @@ static void tick(void)
 		proto_on_stop(&b.proto);
 	}
 	memset(&in, 0, sizeof(in));
-	sample(&in, &a.last_out);
+	sample(&in, &a.servo.last_out);
 	board_tick(&a, &in, &oa);
 	board_tick(&b, &in, &ob);
 	check_tick(&oa, &ob);

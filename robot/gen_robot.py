@@ -134,7 +134,7 @@ def derive(robot: Any) -> list[Constant]:
         lround(v["enc_track_mm"] * 1000.0),
         (1 << 14, 1 << 21),  # ODOMETRY_TRACK_UM_MIN..MAX (odometry.h), uncertainty.c
         "encoders.track_mm",
-        "odometry.track_um uncertainty.track_um",
+        "odometry.track_um",
         f"free wheels {v['enc_track_mm']:g} mm apart",
     )
     add(

@@ -39,7 +39,7 @@ struct board_outputs {
 	int16_t duty_q15[2];
 };
 
-/* The bounds of the odometry's calibration residuals, as uncertainty_config states them. */
+/* The bounds of the odometry's calibration residuals, as uncertainty_model states them. */
 struct board_residuals {
 	uint32_t ratio_error_ppm; /* right/left wheel factor ratio [1e-6] */
 	uint32_t track_error_um;  /* encoder track, including the common scale's effect [um] */
@@ -55,15 +55,21 @@ struct board_calibration {
 };
 
 struct board_config {
-	uint16_t tick_hz;   /* control rate, 100..2000 */
-	uint8_t slow_shift; /* the slow steps every 2^slow_shift ticks, 0..3, at 100 Hz or more */
-	/* The servo takes the slow steps' results this many ticks after the snapshot they work
-	 * on, 0..2^slow_shift: the time a port gives them. 0: board_tick() runs them itself,
+	uint16_t tick_hz; /* control rate, 100..2000: the servo's; the planner's is >> slow_shift */
+	uint8_t slow_shift; /* the planner every 2^slow_shift ticks, 0..3, at 100 Hz or more */
+	/* The servo takes the planner's results this many ticks after the snapshot they work
+	 * on, 0..2^slow_shift: the time a port gives them. 0: board_tick() runs the planner itself,
 	 * between the snapshot and the hand-over (one context: the host, the STM32, the AVR at one
-	 * rate); the AVR at 125 Hz runs them in its main loop, preempted by the servo: 3. */
+	 * rate); the AVR at 125 Hz runs it in its main loop, preempted by the servo: 3. */
 	uint8_t planner_ticks;
-	struct odometry_config odometry;
+	struct odometry_config
+		odometry; /* the build's nominal wheels (SET_ODOMETRIE scales them) */
 	struct uncertainty_config uncertainty;
+	/* The residual bounds of the odometry's model: of a calibrated robot, and of one whose
+	 * odometry is not calibrated (the build's nominal wheel factors and track against the real
+	 * wheels). The error radius uses uncalibrated's until a calibration is installed. */
+	struct board_residuals calibrated;
+	struct board_residuals uncalibrated;
 	struct control_config control;
 	struct faults_config faults;
 	struct orders_config orders;
@@ -73,10 +79,6 @@ struct board_config {
 	 * the error radius starts from them. 0 and 0: the start pose is the reference. */
 	uint32_t start_radius_um;
 	uint32_t start_heading_bound_turn32;
-	/* The residual bounds of a robot whose odometry is not calibrated (the build's nominal
-	 * wheel factors and track against the real wheels): the error radius uses them until a
-	 * calibration is installed, then uncertainty's (those of a calibrated robot). */
-	struct board_residuals uncalibrated;
 	/* What the odometry may not see, by which the error radius widens: a slide sideways in a
 	 * collision, decelerated by the wheels' friction; a free wheel that does not count. */
 	struct board_unseen {
@@ -87,15 +89,15 @@ struct board_config {
 	} unseen;
 };
 
-/* What the servo hands the slow steps at a slow tick: the measure of that tick and the sums of
- * the period since the last one. */
+/* What the servo hands the planner at the end of a period (the mailbox's up half): the measure
+ * of that tick and the sums of the period since the last one. */
 struct board_snapshot {
 	struct board_inputs in; /* of that tick, but shocks and basket: pressed at any tick of it */
 	int32_t dist_um;        /* the distance axis at the period's end */
 	int32_t angle_um;       /* the angle axis at the period's end */
 	/* The sums of the ticks' steps over the period, modulo 2^32 (a period's are far below: 8
-	 * ticks of at most 32.8 mm; they would wrap after 2 km in one period, the slow steps
-	 * stuck). The free wheels' travels are the slow steps', from in.free_count (a period's
+	 * ticks of at most 32.8 mm; they would wrap after 2 km in one period, the planner
+	 * stuck). The free wheels' travels are the planner's, from in.free_count (a period's
 	 * count change is read as a signed 16-bit one: 8 ticks at 2.5 m/s are 256 counts). */
 	int32_t ds_um;         /* distance axis change over the period */
 	int32_t arc_um;        /* angle axis change over the period */
@@ -116,23 +118,15 @@ struct board_snapshot {
 	uint8_t transactions;
 };
 
-/* The set points of both axes for the end of a period, and the step per tick that takes the
- * servo there from the last ones: written by the slow steps into the pair's other half, which
- * the servo takes at the hand-over. */
-struct board_setpoints {
+/* What the planner hands the servo (the mailbox's down half), taken planner_ticks after the
+ * snapshot it worked on: the set points of both axes for the end of the next period, the step
+ * per tick that takes the servo there from the last ones, and what else changes at once. */
+struct board_handover {
 	struct orders_axis dist;
 	struct orders_axis angle;
 	struct orders_axis dist_step;
 	struct orders_axis angle_step;
-};
-
-/* What the slow steps hand the servo, applied at the next slow tick (or at once with
- * slow_shift 0). */
-struct board_handover {
-	struct odometry_config odometry_cfg; /* set_odometry, with its tables */
-	struct odometry_wheel odometry_wheels[2];
-	struct control_gains gains; /* set_gains */
-	uint8_t set_odometry;
+	struct control_gains gains; /* with set_gains */
 	uint8_t set_gains;
 	uint8_t reset;      /* forget the PIDs' integrals */
 	uint8_t jump;       /* the set points at once, not over the period (a stop: hold here) */
@@ -140,55 +134,58 @@ struct board_handover {
 	uint8_t publish;    /* a reply snapshot is drafted (proto_draft()) */
 };
 
-struct board {
-	struct board_config cfg;
-	struct proto proto; /* shared with the I2C interrupt */
-	struct odometry odometry;
+/* SET_ODOMETRIE's wheels, derived by the planner (the costly part), installed by the servo at
+ * the end of a period after its travel. Not double-buffered: 780 bytes, and the planner writes
+ * them only while pending is 0. */
+struct board_wheels {
+	struct odometry_config cfg;
+	struct odometry_wheel wheels[2];
+	uint8_t pending;
+};
+
+/* The servo: what board_tick() owns and writes, every tick. */
+struct servo {
+	struct odometry_counter counter;
+	struct control control; /* with the gains in effect */
+	/* The angle axis: the exact sum of the heading steps [turn * 2^32] times pi * drive track
+	 * [um], i.e. [um * 2^32], as hi 2^32 + lo (hi an int32_t modulo 2^32). */
+	uint32_t angle_hi;
+	uint32_t angle_lo;
+	int32_t angle_um;           /* the angle axis, rounded */
+	int32_t arc_um;             /* this tick's heading step on the angle axis, rounded */
+	int32_t pi_track_um;        /* pi * drive track, as the planner's orders have it */
+	struct orders_axis sp_dist; /* the set points of this tick */
+	struct orders_axis sp_angle;
+	struct recal_sense lines; /* the line sensors' state for timing their edges */
+	uint16_t tick;
+	uint16_t slow_overruns; /* hand-overs that waited for board_slow() past planner_ticks */
+	uint8_t slow_mask;      /* 2^slow_shift - 1 */
+	uint8_t line_mask;      /* the line sensors in use */
+	uint8_t motors_off;     /* handed over: the duties stay 0 */
+	uint8_t phase;          /* ticks into the set points' period, 1..2^slow_shift */
+	uint8_t since_snapshot; /* ticks since the last snapshot (saturated) */
+	uint8_t awaiting;       /* a snapshot is out: its hand-over is not taken yet */
+	struct board_outputs last_out;
+};
+
+/* The planner: what board_slow() owns and writes, once a period. */
+struct planner {
+	struct odometry_position position;
+	struct orders_measure m; /* the snapshot's measure, as the planner corrected it: m.pose is
+				  * the estimate */
 	struct uncertainty uncertainty;
 	struct orders orders;
-	struct control control;
 	struct faults faults;
 	struct recal recal;
 	uint8_t soft;                     /* FILTRE_SOUPLE's gains put in by a border push */
 	struct control_gains gains;       /* in effect, or handed over to be */
 	struct control_gains saved_gains; /* ... and the gains a border push replaced */
-	/* The angle axis: the exact sum of the odometry's heading steps [turn * 2^32] times
-	 * pi * drive track [um], i.e. [um * 2^32], as hi 2^32 + lo (hi an int32_t modulo 2^32). */
-	uint32_t angle_hi;
-	uint32_t angle_lo;
-	int32_t angle_um;       /* the angle axis, rounded */
-	int32_t arc_um;         /* this tick's heading step on the angle axis, rounded */
-	int32_t free_ratio_q16; /* drive track / encoder track [2^-16] */
-	/* The servo's side. */
-	uint16_t tick;
-	uint16_t slow_hz;           /* tick_hz >> slow_shift */
-	uint8_t slow_mask;          /* 2^slow_shift - 1 */
-	uint8_t line_mask;          /* the line sensors in use */
-	uint8_t motors_off;         /* handed over: the duties stay 0 */
-	uint8_t phase;              /* ticks into the set points' period, 1..2^slow_shift */
-	uint8_t since_snapshot;     /* ticks since the last snapshot (saturated) */
-	uint8_t awaiting;           /* a snapshot is out: its hand-over is not taken yet */
-	uint16_t slow_overruns;     /* hand-overs that waited for board_slow() past planner_ticks */
-	struct orders_axis sp_dist; /* the set points of this tick */
-	struct orders_axis sp_angle;
-	/* The handed-over set points, setpoints[setpoints_index], and those the slow steps write
-	 * for the next hand-over (set points never change but through them). */
-	struct board_setpoints setpoints[2];
-	uint8_t setpoints_index;
-	struct recal_sense lines; /* the line sensors' state for timing their edges */
-	/* The period being summed, period[period_index], and the last one, the slow steps' input
-	 * (the servo only flips them when board_slow() is done with it). */
-	struct board_snapshot period[2];
-	uint8_t period_index;
-	/* The slow steps' results; the servo reads them only when slow_due is 0. */
-	struct board_handover handover;
-	volatile uint8_t slow_due; /* set by the servo at a slow tick, cleared by board_slow() */
-	/* The slow steps' side. */
-	struct orders_measure m;   /* the snapshot's measure, as the slow steps corrected it */
-	uint8_t shocks;            /* the snapshot's shock sensors */
-	uint16_t free_base[2];     /* the free wheels' counts at the last period's end */
-	uint8_t status;            /* STATUS_* owned by the core */
-	uint32_t timeout_ticks;    /* SET_TIMEOUT [slow ticks], 0: off (power-on) */
+	uint16_t slow_hz;                 /* tick_hz >> slow_shift */
+	int32_t free_ratio_q16;           /* drive track / encoder track [2^-16] */
+	uint8_t shocks;                   /* the snapshot's shock sensors */
+	uint16_t free_base[2];            /* the free wheels' counts at the last period's end */
+	uint8_t status;                   /* STATUS_* owned by the core */
+	uint32_t timeout_ticks;           /* SET_TIMEOUT [slow ticks], 0: off (power-on) */
 	uint32_t silent_ticks;     /* [slow ticks] since a transaction last addressed the board */
 	uint8_t transactions_seen; /* proto.transactions at the last slow tick */
 	uint8_t timed_out;         /* the last order was stopped by the timeout */
@@ -202,7 +199,27 @@ struct board {
 	uint32_t silent_widened[2];
 	uint32_t silent_min_counts; /* faults.lost_min_um in motor counts */
 	uint32_t silent_turn_q16;   /* max(1, encoder track / drive track) [2^-16] */
-	struct board_outputs last_out;
+};
+
+/* Between the two: each half a double buffer of one type. up[up_index] is the period the servo
+ * sums, up[up_index ^ 1] the last one, the planner's input; down[down_index] the servo's set
+ * points, down[down_index ^ 1] the planner's draft of the next ones. slow_due passes the turn:
+ * set by the servo with a snapshot, cleared by the planner when its draft is complete. */
+struct mailbox {
+	struct board_snapshot up[2];
+	struct board_handover down[2];
+	struct board_wheels wheels;
+	uint8_t up_index;
+	uint8_t down_index;
+	volatile uint8_t slow_due;
+};
+
+struct board {
+	struct board_config cfg; /* read-only after board_init() */
+	struct proto proto;      /* shared with the I2C interrupt */
+	struct servo servo;
+	struct planner planner;
+	struct mailbox mailbox;
 };
 
 /* Defaults for the reference robot (docs/control.md): 25 mm free wheels at 2000 counts/rev,
@@ -211,7 +228,9 @@ void board_default_config(struct board_config *cfg);
 
 /* Power-on: the pose at cfg->start, the specification's initial limits (10 cm/s, 40 cm/s^2),
  * FILTRE_STD, no order; in gives the encoder counts to start from (no jump at the first tick).
- * Returns 0, or -1 when the configuration is out of range. Interrupt-safe: no. */
+ * Every field of b is set, whatever b held: b is cleared first, as a chip's start-up clears its
+ * RAM, so cfg must not point into b. Returns 0, or -1 when the configuration is out of range.
+ * Interrupt-safe: no. */
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
 
 /* Install an odometry calibration, as SET_ODOMETRIE does (a port calls it after board_init()
@@ -233,20 +252,20 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
  * other ticks. Interrupt-safe: from the context that calls board_tick(). */
 static inline int board_period_ends(const struct board *b)
 {
-	return (b->tick & b->slow_mask) == 0;
+	return (b->servo.tick & b->servo.slow_mask) == 0;
 }
 
 /* The estimate of the robot's pose (what POSITION reports, at full resolution): the slow steps'
  * own, as of the last period they ran. Interrupt-safe: from the slow steps' context. */
 static inline struct odometry_pose board_get_pose(const struct board *b)
 {
-	return b->m.pose;
+	return b->planner.m.pose;
 }
 
 /* 1 when board_slow() has a snapshot to work on. Interrupt-safe: yes. */
 static inline int board_slow_due(const struct board *b)
 {
-	return b->slow_due != 0;
+	return b->mailbox.slow_due != 0;
 }
 
 /* The planner, on the last snapshot: pose -> error radius -> line recalibration -> messages ->

@@ -12,7 +12,7 @@ static int32_t per_um_q20(int32_t per_m)
 	return (int32_t)fx_div_round64((int64_t)per_m << 20, 1000000);
 }
 
-static struct pid_config pid_config_of(const struct control_config *cfg,
+static struct pid_config pid_config_of(const struct control_config *cfg, uint16_t tick_hz,
 				       const struct control_gains *g)
 {
 	struct pid_config pc;
@@ -21,11 +21,11 @@ static struct pid_config pid_config_of(const struct control_config *cfg,
 	pc.i = g->i;
 	pc.d = g->d;
 	pc.out_limit_q15 = cfg->duty_max_q15;
-	pc.tick_hz = cfg->tick_hz;
+	pc.tick_hz = tick_hz;
 	return pc;
 }
 
-int control_init(struct control *c, const struct control_config *cfg)
+int control_init(struct control *c, const struct control_config *cfg, uint16_t tick_hz)
 {
 	struct pid_config pc;
 
@@ -35,6 +35,7 @@ int control_init(struct control *c, const struct control_config *cfg)
 	    cfg->ff_angle_accel_q15_per_m_s2 > 1000000)
 		return -1;
 	c->cfg = *cfg;
+	c->tick_hz = tick_hz;
 	c->k_speed_q20 = per_um_q20(cfg->ff_speed_q15_per_m_s);
 	c->k_accel_q20 = per_um_q20(cfg->ff_accel_q15_per_m_s2);
 	c->k_angle_accel_q20 = per_um_q20(cfg->ff_angle_accel_q15_per_m_s2);
@@ -45,7 +46,7 @@ int control_init(struct control *c, const struct control_config *cfg)
 		c->ff_acc[i].term_q15 = 0;
 	}
 	c->gains = cfg->presets[FILTRE_STD];
-	pc = pid_config_of(cfg, &c->gains);
+	pc = pid_config_of(cfg, tick_hz, &c->gains);
 	if (pid_init(&c->dist, &pc) || pid_init(&c->angle, &pc))
 		return -1;
 	c->dist_err_um = 0;
@@ -57,7 +58,7 @@ int control_init(struct control *c, const struct control_config *cfg)
 
 void control_set_gains(struct control *c, const struct control_gains *g)
 {
-	struct pid_config pc = pid_config_of(&c->cfg, g);
+	struct pid_config pc = pid_config_of(&c->cfg, c->tick_hz, g);
 
 	c->gains = *g;
 	pid_set_config(&c->dist, &pc);

@@ -18,7 +18,6 @@ struct control_gains {
 };
 
 struct control_config {
-	uint16_t tick_hz;
 	int16_t duty_max_q15;                /* output limit of each motor */
 	int32_t ff_speed_q15_per_m_s;        /* duty that holds a wheel speed of 1 m/s */
 	int32_t ff_accel_q15_per_m_s2;       /* extra duty per m/s^2 along the distance axis */
@@ -47,11 +46,12 @@ struct control {
 	int32_t dist_err_um;        /* last following errors */
 	int32_t angle_err_um;
 	int16_t duty_q15[2]; /* last output, HAL_LEFT, HAL_RIGHT */
+	uint16_t tick_hz;    /* the servo's rate [Hz] */
 };
 
-/* Returns 0, or -1 when the configuration is out of range. Starts with FILTRE_STD.
- * Interrupt-safe: no. */
-int control_init(struct control *c, const struct control_config *cfg);
+/* At tick_hz ticks a second. Returns 0, or -1 when the configuration is out of range. Starts
+ * with FILTRE_STD. Interrupt-safe: no. */
+int control_init(struct control *c, const struct control_config *cfg, uint16_t tick_hz);
 
 /* SET_FILTRE_RAW: gains on both axes; the integrals are kept. Interrupt-safe: no. */
 void control_set_gains(struct control *c, const struct control_gains *g);

@@ -17,21 +17,22 @@ static int32_t clamp_step(int32_t v)
 /* The lost check's sums stop growing here, so that three times one of them fits. */
 #define LOST_SUM_MAX (INT32_MAX / 4)
 
-int faults_init(struct faults *f, const struct faults_config *cfg, const uint16_t motor_count[2])
+int faults_init(struct faults *f, const struct faults_config *cfg, uint16_t rate_hz,
+		const uint16_t motor_count[2])
 {
 	uint16_t slip_ticks;
 
-	if (cfg->repeat_max == 0 || cfg->repeat_max > N_FAULT_TIMES || cfg->rate_hz == 0 ||
+	if (cfg->repeat_max == 0 || cfg->repeat_max > N_FAULT_TIMES || rate_hz == 0 ||
 	    cfg->following_ms == 0 || cfg->current_ms == 0 || cfg->slip_window_ms == 0 ||
 	    cfg->slip_max_um > 30000)
 		return -1;
-	slip_ticks = fx_ticks_of_ms(cfg->slip_window_ms, cfg->rate_hz);
+	slip_ticks = fx_ticks_of_ms(cfg->slip_window_ms, rate_hz);
 	if (slip_ticks > 4096)
 		return -1;
 	f->cfg = *cfg;
-	f->following_ticks = fx_ticks_of_ms(cfg->following_ms, cfg->rate_hz);
-	f->current_ticks = fx_ticks_of_ms(cfg->current_ms, cfg->rate_hz);
-	f->repeat_window_ticks = fx_ticks_of_ms(cfg->repeat_window_ms, cfg->rate_hz);
+	f->following_ticks = fx_ticks_of_ms(cfg->following_ms, rate_hz);
+	f->current_ticks = fx_ticks_of_ms(cfg->current_ms, rate_hz);
+	f->repeat_window_ticks = fx_ticks_of_ms(cfg->repeat_window_ms, rate_hz);
 	f->slip_shift = (uint8_t)(fx_bit_length32(slip_ticks) - 1u);
 	f->last_motor[0] = motor_count[0];
 	f->last_motor[1] = motor_count[1];
@@ -75,10 +76,57 @@ static int32_t motor_step_q16(struct faults *f, uint8_t side, uint16_t count)
 	return neg ? -t : t;
 }
 
+/* Encoder signal lost: while an order drives the motors, a free wheel gives not a single
+ * count while its motor turns lost_min_um and the other free wheel rolls at least a
+ * third as far (summed with its sign, so that the twitches of a blocked robot cancel
+ * out). A robot blocked on one side, pivoting on the contact with that side's drive wheel
+ * spinning, can look the same for a while, so the first time is a suspicion: the order is
+ * abandoned (PB_MOTEUR, which that collision deserves anyway). The wheel's next count
+ * clears it; a cut wire never counts again, and the next order that turns the motor as
+ * far, whatever the other wheel does, is PB_GRAVE. A dead wheel makes the robot steer
+ * and slip at once, so while one is on its way to a verdict (at most lost_min_um of
+ * motor travel) the slip check waits. */
+static uint8_t lost_wheels(struct faults *f, const struct faults_inputs *in, const int32_t m[2],
+			   const int32_t fr[2], uint8_t *lost_pending)
+{
+	for (uint8_t s = 0; s < 2; s++) {
+		uint8_t o = (uint8_t)(1u - s);
+		uint8_t bit = (uint8_t)(1u << s);
+
+		if (in->free_step_q16[s] != 0)
+			f->lost_suspect &= (uint8_t)~bit;
+		if (in->free_step_q16[s] != 0 || !in->moving) {
+			f->lost_motor_um[s] = 0;
+			f->lost_other_um[s] = 0;
+			continue;
+		}
+		if (f->lost_motor_um[s] < LOST_SUM_MAX &&
+		    fx_abs32(f->lost_other_um[s]) < LOST_SUM_MAX) {
+			f->lost_motor_um[s] += (int32_t)fx_hi16((uint32_t)fx_abs32(m[s]) + 0x8000u);
+			f->lost_other_um[s] += fx_shr_round(fr[o], 16);
+		}
+		if (!(f->lost_suspect & bit) &&
+		    fx_abs32(f->lost_other_um[s]) * 3 < f->lost_motor_um[s])
+			continue;
+		if (f->lost_motor_um[s] > f->cfg.lost_min_um) {
+			f->cause = FAULTS_CAUSE_ENCODER_LOST;
+			f->lost_motor_um[s] = 0;
+			f->lost_other_um[s] = 0;
+			if (f->lost_suspect & bit)
+				return FAULTS_GRAVE;
+			f->lost_suspect |= bit;
+			return FAULTS_MOTOR;
+		}
+		if (f->lost_motor_um[s] > 0)
+			*lost_pending = 1;
+	}
+	return FAULTS_NONE;
+}
+
 static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 {
 	int32_t m[2], fr[2], diff_d, diff_a, free_a, neg_a;
-	uint8_t lost_pending = 0;
+	uint8_t lost_pending = 0, ev;
 
 	m[0] = clamp_step(motor_step_q16(f, 0, in->motor_count[0]));
 	m[1] = clamp_step(motor_step_q16(f, 1, in->motor_count[1]));
@@ -112,47 +160,9 @@ static uint8_t slip_and_lost(struct faults *f, const struct faults_inputs *in)
 		f->slip_angle_q16 = 0;
 	}
 
-	/* Encoder signal lost: while an order drives the motors, a free wheel gives not a single
-	 * count while its motor turns lost_min_um and the other free wheel rolls at least a
-	 * third as far (summed with its sign, so that the twitches of a blocked robot cancel
-	 * out). A robot blocked on one side, pivoting on the contact with that side's drive wheel
-	 * spinning, can look the same for a while, so the first time is a suspicion: the order is
-	 * abandoned (PB_MOTEUR, which that collision deserves anyway). The wheel's next count
-	 * clears it; a cut wire never counts again, and the next order that turns the motor as
-	 * far, whatever the other wheel does, is PB_GRAVE. A dead wheel makes the robot steer
-	 * and slip at once, so while one is on its way to a verdict (at most lost_min_um of
-	 * motor travel) the slip check waits. */
-	for (uint8_t s = 0; s < 2; s++) {
-		uint8_t o = (uint8_t)(1u - s);
-		uint8_t bit = (uint8_t)(1u << s);
-
-		if (in->free_step_q16[s] != 0)
-			f->lost_suspect &= (uint8_t)~bit;
-		if (in->free_step_q16[s] != 0 || !in->moving) {
-			f->lost_motor_um[s] = 0;
-			f->lost_other_um[s] = 0;
-			continue;
-		}
-		if (f->lost_motor_um[s] < LOST_SUM_MAX &&
-		    fx_abs32(f->lost_other_um[s]) < LOST_SUM_MAX) {
-			f->lost_motor_um[s] += (int32_t)fx_hi16((uint32_t)fx_abs32(m[s]) + 0x8000u);
-			f->lost_other_um[s] += fx_shr_round(fr[o], 16);
-		}
-		if (!(f->lost_suspect & bit) &&
-		    fx_abs32(f->lost_other_um[s]) * 3 < f->lost_motor_um[s])
-			continue;
-		if (f->lost_motor_um[s] > f->cfg.lost_min_um) {
-			f->cause = FAULTS_CAUSE_ENCODER_LOST;
-			f->lost_motor_um[s] = 0;
-			f->lost_other_um[s] = 0;
-			if (f->lost_suspect & bit)
-				return FAULTS_GRAVE;
-			f->lost_suspect |= bit;
-			return FAULTS_MOTOR;
-		}
-		if (f->lost_motor_um[s] > 0)
-			lost_pending = 1;
-	}
+	ev = lost_wheels(f, in, m, fr, &lost_pending);
+	if (ev != FAULTS_NONE)
+		return ev;
 	/* Each drive wheel's own slip, the half-sums added (left d - a, right d + a): one wheel
 	 * spinning on a slippery patch shows its whole slip there, where each polar axis shows
 	 * half of it (issue 18: 105 ms to detect at 5 % of the grip, now docs/failure-model.md). */

@@ -43,7 +43,6 @@ struct faults_config {
 	int32_t lost_min_um;       /* a free wheel counted 0 while its motor turned this much ... */
 	uint8_t repeat_max;        /* this many PB_MOTEUR (1..8) ... */
 	uint16_t repeat_window_ms; /* ... within this window: PB_GRAVE */
-	uint16_t rate_hz;          /* faults_check() calls per second (board_init() sets it) */
 };
 
 /* What the checks look at this tick. */
@@ -84,9 +83,10 @@ struct faults {
 	uint8_t cause;
 };
 
-/* Returns 0, or -1 when the configuration is out of range. in gives the motor counts to start
- * from. Interrupt-safe: no. */
-int faults_init(struct faults *f, const struct faults_config *cfg, const uint16_t motor_count[2]);
+/* Checked rate_hz times a second (faults_check()). Returns 0, or -1 when the configuration is
+ * out of range. motor_count gives the motor counts to start from. Interrupt-safe: no. */
+int faults_init(struct faults *f, const struct faults_config *cfg, uint16_t rate_hz,
+		const uint16_t motor_count[2]);
 
 /* A new order starts: the shock sensors pressed now (the robot against the border it backs away
  * from) do not stop it until they have been released once. Interrupt-safe: no. */

@@ -66,7 +66,7 @@ static void derive_wheel(struct odometry_wheel *w, uint32_t k_q16, uint32_t trac
 	}
 }
 
-static void derive(struct odometry *o)
+static void derive(struct odometry_counter *o)
 {
 	derive_wheel(&o->left, o->cfg.left_um_per_count_q16, o->cfg.track_um);
 	derive_wheel(&o->right, o->cfg.right_um_per_count_q16, o->cfg.track_um);
@@ -81,7 +81,7 @@ int odometry_derive_config(const struct odometry_config *cfg, struct odometry_wh
 	return 0;
 }
 
-void odometry_install_config(struct odometry *o, const struct odometry_config *cfg,
+void odometry_install_config(struct odometry_counter *o, const struct odometry_config *cfg,
 			     const struct odometry_wheel wheels[2])
 {
 	o->cfg = *cfg;
@@ -193,8 +193,8 @@ static inline void add_q16(uint32_t *whole, uint16_t *frac, uint32_t mag, uint8_
 	*frac = fx_lo16(t);
 }
 
-int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_t left_count,
-		  uint16_t right_count)
+int odometry_counter_init(struct odometry_counter *o, const struct odometry_config *cfg,
+			  uint16_t left_count, uint16_t right_count, uint32_t heading_turn32)
 {
 	if (!config_valid(cfg))
 		return -EDOM;
@@ -203,22 +203,21 @@ int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_
 	o->left_count = left_count;
 	o->right_count = right_count;
 	o->heading_q64[0] = 0;
-	o->heading_q64[1] = 0;
-	o->heading_turn32 = 0;
-	o->x_um = 0;
-	o->y_um = 0;
-	o->x_frac = 0;
-	o->y_frac = 0;
+	o->heading_q64[1] = heading_turn32;
+	o->heading_turn32 = heading_turn32;
 	o->distance_um = 0;
 	o->distance_frac = 0;
-	o->step.left_q16 = 0;
-	o->step.right_q16 = 0;
 	o->step.ds_um = 0;
 	o->step.dtheta_turn32 = 0;
+	return 0;
+}
+
+void odometry_position_init(struct odometry_position *o, int32_t x_um, int32_t y_um)
+{
+	odometry_set_position(o, x_um, y_um);
 	/* The sine and cosine kept are those of heading 0. */
 	o->trig_turn32 = 0;
 	fx_sincos(0, &o->trig_sin_q30, &o->trig_cos_q30);
-	return 0;
 }
 
 int odometry_check_config(const struct odometry_config *cfg)
@@ -226,7 +225,7 @@ int odometry_check_config(const struct odometry_config *cfg)
 	return config_valid(cfg) ? 0 : -EDOM;
 }
 
-int odometry_set_config(struct odometry *o, const struct odometry_config *cfg)
+int odometry_set_config(struct odometry_counter *o, const struct odometry_config *cfg)
 {
 	if (!config_valid(cfg))
 		return -EDOM;
@@ -252,7 +251,36 @@ static inline uint32_t twice_ds(uint32_t al, uint8_t lneg, uint32_t ar, uint8_t 
 	return ar - al;
 }
 
-int odometry_count(struct odometry *o, uint16_t left_count, uint16_t right_count)
+/* The distance += both [um * 2^17] with its sign: whole um and 17 bits of fraction. */
+static inline void add_distance(struct odometry_counter *o, uint32_t both, uint8_t neg)
+{
+	if (both == 0)
+		return;
+	{
+		uint32_t fr = both & 0x1ffffu;
+		uint32_t wh = fx_shr_u32(both, 17);
+
+		if (!neg) {
+			fr += o->distance_frac;
+			if (fr >= 0x20000u) {
+				fr -= 0x20000u;
+				wh++;
+			}
+			o->distance_um += wh;
+		} else {
+			if (fr > o->distance_frac) {
+				fr = o->distance_frac + 0x20000u - fr;
+				wh++;
+			} else {
+				fr = o->distance_frac - fr;
+			}
+			o->distance_um -= wh;
+		}
+		o->distance_frac = fr;
+	}
+}
+
+int odometry_count(struct odometry_counter *o, uint16_t left_count, uint16_t right_count)
 {
 	int err = 0;
 	uint32_t both;
@@ -309,29 +337,7 @@ int odometry_count(struct odometry *o, uint16_t left_count, uint16_t right_count
 		o->step.ds_um = neg ? -ds : ds;
 	}
 
-	/* The distance: both [um * 2^17] into whole um and 17 bits of fraction. */
-	if (both != 0) {
-		uint32_t fr = both & 0x1ffffu;
-		uint32_t wh = fx_shr_u32(both, 17);
-
-		if (!neg) {
-			fr += o->distance_frac;
-			if (fr >= 0x20000u) {
-				fr -= 0x20000u;
-				wh++;
-			}
-			o->distance_um += wh;
-		} else {
-			if (fr > o->distance_frac) {
-				fr = o->distance_frac + 0x20000u - fr;
-				wh++;
-			} else {
-				fr = o->distance_frac - fr;
-			}
-			o->distance_um -= wh;
-		}
-		o->distance_frac = fr;
-	}
+	add_distance(o, both, neg);
 	return err;
 }
 
@@ -349,7 +355,7 @@ void odometry_arc_of(struct odometry_arc *a, int32_t left_q16, int32_t right_q16
 	a->heading_turn32 = heading_turn32;
 }
 
-void odometry_advance(struct odometry *o, const struct odometry_arc *a)
+void odometry_advance(struct odometry_position *o, const struct odometry_arc *a)
 {
 	uint32_t both = a->twice_ds_q16, t, chord, mid;
 	int32_t dtheta = a->dtheta_turn32;
@@ -391,38 +397,10 @@ int32_t odometry_travel_q16(const uint16_t k[2], int16_t counts)
 	return counts >= 0 ? t : -t;
 }
 
-int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count)
-{
-	struct odometry_arc a;
-	uint16_t left_before = o->left_count, right_before = o->right_count;
-	int err = odometry_count(o, left_count, right_count);
-
-	o->step.left_q16 = odometry_travel_q16(o->left.k, (int16_t)(left_count - left_before));
-	o->step.right_q16 = odometry_travel_q16(o->right.k, (int16_t)(right_count - right_before));
-
-	odometry_arc_of(&a, o->step.left_q16, o->step.right_q16, o->step.dtheta_turn32,
-			o->heading_turn32);
-	odometry_advance(o, &a);
-	return err;
-}
-
-void odometry_set_position(struct odometry *o, int32_t x_um, int32_t y_um)
+void odometry_set_position(struct odometry_position *o, int32_t x_um, int32_t y_um)
 {
 	o->x_um = (uint32_t)x_um;
 	o->y_um = (uint32_t)y_um;
 	o->x_frac = 0;
 	o->y_frac = 0;
-}
-
-static void set_heading(struct odometry *o, uint32_t heading_turn32)
-{
-	o->heading_q64[0] = 0;
-	o->heading_q64[1] = heading_turn32;
-	o->heading_turn32 = heading_turn32;
-}
-
-void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose)
-{
-	odometry_set_position(o, pose->x_um, pose->y_um);
-	set_heading(o, pose->heading_turn32);
 }

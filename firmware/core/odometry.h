@@ -1,5 +1,6 @@
-/* Odometry from two free encoder wheels: the pose (x, y, heading) integrated once per tick from
- * the free-running 16-bit counters, with exact arc integration and a heading that cannot drift.
+/* Odometry from two free encoder wheels, in two halves: the counter (the servo's, every tick)
+ * turns the free-running 16-bit counters into an exact heading and distance; the position (the
+ * planner's) is moved along arcs of their steps, exactly integrated. The heading cannot drift.
  *
  * Frame: x along heading 0, y to its left, heading counter-clockwise (the right wheel going
  * forward alone turns the robot left). Counters increase when their wheel rolls forward.
@@ -12,7 +13,7 @@
 
 #include "fixmath.h"
 
-/* Ranges accepted by odometry_init and odometry_set_config. */
+/* Ranges accepted by odometry_counter_init and odometry_set_config. */
 #define ODOMETRY_UM_PER_COUNT_Q16_MAX ((uint32_t)1 << 24) /* 256 um per count */
 #define ODOMETRY_TRACK_UM_MIN ((uint32_t)1 << 14)         /* 16.4 mm */
 #define ODOMETRY_TRACK_UM_MAX ((uint32_t)1 << 21)         /* 2.097 m */
@@ -31,12 +32,8 @@ struct odometry_pose {
 	uint32_t heading_turn32; /* [turn * 2^32] */
 };
 
-/* What the last odometry_count (or odometry_update) measured. The wheels' travels are
- * odometry_update()'s only: a caller of odometry_count() that needs them over several ticks
- * takes them from the counts (odometry_travel_q16()). */
+/* What the last odometry_count() measured (all zero after init). */
 struct odometry_step {
-	int32_t left_q16;      /* travel of the left wheel [um * 2^16], exact (odometry_update) */
-	int32_t right_q16;     /* travel of the right wheel [um * 2^16], exact (odometry_update) */
 	int32_t ds_um;         /* travel of the midpoint, (left + right) / 2, rounded [um] */
 	int32_t dtheta_turn32; /* heading change [turn * 2^32], counter-clockwise positive */
 };
@@ -69,44 +66,57 @@ struct odometry_wheel {
 	uint16_t k[2]; /* factor: low and high 16 bits */
 };
 
-struct odometry {
-	struct odometry_config cfg;
+/* The servo's half (board.h, struct servo): every tick, the counters -> the heading and the
+ * distance, exact. */
+struct odometry_counter {
+	struct odometry_config cfg; /* in effect: the build's, or SET_ODOMETRIE's */
 	struct odometry_wheel left;
 	struct odometry_wheel right;
 
 	uint16_t left_count;
 	uint16_t right_count;
-	/* Heading [turn * 2^64], lower and upper 32 bits: the heading set last plus the exact sum
-	 * of the counts times the per-count changes above, modulo one turn (2^64). */
+	/* Heading [turn * 2^64], lower and upper 32 bits: the start heading plus the exact sum of
+	 * the counts times the per-count changes above, modulo one turn (2^64). The steps come
+	 * from it; the robot's estimated heading is the planner's (it takes SET_NEW_POS and the
+	 * recalibrations), moved by the same steps. */
 	uint32_t heading_q64[2];
 	uint32_t heading_turn32; /* heading_q64 rounded to [turn * 2^32] */
-	/* Position [um * 2^16]: whole um (an int32_t kept in a uint32_t, so that it wraps without
-	 * overflow beyond +-2147 m) and the fraction. */
+	/* Signed travel of the midpoint since init [um * 2^17]: whole um (an int32_t kept in a
+	 * uint32_t, so that it wraps without overflow beyond +-2147 m) and the fraction,
+	 * 0..2^17 - 1. Exact. */
+	uint32_t distance_um;
+	uint32_t distance_frac;
+	struct odometry_step step;
+};
+
+/* The planner's half (board.h, struct planner): the position, moved along arcs made of the
+ * counter's steps. */
+struct odometry_position {
+	/* [um * 2^16]: whole um (an int32_t kept in a uint32_t) and the fraction. */
 	uint32_t x_um;
 	uint32_t y_um;
 	uint16_t x_frac;
 	uint16_t y_frac;
-	/* Signed travel of the midpoint since init [um * 2^17]: whole um (as x_um) and the
-	 * fraction, 0..2^17 - 1. Exact. */
-	uint32_t distance_um;
-	uint32_t distance_frac;
-	struct odometry_step step;
-	/* The last mean heading the pose was advanced along, and its sine and cosine [2^-30]. */
+	/* The last mean heading the position was advanced along, and its sine and cosine
+	 * [2^-30]. */
 	uint32_t trig_turn32;
 	int32_t trig_sin_q30;
 	int32_t trig_cos_q30;
 };
 
-/* Start from the current counter values (so the first update does not jump), at pose (0, 0, 0).
- * Returns 0, or -EDOM if cfg is out of range (o is then unusable).
- * interrupt-safe: no. */
-int odometry_init(struct odometry *o, const struct odometry_config *cfg, uint16_t left_count,
-		  uint16_t right_count);
+/* Start from the current counter values (so that the first count does not jump), at
+ * heading_turn32. Returns 0, or -EDOM if cfg is out of range (c is then unusable).
+ * Interrupt-safe: no. */
+int odometry_counter_init(struct odometry_counter *c, const struct odometry_config *cfg,
+			  uint16_t left_count, uint16_t right_count, uint32_t heading_turn32);
 
-/* Change the wheel factors and track, keeping the current pose; takes effect from the next
- * update. Returns 0, or -EDOM if cfg is out of range (the old config is kept).
- * interrupt-safe: no (call between two ticks). */
-int odometry_set_config(struct odometry *o, const struct odometry_config *cfg);
+/* Start at (x_um, y_um). Interrupt-safe: no. */
+void odometry_position_init(struct odometry_position *p, int32_t x_um, int32_t y_um);
+
+/* Change the wheel factors and track, keeping the heading and the distance; takes effect from
+ * the next count. Returns 0, or -EDOM if cfg is out of range (the old config is kept).
+ * Interrupt-safe: no (call between two ticks). */
+int odometry_set_config(struct odometry_counter *c, const struct odometry_config *cfg);
 
 /* 0 when odometry_set_config() would take cfg, or -EDOM. Interrupt-safe: yes. */
 int odometry_check_config(const struct odometry_config *cfg);
@@ -116,49 +126,38 @@ int odometry_check_config(const struct odometry_config *cfg);
  * 75 000 cycles on an AVR); returns 0, or -EDOM (wheels untouched). Interrupt-safe: yes. */
 int odometry_derive_config(const struct odometry_config *cfg, struct odometry_wheel wheels[2]);
 
-/* ... then cfg and its tables in place of the current ones, the pose kept: a copy of 780 bytes.
- * Interrupt-safe: no (between two updates). */
-void odometry_install_config(struct odometry *o, const struct odometry_config *cfg,
+/* ... then cfg and its tables in place of the current ones: a copy of 780 bytes.
+ * Interrupt-safe: no (between two counts). */
+void odometry_install_config(struct odometry_counter *c, const struct odometry_config *cfg,
 			     const struct odometry_wheel wheels[2]);
 
 /* One tick: read both counters (free-running, wrapping at 65536; at most 32767 counts of travel
- * per tick in either direction) and integrate the pose: odometry_count() then odometry_advance()
- * along the tick's arc. Returns 0, or -ERANGE if a wheel moved more than ODOMETRY_STEP_Q16_MAX in
- * the tick: its travel is then clamped to that value and the caller should treat it as an
- * encoder fault.
- * interrupt-safe: no (call from the tick only). */
-int odometry_update(struct odometry *o, uint16_t left_count, uint16_t right_count);
-
-/* odometry_update() in two halves, for a caller that runs the position at a lower rate
- * (board.h): first, every tick, the counters -> the heading, the step (but the wheels' travels)
- * and the distance, not the position (same return value) ... */
-int odometry_count(struct odometry *o, uint16_t left_count, uint16_t right_count);
+ * per tick in either direction) -> the heading, the step and the distance. Returns 0, or
+ * -ERANGE if a wheel moved more than ODOMETRY_STEP_Q16_MAX in the tick: its travel is then
+ * clamped to that value and the caller should treat it as an encoder fault.
+ * Interrupt-safe: no (call from the tick only). */
+int odometry_count(struct odometry_counter *c, uint16_t left_count, uint16_t right_count);
 
 /* The travel of a wheel [um * 2^16] over a signed count change, with its factor k (a wheel's
- * odometry_wheel.k): exact, a magnitude above ODOMETRY_STEP_Q16_MAX clamped to it. Over a tick,
- * what odometry_update() gives; over several, the sum of theirs (the travel is linear in the
- * counts) but in the clamped case. Interrupt-safe: yes. */
+ * odometry_wheel.k): exact, a magnitude above ODOMETRY_STEP_Q16_MAX clamped to it. Over
+ * several ticks, the sum of theirs (the travel is linear in the counts) but in the clamped
+ * case. Interrupt-safe: yes. */
 int32_t odometry_travel_q16(const uint16_t k[2], int16_t counts);
 
-/* ... then, once per tick or once per period, the position moved along one arc: a tick's, or a
- * period's made of its summed wheel travels and heading changes and the heading at its end (one
- * arc of constant curvature from the period's start to its end). Called every tick after
- * odometry_count(), with the tick's travels, the pair is odometry_update() bit for bit.
- * Interrupt-safe: both yes against each other (they share no field); each no against itself. */
+/* The position moved along one arc: a tick's, or a period's made of its summed wheel travels
+ * and heading changes and the heading at its end (one arc of constant curvature from the
+ * period's start to its end). The board runs odometry_count() every tick and this once a
+ * period; with a period of one tick the two are the tick's exact odometry.
+ * Interrupt-safe: each no against itself. */
 void odometry_arc_of(struct odometry_arc *a, int32_t left_q16, int32_t right_q16,
 		     int32_t dtheta_turn32, uint32_t heading_turn32);
-void odometry_advance(struct odometry *o, const struct odometry_arc *a);
+void odometry_advance(struct odometry_position *p, const struct odometry_arc *a);
 
-/* Replace the pose (start position, recalibration, SET_NEW_POS); the counters are untouched.
- * interrupt-safe: no (call between two ticks). */
-void odometry_set_pose(struct odometry *o, const struct odometry_pose *pose);
-
-/* The position alone (odometry_advance()'s half of the pose). */
-void odometry_set_position(struct odometry *o, int32_t x_um, int32_t y_um);
+/* Replace the position (start, recalibration, SET_NEW_POS). Interrupt-safe: no. */
+void odometry_set_position(struct odometry_position *p, int32_t x_um, int32_t y_um);
 
 /* A length kept as whole um (an int32_t in a uint32_t) and a fraction, half = half a um in the
- * fraction's unit, rounded to nearest with ties away from zero (saturated). For the accessors
- * below, which are inline: the tick reads them every period. */
+ * fraction's unit, rounded to nearest with ties away from zero (saturated). */
 static inline int32_t odometry_round_um(uint32_t whole_um, uint32_t frac, uint32_t half)
 {
 	int32_t w = fx_int32_of(whole_um);
@@ -168,31 +167,34 @@ static inline int32_t odometry_round_um(uint32_t whole_um, uint32_t frac, uint32
 	return w;
 }
 
-/* The pose, rounded to the micrometre (saturated to int32).
- * interrupt-safe: no (read in the tick context, or with the tick masked). */
-static inline struct odometry_pose odometry_get_pose(const struct odometry *o)
+/* The position, rounded to the micrometre (saturated to int32). Interrupt-safe: no. */
+static inline int32_t odometry_get_x_um(const struct odometry_position *p)
 {
-	struct odometry_pose p;
-
-	p.x_um = odometry_round_um(o->x_um, o->x_frac, 0x8000u);
-	p.y_um = odometry_round_um(o->y_um, o->y_frac, 0x8000u);
-	p.heading_turn32 = o->heading_turn32;
-	return p;
+	return odometry_round_um(p->x_um, p->x_frac, 0x8000u);
 }
 
-/* The last tick's wheel travels, midpoint travel and heading change (all zero after init).
- * interrupt-safe: no. */
-static inline struct odometry_step odometry_get_step(const struct odometry *o)
+static inline int32_t odometry_get_y_um(const struct odometry_position *p)
 {
-	return o->step;
+	return odometry_round_um(p->y_um, p->y_frac, 0x8000u);
+}
+
+/* The counted heading [turn * 2^32]. Interrupt-safe: no. */
+static inline uint32_t odometry_get_heading_turn32(const struct odometry_counter *c)
+{
+	return c->heading_turn32;
+}
+
+/* The last tick's midpoint travel and heading change. Interrupt-safe: no. */
+static inline struct odometry_step odometry_get_step(const struct odometry_counter *c)
+{
+	return c->step;
 }
 
 /* Signed travel of the midpoint since init [um], rounded from an exact sum, saturated to int32
- * (2147 m), for a distance loop. Not changed by set_pose.
- * interrupt-safe: no. */
-static inline int32_t odometry_get_distance_um(const struct odometry *o)
+ * (2147 m), for a distance loop. Interrupt-safe: no. */
+static inline int32_t odometry_get_distance_um(const struct odometry_counter *c)
 {
-	return odometry_round_um(o->distance_um, o->distance_frac, 0x10000u);
+	return odometry_round_um(c->distance_um, c->distance_frac, 0x10000u);
 }
 
 #endif

@@ -1,6 +1,8 @@
 /* Orders: the state machine of GOTO, GOTO_REVERSE, GOTO_PANIER and STOP (see orders.h). */
 #include "orders.h"
 
+#include <string.h>
+
 #include "fixmath.h"
 #include "protocol_defs.h"
 
@@ -54,8 +56,8 @@ static void grip_share(struct orders *o)
 	o->grip_a_um_s2[1] = rot;
 }
 
-int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_um,
-		int32_t angle_um)
+int orders_init(struct orders *o, const struct orders_config *cfg, uint16_t rate_hz,
+		int32_t count_um_s, int32_t dist_um, int32_t angle_um)
 {
 	struct profile_config pc;
 
@@ -64,13 +66,17 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	    cfg->settle_ms == 0 || cfg->grip_um_s2 < 100000 || cfg->grip_um_s2 > 50000000 ||
 	    cfg->rot_grip_q8 == 0)
 		return -1;
+	/* Every field from a known value, whatever the memory held (a power cycle re-inits a
+	 * board in place): no recalibration, border push or frozen target carried over. */
+	memset(o, 0, sizeof(*o));
 	o->cfg = *cfg;
+	o->rate_hz = rate_hz;
 	/* pi as 355/113 (8e-8 relative). */
 	o->pi_track_um = fx_div_round((int32_t)cfg->drive_track_um * 355, 113);
 	/* The specification's initial state: 10 cm/s, 40 cm/s^2. */
 	o->traj = limits_of(10, 40, cfg->jerk_um_s3);
 	o->rot = o->traj;
-	pc.tick_hz = cfg->tick_hz;
+	pc.tick_hz = rate_hz;
 	pc.limits = o->traj;
 	if (profile_init(&o->dist, &pc, dist_um) || profile_init(&o->angle, &pc, angle_um))
 		return -1;
@@ -84,10 +90,10 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 		profile_set_limits(&o->angle, &r);
 	}
 	o->designation = 0xFFu;
-	o->settle_ticks = fx_ticks_of_ms(cfg->settle_ms, cfg->tick_hz);
-	o->settle_timeout_ticks = fx_ticks_of_ms(cfg->settle_timeout_ms, cfg->tick_hz);
-	o->square_ticks = fx_ticks_of_ms(cfg->square_ms, cfg->tick_hz);
-	o->aim_period = (uint8_t)(cfg->tick_hz >= 500 ? cfg->tick_hz / 250 : 1);
+	o->settle_ticks = fx_ticks_of_ms(cfg->settle_ms, rate_hz);
+	o->settle_timeout_ticks = fx_ticks_of_ms(cfg->settle_timeout_ms, rate_hz);
+	o->square_ticks = fx_ticks_of_ms(cfg->square_ms, rate_hz);
+	o->aim_period = (uint8_t)(rate_hz >= 500 ? rate_hz / 250 : 1);
 	o->aim_wait = 0;
 	o->bearing_valid = 0;
 	o->trig_valid = 0;
@@ -96,13 +102,13 @@ int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_
 	o->give_way = 0;
 	o->gave_way = 0;
 	o->braking = 0;
-	o->rest_ticks = (uint8_t)(cfg->tick_hz >= 250 ? cfg->tick_hz / 125 : 1); /* 8 ms */
-	o->brake_dv_um_s = cfg->grip_um_s2 / (int32_t)cfg->tick_hz;              /* >= 50 */
+	o->rest_ticks = (uint8_t)(rate_hz >= 250 ? rate_hz / 125 : 1); /* 8 ms */
+	o->brake_dv_um_s = cfg->grip_um_s2 / (int32_t)rate_hz;         /* >= 50 */
 	/* Two counts a tick: one reads anything from 0 to 2 counts' speed. At most 0.4 m/s, so
 	 * that brake_away() stays in 32 bits. */
 	o->rebound_um_s = cfg->arrive_speed_um_s + 2 * o->brake_dv_um_s;
-	if (o->rebound_um_s < 2 * cfg->count_um_s)
-		o->rebound_um_s = 2 * cfg->count_um_s;
+	if (o->rebound_um_s < 2 * count_um_s)
+		o->rebound_um_s = 2 * count_um_s;
 	if (o->rebound_um_s > 400000)
 		o->rebound_um_s = 400000;
 	for (uint8_t i = 0; i < 2; i++) {
@@ -706,7 +712,7 @@ static void brake_away(const struct orders *o, struct orders_axis *sp, int32_t v
 
 	if (v_um_s < o->rebound_um_s)
 		acc = (acc >> 8) * ((v_um_s << 8) / o->rebound_um_s);
-	sp->pos_um += dir * (v_um_s / (int32_t)o->cfg.tick_hz);
+	sp->pos_um += dir * (v_um_s / (int32_t)o->rate_hz);
 	sp->vel_um_s = dir * v_um_s;
 	sp->acc_um_s2 = -dir * acc;
 }

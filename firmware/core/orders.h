@@ -36,14 +36,10 @@ struct orders_config {
 	int32_t basket_contact_um; /* from the encoder axis midpoint to the basket switch */
 	uint8_t n_baskets;
 	struct orders_basket baskets[ORDERS_MAX_BASKETS];
-	uint16_t tick_hz;
 	/* Planner steps between the one that takes a GOTO and its first aim, 0 or 1: 0 turns or
 	 * translates at once; 1 spreads the order's first work over two steps, which the AVR's
 	 * 125 Hz planner needs to keep its CPU budget (firmware/ports/avr/robot.c). */
 	uint8_t aim_delay_steps;
-	/* The speed one count of the free wheels over a tick of tick_hz reads on the distance axis
-	 * (half a count's travel times tick_hz) [um/s]: board_init() sets it from the odometry. */
-	int32_t count_um_s;
 	uint32_t jerk_um_s3; /* 0: trapezoids; else S-curves with this jerk on both axes */
 	/* The acceleration the drive wheels' grip allows [um/s^2] (mu g times the weight's share
 	 * on the drive wheels), 100000..50000000: the braking after a shock. */
@@ -118,14 +114,14 @@ struct orders {
 	int32_t target_y_um;
 	uint32_t target_heading_turn32;
 	int32_t push_start_um;
-	/* cfg's durations in updates (at tick_hz) */
+	/* cfg's durations in updates (at rate_hz) */
 	uint16_t settle_ticks;
 	uint16_t settle_timeout_ticks;
 	uint16_t square_ticks;
 	uint16_t settle_count;
 	uint16_t settle_time;
 	uint8_t frozen; /* GOTO within the freeze radius: targets no longer follow the estimate */
-	/* A running GOTO re-aims every aim_period ticks (tick_hz / 250, at least 1): its targets
+	/* A running GOTO re-aims every aim_period ticks (rate_hz / 250, at least 1): its targets
 	 * are points of the axes that move little from one tick to the next. */
 	uint8_t aim_period;
 	uint8_t aim_wait; /* ticks until the next re-aim */
@@ -163,12 +159,15 @@ struct orders {
 	int32_t brake_dv_um_s;   /* the speed a tick of braking at grip_um_s2 takes away */
 	uint16_t brake_ticks[2]; /* what braking at grip_um_s2 from the shock's speed takes */
 	int32_t reach_um[2];     /* how far each axis went towards the obstacle */
+	uint16_t rate_hz;        /* orders_update() calls per second */
 };
 
-/* Power-on: no order, holding (dist_um, angle_um); limits 10 cm/s, 40 cm/s^2 on both axes.
- * Returns 0 or -1 when the configuration is out of range. Interrupt-safe: no. */
-int orders_init(struct orders *o, const struct orders_config *cfg, int32_t dist_um,
-		int32_t angle_um);
+/* Power-on: no order, holding (dist_um, angle_um); limits 10 cm/s, 40 cm/s^2 on both axes;
+ * updated rate_hz times a second; count_um_s: the speed one free-wheel count over an update
+ * reads (the odometry's, rounded up). Returns 0 or -1 when the configuration is out of range.
+ * Interrupt-safe: no. */
+int orders_init(struct orders *o, const struct orders_config *cfg, uint16_t rate_hz,
+		int32_t count_um_s, int32_t dist_um, int32_t angle_um);
 
 /* SET_VITESSE_TRAJ / SET_VITESSE_ROT: new limits [cm/s], [cm/s^2] (0 leaves one unchanged);
  * a running profile replans from where it is. Interrupt-safe: no. */

@@ -31,7 +31,7 @@
 #define PROTO_LAST_REJECT 14 /* extension */
 #define PROTO_SET_TIMEOUT 15 /* extension */
 #define PROTO_SET_ODOMETRIE 16 /* extension */
-#define PROTO_BOOTLOADER 17 /* extension */
+#define PROTO_BOOTLOADER 30 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -62,7 +62,7 @@
 #define REJECT_REFUSED_PB_GRAVE 6 /* an order was sent while PB_GRAVE is set */
 #define REJECT_QUEUE_FULL 7 /* more writes than the board can take before its next control tick */
 #define REJECT_ABORTED 8 /* the write was cut short by a bus error */
-#define REJECT_REFUSED_BUSY 9 /* BOOTLOADER was sent while an order runs (the motors driving): stop the robot first */
+#define REJECT_REFUSED_BUSY 16 /* BOOTLOADER was sent while an order runs (the motors driving): stop the robot first */
 
 /* filter codes. */
 #define FILTRE_STD 0 /* standard gains for trajectories */

@@ -84,7 +84,7 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[14];
 	case 16:
 		return &proto_msgs[15];
-	case 17:
+	case 30:
 		return &proto_msgs[16];
 	case 200:
 		return &proto_msgs[17];

@@ -168,34 +168,38 @@ static uint32_t coef_q32(uint64_t c)
 	return c > 0xffffffffu ? 0xffffffffu : (uint32_t)c;
 }
 
-static int config_valid(const struct uncertainty_config *cfg)
+static int config_valid(const struct uncertainty_config *cfg, uint16_t rate_hz)
 {
 	return cfg->noise_left_mm2_per_m_q16 <= UNCERTAINTY_NOISE_Q16_MAX &&
-	       cfg->noise_right_mm2_per_m_q16 <= UNCERTAINTY_NOISE_Q16_MAX &&
-	       cfg->track_um >= ((uint32_t)1 << 14) && cfg->track_um <= ((uint32_t)1 << 21) &&
-	       cfg->ratio_error_ppm <= 1000000u && cfg->track_error_um <= cfg->track_um &&
-	       cfg->scale_error_ppm <= 1000000u && cfg->k_q8 >= 1 && cfg->batch_ms >= 1 &&
-	       cfg->rate_hz >= 1 &&
-	       fx_ticks_of_ms(cfg->batch_ms, cfg->rate_hz) <= UNCERTAINTY_BATCH_TICKS_MAX;
+	       cfg->noise_right_mm2_per_m_q16 <= UNCERTAINTY_NOISE_Q16_MAX && cfg->k_q8 >= 1 &&
+	       cfg->batch_ms >= 1 && rate_hz >= 1 &&
+	       fx_ticks_of_ms(cfg->batch_ms, rate_hz) <= UNCERTAINTY_BATCH_TICKS_MAX;
+}
+
+static int model_valid(const struct uncertainty_model *m)
+{
+	return m->track_um >= ((uint32_t)1 << 14) && m->track_um <= ((uint32_t)1 << 21) &&
+	       m->ratio_error_ppm <= 1000000u && m->track_error_um <= m->track_um &&
+	       m->scale_error_ppm <= 1000000u;
 }
 
 /* Constants of the configuration, so that the stages multiply only. The systematic
  * coefficients are rounded up (above 1 um per unit they saturate: a larger bound). */
 static void derive(struct uncertainty *u)
 {
-	uint64_t b = u->cfg.track_um;
+	uint64_t b = u->model.track_um;
 	uint64_t g = ((uint64_t)1 << 30) / b;
 
-	u->batch_ticks = (uint8_t)fx_ticks_of_ms(u->cfg.batch_ms, u->cfg.rate_hz);
+	u->batch_ticks = (uint8_t)fx_ticks_of_ms(u->cfg.batch_ms, u->rate_hz);
 	u->turn_per_um = (uint16_t)((((uint64_t)TURN32_PER_RAD << 16) / b + 0x8000u) >> 16);
 	u->inv_track_q28 = (uint16_t)(((uint64_t)1 << 28) / b);
 	u->g_q12 = (uint16_t)(g > 0xffffu ? 0xffffu : g);
 	/* |w1|, |w2| in 2^14 um^2: ratio / b and track / b^2 per unit, in [um * 2^-32]. */
-	u->ratio_coef_q32 =
-		coef_q32(div_up(div_up((uint64_t)u->cfg.ratio_error_ppm << 32, 1000000) << 14, b));
+	u->ratio_coef_q32 = coef_q32(
+		div_up(div_up((uint64_t)u->model.ratio_error_ppm << 32, 1000000) << 14, b));
 	u->track_coef_q32 =
-		coef_q32(div_up(div_up((uint64_t)u->cfg.track_error_um << 31, b) << 15, b));
-	u->scale_coef_q32 = coef_q32(div_up((uint64_t)u->cfg.scale_error_ppm << 32, 1000000));
+		coef_q32(div_up(div_up((uint64_t)u->model.track_error_um << 31, b) << 15, b));
+	u->scale_coef_q32 = coef_q32(div_up((uint64_t)u->model.scale_error_ppm << 32, 1000000));
 }
 
 static void clear_batch(struct uncertainty_batch *b)
@@ -242,11 +246,14 @@ static void request_radius(struct uncertainty *u)
 	run_stages(u, UINT8_MAX);
 }
 
-int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg)
+int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg, uint16_t rate_hz,
+		     const struct uncertainty_model *model)
 {
-	if (!config_valid(cfg))
+	if (!config_valid(cfg, rate_hz) || !model_valid(model))
 		return -EDOM;
 	u->cfg = *cfg;
+	u->model = *model;
+	u->rate_hz = rate_hz;
 	derive(u);
 	uncertainty_reset(u, 0, 0);
 	return 0;
@@ -265,11 +272,11 @@ static uint32_t add_sat_u32(uint32_t a, uint32_t b)
  * configuration, not every tick. */
 static uint64_t sys_heading_units(const struct uncertainty *u)
 {
-	uint64_t b = u->cfg.track_um;
+	uint64_t b = u->model.track_um;
 	uint64_t s = fx_mag32(u->travel2_um), r = fx_mag32(u->turn_um);
 	/* ratio [1e-6] * S [um] / b [um] * 2^16, with S = travel2 / 2 */
-	uint64_t h1 = div_up(u->cfg.ratio_error_ppm * s << 15, 1000000u * b);
-	uint64_t h2 = div_up(div_up(u->cfg.track_error_um * r << 16, b), b);
+	uint64_t h1 = div_up(u->model.ratio_error_ppm * s << 15, 1000000u * b);
+	uint64_t h2 = div_up(div_up(u->model.track_error_um * r << 16, b), b);
 
 	return h1 + h2;
 }
@@ -317,12 +324,12 @@ static void fold_systematic(struct uncertainty *u)
 	u->turn_um = 0;
 }
 
-int uncertainty_set_config(struct uncertainty *u, const struct uncertainty_config *cfg)
+int uncertainty_set_model(struct uncertainty *u, const struct uncertainty_model *model)
 {
-	if (!config_valid(cfg))
+	if (!model_valid(model))
 		return -EDOM;
 	fold_systematic(u);
-	u->cfg = *cfg;
+	u->model = *model;
 	derive(u);
 	request_radius(u);
 	return 0;
@@ -465,7 +472,7 @@ void uncertainty_widen(struct uncertainty *u, uint32_t position_um, uint32_t whe
 		sigma_of_bound(u, ((uint64_t)position_um * 2 + wheel_um + 2 * UNCERTAINTY_POS_UM -
 				   1) / (2 * UNCERTAINTY_POS_UM));
 	/* wheel / track [rad] in 2^-16 rad */
-	uint64_t heading = sigma_of_bound(u, div_up((uint64_t)wheel_um << 16, u->cfg.track_um));
+	uint64_t heading = sigma_of_bound(u, div_up((uint64_t)wheel_um << 16, u->model.track_um));
 
 	if ((position_um | wheel_um) == 0 || u->saturated)
 		return;

@@ -28,15 +28,19 @@ struct uncertainty_config {
 	 * [mm^2/m * 2^16] = [um^2/um * 2^16], 0..2^20; physics.md: 0.04..0.25 mm^2/m. */
 	uint32_t noise_left_mm2_per_m_q16;
 	uint32_t noise_right_mm2_per_m_q16;
+	uint16_t k_q8; /* radius / sigma [2^-8], 1..65535: 627 = 2.45 (95 %), 776 = 3.03 (99 %) */
+	uint16_t
+		batch_ms; /* covariance update this often, 1..UNCERTAINTY_BATCH_TICKS_MAX updates */
+};
+
+/* The odometry's model in effect and how far it may be off: state, not configuration, since a
+ * calibration replaces it (uncertainty_set_model()). */
+struct uncertainty_model {
 	uint32_t track_um;        /* encoder track, as in odometry [um], 2^14..2^21 */
 	uint32_t ratio_error_ppm; /* bound on the right/left wheel factor ratio error [1e-6], <= 1e6
 				   */
 	uint32_t track_error_um;  /* bound on the track error [um], <= track_um */
 	uint32_t scale_error_ppm; /* bound on the common wheel factor error [1e-6], <= 1e6 */
-	uint16_t k_q8; /* radius / sigma [2^-8], 1..65535: 627 = 2.45 (95 %), 776 = 3.03 (99 %) */
-	uint16_t
-		batch_ms; /* covariance update this often, 1..UNCERTAINTY_BATCH_TICKS_MAX updates */
-	uint16_t rate_hz; /* uncertainty_update() calls per second (board_init() sets it) */
 };
 
 /* A batch of wheel travels [um * 2^8] (8.4 m before they could overflow): signed sums, and
@@ -50,7 +54,9 @@ struct uncertainty_batch {
 
 struct uncertainty {
 	struct uncertainty_config cfg;
-	/* Derived from cfg. */
+	struct uncertainty_model model;
+	uint16_t rate_hz; /* uncertainty_update() calls per second */
+	/* Derived from cfg, model and rate_hz. */
 	uint8_t batch_ticks;  /* batch_ms in updates */
 	uint16_t turn_per_um; /* heading per um of right - left travel [turn * 2^32 / um * 2^-16] */
 	uint16_t inv_track_q28;  /* 2^28 / track */
@@ -77,7 +83,7 @@ struct uncertainty {
 	} w1[2], w2[2];
 	int32_t d[2];
 	/* Position errors that no longer cancel [um], per coordinate (a box): the systematic terms
-	 * of bounds that were replaced (uncertainty_set_config()), added to the radius. */
+	 * of bounds that were replaced (uncertainty_set_model()), added to the radius. */
 	uint32_t fixed_um[2];
 
 	struct uncertainty_batch acc; /* accumulating */
@@ -98,19 +104,21 @@ struct uncertainty {
 	uint8_t radius_mm;
 };
 
-/* Check cfg and start from a zero radius (call uncertainty_reset for another start).
- * Returns 0, or -EDOM if cfg is out of range (u is then unusable). interrupt-safe: no. */
-int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg);
+/* Check cfg and model and start from a zero radius (call uncertainty_reset for another start),
+ * updated rate_hz times a second. Returns 0, or -EDOM if cfg or model is out of range (u is then
+ * unusable). interrupt-safe: no. */
+int uncertainty_init(struct uncertainty *u, const struct uncertainty_config *cfg, uint16_t rate_hz,
+		     const struct uncertainty_model *model);
 
-/* Change the configuration keeping the accumulated uncertainty. What the old residual bounds
+/* Change the model keeping the accumulated uncertainty. What the old residual bounds
  * accumulated is kept as it is: the systematic position terms become fixed errors (they no
  * longer cancel on the way back) and the systematic heading drift joins the heading variance;
- * the new bounds apply from here on. Returns 0, or -EDOM (the old config is kept).
+ * the new bounds apply from here on. Returns 0, or -EDOM (the old model is kept).
  * interrupt-safe: no (between two ticks). */
-int uncertainty_set_config(struct uncertainty *u, const struct uncertainty_config *cfg);
+int uncertainty_set_model(struct uncertainty *u, const struct uncertainty_model *model);
 
-/* One tick, after odometry_update: the wheel travels of the tick (odometry_step.left_q16,
- * right_q16 [um * 2^16]) and the heading after the tick [turn * 2^32]. Accumulates; a batch ends
+/* One update: the wheel travels since the last one (odometry_travel_q16() of their counts
+ * [um * 2^16]) and the heading after the tick [turn * 2^32]. Accumulates; a batch ends
  * every batch_ticks ticks, or after UNCERTAINTY_BATCH_PATH_UM of travel, and is propagated over
  * the next UNCERTAINTY_STAGES ticks, one stage per call, the last refreshing the radius. A batch
  * that is due while the previous one is still being propagated goes on accumulating until the

@@ -1,4 +1,5 @@
-/* The porting contract: what a port (ports/host, ports/avr) provides so that the core runs.
+/* The porting contract: what a port (ports/host, ports/avr, ports/stm32; ports/template to start
+ * a new one) provides so that the core runs.
  *
  * The core itself never calls these: a port's control interrupt samples the inputs into a
  * struct board_inputs, calls board_tick() (core/board.h), and applies struct board_outputs.

@@ -128,8 +128,8 @@ static void test_goto_arrives(void **state)
 	assert_true(status() & STATUS_BUSY_TRAJET);
 	for (ticks = 0; ticks < 10000; ticks++) {
 		host_tick(&h);
-		saw_rotate += h.board.orders.state == ORDER_STATE_ROTATE;
-		saw_translate += h.board.orders.state == ORDER_STATE_TRANSLATE;
+		saw_rotate += h.board.planner.orders.state == ORDER_STATE_ROTATE;
+		saw_translate += h.board.planner.orders.state == ORDER_STATE_TRANSLATE;
 		if (!(status() & STATUS_BUSY_TRAJET))
 			break;
 	}
@@ -137,7 +137,7 @@ static void test_goto_arrives(void **state)
 	 * aims and starts translating at once (no tick shows ROTATE); SETTLE may end at the step
 	 * that enters it. */
 	assert_true(saw_rotate == 0 && saw_translate > 0);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_DONE);
 	assert_int_equal(status(), 0);
 	position(&x, &y, &a, &r);
 	truth(&tx, &ty, &th);
@@ -166,7 +166,7 @@ static void test_goto_turns_first(void **state)
 	goto_mm(-1300, 500);
 	for (ticks = 0; ticks < 20000; ticks++) {
 		host_tick(&h);
-		if (h.board.orders.state == ORDER_STATE_ROTATE) {
+		if (h.board.planner.orders.state == ORDER_STATE_ROTATE) {
 			rotate_ticks++;
 			truth(&tx, &ty, &th);
 			assert_true(fabs(tx - x0) < 1.0 && fabs(ty - y0) < 1.0);
@@ -199,7 +199,7 @@ static void test_goto_reverse(void **state)
 	truth(&x1, &y1, &h1);
 	assert_true(fabs((x0 - x1) - 200.0) < 1.5);
 	assert_true(fabs(y1 - y0) < 1.0 && fabs(h1 - h0) < 0.2);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_DONE);
 }
 
 /* STOP mid-move: decelerates (no hard stop), ends STOPPED, not busy. */
@@ -220,7 +220,7 @@ static void test_stop(void **state)
 	assert_true(status() & STATUS_BUSY_TRAJET);
 	run_until_idle(5000);
 	truth(&x1, &y1, &hd);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_STOPPED);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_STOPPED);
 	/* Braking from 0.5 m/s at 0.5 m/s^2 takes 250 mm. */
 	assert_true(x1 - x0 > 230.0 && x1 - x0 < 270.0);
 }
@@ -243,7 +243,7 @@ static void test_replace_is_smooth(void **state)
 		if (i == 1500)
 			goto_mm(0, 600);
 		host_tick(&h);
-		v = h.board.sp_dist.vel_um_s;
+		v = h.board.servo.sp_dist.vel_um_s;
 		dv = v > prev_v ? v - prev_v : prev_v - v;
 		if (dv > max_dv)
 			max_dv = dv;
@@ -252,7 +252,7 @@ static void test_replace_is_smooth(void **state)
 	/* 0.8 m/s^2 at 1 kHz: 800 um/s per tick. */
 	assert_true(max_dv <= 801);
 	run_until_idle(20000);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_DONE);
 }
 
 /* A GOTO to a point the robot is about to pass, given at full speed: it ends (no endless
@@ -280,7 +280,7 @@ static void test_replace_near_target_at_speed(void **state)
 	truth(&tx, &ty, &th);
 	print_message("replaced at speed: %u ticks, truth (%.2f, %.2f)\n", ticks, tx, ty);
 	assert_true(ticks < 20000);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_DONE);
 	/* A straight correction along the heading: on the target's abscissa. */
 	assert_true(fabs(tx + 100.0) < 2.0);
 }
@@ -297,7 +297,7 @@ static void test_shock_stops(void **state)
 	start(&f);
 	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 30, 50}, 3);
 	goto_mm(1600, 0); /* beyond the border at x = 1500 */
-	while (!(h.board.status & STATUS_CHOC_BORD) && ticks < 20000) {
+	while (!(h.board.planner.status & STATUS_CHOC_BORD) && ticks < 20000) {
 		struct sim_sensors s;
 
 		sim_read_sensors(&h.sim, &s);
@@ -308,16 +308,17 @@ static void test_shock_stops(void **state)
 			do {
 				host_tick(&h);
 				ticks++;
-			} while (++n < latency_ticks() && h.board.last_out.duty_q15[0] >= 3000);
-			assert_true(h.board.status & STATUS_CHOC_BORD);
-			assert_true(h.board.last_out.duty_q15[0] < 3000);
+			} while (++n < latency_ticks() &&
+				 h.board.servo.last_out.duty_q15[0] >= 3000);
+			assert_true(h.board.planner.status & STATUS_CHOC_BORD);
+			assert_true(h.board.servo.last_out.duty_q15[0] < 3000);
 			break;
 		}
 		host_tick(&h);
 		ticks++;
 	}
 	assert_int_equal(status() & (STATUS_CHOC_BORD | STATUS_BUSY_TRAJET), STATUS_CHOC_BORD);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_SHOCK);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_SHOCK);
 	/* The next order clears it. */
 	send((const uint8_t[]){PROTO_GOTO_REVERSE, 100}, 2);
 	host_tick(&h);
@@ -348,7 +349,7 @@ static void test_goto_panier(void **state)
 			break;
 	}
 	assert_true(saw_busy_panier);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_BASKET);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_BASKET);
 	assert_int_equal(status() & STATUS_CHOC_PANIER, STATUS_CHOC_PANIER);
 	truth(&tx, &ty, &th);
 	p = board_get_pose(&h.board);
@@ -373,10 +374,10 @@ static void test_goto_panier_finds_nothing(void **state)
 	send((const uint8_t[]){PROTO_GOTO_PANIER, 0}, 2);
 	run_until_idle(30000);
 	truth(&tx, &ty, &th);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_NO_BASKET);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_NO_BASKET);
 	assert_int_equal(status() & (STATUS_CHOC_PANIER | STATUS_BUSY_TRAJET | STATUS_PB_MOTEUR),
 			 STATUS_PB_MOTEUR);
-	assert_int_equal(h.board.faults.n_motor_faults, 0);
+	assert_int_equal(h.board.planner.faults.n_motor_faults, 0);
 	assert_true(fabs(tx - (-1300.0 + 500.0)) < 2.0);
 }
 
@@ -393,7 +394,7 @@ static void test_slip_is_a_motor_problem(void **state)
 	goto_mm(0, 0);
 	run_until_idle(20000);
 	assert_int_equal(status() & STATUS_PB_MOTEUR, STATUS_PB_MOTEUR);
-	assert_int_equal(h.board.faults.cause, FAULTS_CAUSE_SLIP);
+	assert_int_equal(h.board.planner.faults.cause, FAULTS_CAUSE_SLIP);
 }
 
 /* A stalled motor: the order is abandoned with PB_MOTEUR; the next order may run. */
@@ -410,13 +411,13 @@ static void test_stuck_motor(void **state)
 	sim_set_motor_stuck(&h.sim, SIM_LEFT, true);
 	run_until_idle(5000);
 	assert_int_equal(status() & (STATUS_PB_MOTEUR | STATUS_BUSY_TRAJET), STATUS_PB_MOTEUR);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_MOTOR);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_MOTOR);
 	sim_set_motor_stuck(&h.sim, SIM_LEFT, false);
 	goto_mm(-800, 0);
 	host_tick(&h);
 	assert_int_equal(status() & STATUS_PB_MOTEUR, 0);
 	run_until_idle(20000);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_DONE);
 }
 
 /* A cut free-wheel encoder while driving: the order is abandoned on suspicion (PB_MOTEUR,
@@ -436,16 +437,16 @@ static void test_encoder_cut_is_grave(void **state)
 	sim_set_encoder_cut(&h.sim, SIM_RIGHT, true);
 	run_until_idle(5000);
 	assert_int_equal(status(), STATUS_PB_MOTEUR);
-	assert_int_equal(h.board.faults.cause, FAULTS_CAUSE_ENCODER_LOST);
-	assert_int_equal(h.board.last_out.duty_q15[0], 0);
-	assert_int_equal(h.board.last_out.duty_q15[1], 0);
+	assert_int_equal(h.board.planner.faults.cause, FAULTS_CAUSE_ENCODER_LOST);
+	assert_int_equal(h.board.servo.last_out.duty_q15[0], 0);
+	assert_int_equal(h.board.servo.last_out.duty_q15[1], 0);
 	goto_mm(-300, 0);
 	run_until_idle(5000);
-	print_message("fault cause %u\n", h.board.faults.cause);
+	print_message("fault cause %u\n", h.board.planner.faults.cause);
 	assert_true(status() & STATUS_PB_GRAVE);
-	assert_int_equal(h.board.faults.cause, FAULTS_CAUSE_ENCODER_LOST);
-	assert_int_equal(h.board.last_out.duty_q15[0], 0);
-	assert_int_equal(h.board.last_out.duty_q15[1], 0);
+	assert_int_equal(h.board.planner.faults.cause, FAULTS_CAUSE_ENCODER_LOST);
+	assert_int_equal(h.board.servo.last_out.duty_q15[0], 0);
+	assert_int_equal(h.board.servo.last_out.duty_q15[1], 0);
 	goto_mm(0, 0);
 	assert_true(status() & STATUS_COMMANDE_REJETEE);
 	send((const uint8_t[]){PROTO_LAST_REJECT}, 1);
@@ -507,10 +508,10 @@ static void test_timeout_stops_a_silent_master(void **state)
 	do {
 		host_tick(&h);
 		n++;
-	} while (h.board.orders.state == ORDER_STATE_TRANSLATE && n < 1000);
+	} while (h.board.planner.orders.state == ORDER_STATE_TRANSLATE && n < 1000);
 	/* The first tick sees the poll; 200 more see none. */
 	assert_int_equal(n, 201);
-	assert_int_equal(h.board.orders.state, ORDER_STATE_STOPPING);
+	assert_int_equal(h.board.planner.orders.state, ORDER_STATE_STOPPING);
 	p0 = board_get_pose(&h.board);
 	silence(2000);
 	p1 = board_get_pose(&h.board);
@@ -611,31 +612,31 @@ static void test_set_odometrie(void **state)
 	setup_field(&f);
 	start(&f);
 	host_tick(&h);
-	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5147185);
+	assert_int_equal(h.board.servo.counter.cfg.left_um_per_count_q16, 5147185);
 	p0 = board_get_pose(&h.board);
-	d0 = odometry_get_distance_um(&h.board.odometry);
+	d0 = odometry_get_distance_um(&h.board.servo.counter);
 	/* ratio +2000 ppm, track 280.12 mm, scale -1000 ppm */
 	send((const uint8_t[]){PROTO_SET_ODOMETRIE, 0x07, 0xD0, 0x6D, 0x6C, 0xFC, 0x18}, 7);
-	assert_int_equal(h.board.odometry.cfg.track_um, 280000); /* not before the tick */
+	assert_int_equal(h.board.servo.counter.cfg.track_um, 280000); /* not before the tick */
 	for (uint32_t i = 0; i < wheels_latency_ticks(); i++)
 		host_tick(&h);
-	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5136896);
-	assert_int_equal(h.board.odometry.cfg.right_um_per_count_q16, 5147180);
-	assert_int_equal(h.board.odometry.cfg.track_um, 280120);
-	assert_int_equal(h.board.uncertainty.cfg.track_um, 280120);
+	assert_int_equal(h.board.servo.counter.cfg.left_um_per_count_q16, 5136896);
+	assert_int_equal(h.board.servo.counter.cfg.right_um_per_count_q16, 5147180);
+	assert_int_equal(h.board.servo.counter.cfg.track_um, 280120);
+	assert_int_equal(h.board.planner.uncertainty.model.track_um, 280120);
 	p1 = board_get_pose(&h.board);
 	assert_int_equal(p1.x_um, p0.x_um);
 	assert_int_equal(p1.y_um, p0.y_um);
 	assert_int_equal(p1.heading_turn32, p0.heading_turn32);
-	assert_int_equal(odometry_get_distance_um(&h.board.odometry), d0);
+	assert_int_equal(odometry_get_distance_um(&h.board.servo.counter), d0);
 	assert_int_equal(status() & STATUS_COMMANDE_REJETEE, 0);
 	/* Absolute, not cumulative: the nominal values again. */
 	send((const uint8_t[]){PROTO_SET_ODOMETRIE, 0, 0, 0x6D, 0x60, 0, 0}, 7);
 	for (uint32_t i = 0; i < wheels_latency_ticks(); i++)
 		host_tick(&h);
-	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5147185);
-	assert_int_equal(h.board.odometry.cfg.right_um_per_count_q16, 5147185);
-	assert_int_equal(h.board.odometry.cfg.track_um, 280000);
+	assert_int_equal(h.board.servo.counter.cfg.left_um_per_count_q16, 5147185);
+	assert_int_equal(h.board.servo.counter.cfg.right_um_per_count_q16, 5147185);
+	assert_int_equal(h.board.servo.counter.cfg.track_um, 280000);
 }
 
 /* SET_ODOMETRIE on the move, 3 % larger wheels: the travel up to the tick that installs them
@@ -652,7 +653,7 @@ static void test_set_odometrie_moving(void **state)
 	start(&f);
 	host_tick(&h);
 	x0 = board_get_pose(&h.board).x_um;
-	d0 = h.board.m.dist_um;
+	d0 = h.board.planner.m.dist_um;
 	goto_mm((int16_t)(x0 / 1000 + 1500), (int16_t)(board_get_pose(&h.board).y_um / 1000));
 	for (int i = 0; i < 1500; i++) {
 		if (i == 600) /* at speed (a period is 800 um): scale +30000 ppm */
@@ -660,10 +661,10 @@ static void test_set_odometrie_moving(void **state)
 			     7);
 		host_tick(&h);
 		x1 = board_get_pose(&h.board).x_um - x0;
-		d1 = h.board.m.dist_um - d0;
+		d1 = h.board.planner.m.dist_um - d0;
 		assert_true(x1 - d1 <= 2 && d1 - x1 <= 2);
 	}
-	assert_int_equal(h.board.odometry.cfg.left_um_per_count_q16, 5301601);
+	assert_int_equal(h.board.servo.counter.cfg.left_um_per_count_q16, 5301601);
 	assert_true(x1 > 100000); /* at the power-on 10 cm/s */
 }
 
@@ -729,13 +730,13 @@ static void test_slow_overrun(void **state)
 		assert_int_equal(board_slow_due(&h.board), slow_shift != 0);
 	}
 	/* Tick 1 found tick 0's snapshot still waiting. */
-	assert_int_equal(h.board.slow_overruns, slow_shift ? 1 : 0);
-	assert_int_equal(h.board.sp_dist.vel_um_s, 0);
+	assert_int_equal(h.board.servo.slow_overruns, slow_shift ? 1 : 0);
+	assert_int_equal(h.board.servo.sp_dist.vel_um_s, 0);
 	port_slow(&h.board);
 	assert_false(board_slow_due(&h.board));
 	run_until_idle(20000);
-	assert_int_equal(h.board.orders.end_reason, END_REASON_DONE);
-	assert_int_equal(h.board.slow_overruns, slow_shift ? 1 : 0);
+	assert_int_equal(h.board.planner.orders.end_reason, END_REASON_DONE);
+	assert_int_equal(h.board.servo.slow_overruns, slow_shift ? 1 : 0);
 }
 
 /* The slow steps' rate: 2^0..2^3 ticks, dividing the tick, at 100 Hz or more. */
@@ -755,7 +756,7 @@ static void test_slow_shift_range(void **state)
 	(void)state;
 	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
 		board_default_config(&bc);
-		bc.tick_hz = bc.control.tick_hz = bc.orders.tick_hz = cases[i].tick_hz;
+		bc.tick_hz = cases[i].tick_hz;
 		bc.slow_shift = cases[i].shift;
 		assert_int_equal(board_init(&h.board, &bc, &in), cases[i].ok ? 0 : -1);
 	}

@@ -17,7 +17,6 @@ static void config(struct control_config *cfg, int32_t ff_speed, int32_t ff_acce
 		   int32_t ff_angle_accel)
 {
 	*cfg = (struct control_config){0};
-	cfg->tick_hz = 1000;
 	cfg->duty_max_q15 = 32767;
 	cfg->ff_speed_q15_per_m_s = ff_speed;
 	cfg->ff_accel_q15_per_m_s2 = ff_accel;
@@ -43,7 +42,7 @@ static void run_sequence(const struct control_config *cfg, uint32_t seed, int32_
 	struct control kept, fresh;
 	struct orders_axis d = {0, 0, 0}, a = {0, 0, 0};
 
-	assert_int_equal(control_init(&kept, cfg), 0);
+	assert_int_equal(control_init(&kept, cfg, 1000), 0);
 	for (int t = 0; t < 4000; t++) {
 		uint32_t r = next(&seed) % 16;
 
@@ -65,7 +64,7 @@ static void run_sequence(const struct control_config *cfg, uint32_t seed, int32_
 		d.pos_um += d.vel_um_s / 1000;
 		a.pos_um += a.vel_um_s / 1000;
 		control_update(&kept, &d, &a, d.pos_um, a.pos_um);
-		assert_int_equal(control_init(&fresh, cfg), 0);
+		assert_int_equal(control_init(&fresh, cfg, 1000), 0);
 		control_update(&fresh, &d, &a, d.pos_um, a.pos_um);
 		assert_true(fresh.duty_q15[0] > -32767 && fresh.duty_q15[0] < 32767);
 		assert_true(fresh.duty_q15[1] > -32767 && fresh.duty_q15[1] < 32767);
@@ -102,7 +101,7 @@ static void test_accel_term_value(void **state)
 
 	(void)state;
 	config(&cfg, 20000, 3000, 2000);
-	assert_int_equal(control_init(&c, &cfg), 0);
+	assert_int_equal(control_init(&c, &cfg, 1000), 0);
 	/* 1 m/s^2: round(10^6 3146 / 2^20) = round(3000.3) = 3000 on both motors */
 	control_update(&c, &d, &a, 0, 0);
 	assert_int_equal(c.duty_q15[0], 3000);

@@ -20,7 +20,7 @@ static void setup(void)
 
 	board_default_config(&bc);
 	bc.faults.shock_basket_mask = 0x01;
-	assert_int_equal(faults_init(&f, &bc.faults, zero), 0);
+	assert_int_equal(faults_init(&f, &bc.faults, 1000, zero), 0);
 	memset(&in, 0, sizeof(in));
 	in.free_ratio_q16 = 37449; /* 160 / 280 */
 	in.moving = 1;

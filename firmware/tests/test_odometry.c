@@ -23,6 +23,62 @@
 #define K_Q16 628319u
 #define TRACK_UM 280000u
 
+/* The board's odometry as one object for these tests: the servo's counter and the planner's
+ * position, the position moved along each tick's arc, as the board does with a period of one
+ * tick (planner.c, step 0): the travels from the counts with the factors before the tick. */
+struct odo {
+	struct odometry_counter c;
+	struct odometry_position p;
+	int32_t travel_left_q16; /* the last tick's wheel travels [um * 2^16] */
+	int32_t travel_right_q16;
+};
+
+static int odo_init(struct odo *o, const struct odometry_config *cfg, uint16_t left, uint16_t right)
+{
+	o->travel_left_q16 = 0;
+	o->travel_right_q16 = 0;
+	odometry_position_init(&o->p, 0, 0);
+	return odometry_counter_init(&o->c, cfg, left, right, 0);
+}
+
+static int odo_update(struct odo *o, uint16_t left, uint16_t right)
+{
+	struct odometry_arc a;
+	int16_t dl = (int16_t)(left - o->c.left_count), dr = (int16_t)(right - o->c.right_count);
+	int err;
+
+	o->travel_left_q16 = odometry_travel_q16(o->c.left.k, dl);
+	o->travel_right_q16 = odometry_travel_q16(o->c.right.k, dr);
+	err = odometry_count(&o->c, left, right);
+	odometry_arc_of(&a, o->travel_left_q16, o->travel_right_q16, o->c.step.dtheta_turn32,
+			o->c.heading_turn32);
+	odometry_advance(&o->p, &a);
+	return err;
+}
+
+static struct odometry_pose odo_pose(const struct odo *o)
+{
+	struct odometry_pose p;
+
+	p.x_um = odometry_get_x_um(&o->p);
+	p.y_um = odometry_get_y_um(&o->p);
+	p.heading_turn32 = odometry_get_heading_turn32(&o->c);
+	return p;
+}
+
+/* A new pose: the position, and the counter started again at the heading (its distance
+ * kept). */
+static void odo_set_pose(struct odo *o, const struct odometry_pose *pose)
+{
+	uint32_t d = o->c.distance_um, f = o->c.distance_frac;
+
+	odometry_set_position(&o->p, pose->x_um, pose->y_um);
+	(void)odometry_counter_init(&o->c, &o->c.cfg, o->c.left_count, o->c.right_count,
+				    pose->heading_turn32);
+	o->c.distance_um = d;
+	o->c.distance_frac = f;
+}
+
 static const struct odometry_config cfg_default = {K_Q16, K_Q16, TRACK_UM};
 
 static long double ref_sin(long double t)
@@ -103,12 +159,12 @@ static long long robot_right_counts(const struct robot *r)
 	return round_ll(r->right_um / r->right_um_per_count);
 }
 
-static int robot_tick(struct robot *r, struct odometry *o, long double dl_um, long double dr_um)
+static int robot_tick(struct robot *r, struct odo *o, long double dl_um, long double dr_um)
 {
 	r->left_um += dl_um;
 	r->right_um += dr_um;
-	return odometry_update(o, (uint16_t)((r->left0 + robot_left_counts(r)) & 0xffff),
-			       (uint16_t)((r->right0 + robot_right_counts(r)) & 0xffff));
+	return odo_update(o, (uint16_t)((r->left0 + robot_left_counts(r)) & 0xffff),
+			  (uint16_t)((r->right0 + robot_right_counts(r)) & 0xffff));
 }
 
 /* Trapezoidal speed profile over distance d [um] with 1 m/s, 1.5 m/s^2 at 1 kHz: the travel of
@@ -139,7 +195,7 @@ static int trapezoid_ticks(long double d, long double *step, int max_ticks)
 
 static long double steps[20000];
 
-static void drive_straight(struct robot *r, struct odometry *o, long double d_um)
+static void drive_straight(struct robot *r, struct odo *o, long double d_um)
 {
 	int n = trapezoid_ticks(d_um, steps, 20000);
 
@@ -147,7 +203,7 @@ static void drive_straight(struct robot *r, struct odometry *o, long double d_um
 		assert_int_equal(robot_tick(r, o, steps[i], steps[i]), 0);
 }
 
-static void drive_rotation(struct robot *r, struct odometry *o, long double angle_rad)
+static void drive_rotation(struct robot *r, struct odo *o, long double angle_rad)
 {
 	int n = trapezoid_ticks(angle_rad * TRACK_UM / 2, steps, 20000);
 
@@ -157,63 +213,63 @@ static void drive_rotation(struct robot *r, struct odometry *o, long double angl
 
 static void test_no_jump_at_start(void **state)
 {
-	struct odometry o;
+	struct odo o;
 	struct odometry_pose p;
 	struct odometry_step s;
 
 	(void)state;
-	assert_int_equal(odometry_init(&o, &cfg_default, 12345, 54321), 0);
-	assert_int_equal(odometry_update(&o, 12345, 54321), 0);
-	p = odometry_get_pose(&o);
-	s = odometry_get_step(&o);
+	assert_int_equal(odo_init(&o, &cfg_default, 12345, 54321), 0);
+	assert_int_equal(odo_update(&o, 12345, 54321), 0);
+	p = odo_pose(&o);
+	s = odometry_get_step(&o.c);
 	assert_int_equal(p.x_um, 0);
 	assert_int_equal(p.y_um, 0);
 	assert_int_equal(p.heading_turn32, 0);
 	assert_int_equal(s.ds_um, 0);
 	assert_int_equal(s.dtheta_turn32, 0);
 	/* 5 counts: 5 * 628319 / 65536 = 47.94 um. */
-	assert_int_equal(odometry_update(&o, 12350, 54326), 0);
-	p = odometry_get_pose(&o);
-	s = odometry_get_step(&o);
+	assert_int_equal(odo_update(&o, 12350, 54326), 0);
+	p = odo_pose(&o);
+	s = odometry_get_step(&o.c);
 	assert_int_equal(p.x_um, 48);
 	assert_int_equal(p.y_um, 0);
-	assert_int_equal(s.left_q16, 5 * (int32_t)K_Q16);
-	assert_int_equal(s.right_q16, 5 * (int32_t)K_Q16);
+	assert_int_equal(o.travel_left_q16, 5 * (int32_t)K_Q16);
+	assert_int_equal(o.travel_right_q16, 5 * (int32_t)K_Q16);
 	assert_int_equal(s.ds_um, 48);
-	assert_int_equal(odometry_get_distance_um(&o), 48);
+	assert_int_equal(odometry_get_distance_um(&o.c), 48);
 }
 
 static void test_straight_lines(void **state)
 {
-	struct odometry o;
+	struct odo o;
 	struct robot r;
 	struct odometry_pose p, start = {100000, -50000, 0};
 	long long n;
 	long double x, y, th;
 
 	(void)state;
-	odometry_init(&o, &cfg_default, 0, 0);
+	odo_init(&o, &cfg_default, 0, 0);
 	robot_init(&r, &cfg_default, 0, 0);
 	drive_straight(&r, &o, 1.8e6L);
 	n = robot_left_counts(&r);
 	assert_true(n == robot_right_counts(&r));
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	/* Straight along heading 0 the integration is exact: x = counts * factor, y = 0. */
 	assert_int_equal(p.x_um, round_ll((long double)n * K_Q16 / 65536));
 	assert_int_equal(p.y_um, 0);
 	assert_int_equal(p.heading_turn32, 0);
-	assert_int_equal(odometry_get_distance_um(&o), p.x_um);
+	assert_int_equal(odometry_get_distance_um(&o.c), p.x_um);
 
 	/* Backwards from another pose, along 30 degrees. */
 	start.heading_turn32 = fx_deg_to_turn32(30);
-	odometry_set_pose(&o, &start);
+	odo_set_pose(&o, &start);
 	robot_init(&r, &cfg_default, (uint16_t)n, (uint16_t)n);
 	drive_straight(&r, &o, -1.2e6L);
 	n = robot_left_counts(&r);
 	x = 100000 + (long double)n * K_Q16 / 65536 * ref_cos(PI_L / 6);
 	y = -50000 + (long double)n * K_Q16 / 65536 * ref_sin(PI_L / 6);
 	th = PI_L / 6;
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	print_message("30 deg line: x %d (%.2Lf) y %d (%.2Lf)\n", p.x_um, x, p.y_um, y);
 	assert_true(absl(p.x_um - x) <= 1.0L);
 	assert_true(absl(p.y_um - y) <= 1.0L);
@@ -222,19 +278,19 @@ static void test_straight_lines(void **state)
 
 static void test_rotation_in_place(void **state)
 {
-	struct odometry o;
+	struct odo o;
 	struct robot r;
 	struct odometry_pose p;
 	long long nl, nr;
 	long double th;
 
 	(void)state;
-	odometry_init(&o, &cfg_default, 1000, 2000);
+	odo_init(&o, &cfg_default, 1000, 2000);
 	robot_init(&r, &cfg_default, 1000, 2000);
 	drive_rotation(&r, &o, 2 * PI_L / 3);
 	nl = robot_left_counts(&r);
 	nr = robot_right_counts(&r);
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	th = (long double)(nr - nl) * K_Q16 / 65536 / TRACK_UM;
 	print_message("rotation: heading %u, error %.2Lf units, x %d y %d\n", p.heading_turn32,
 		      turn32_error(p.heading_turn32, th), p.x_um, p.y_um);
@@ -246,7 +302,7 @@ static void test_rotation_in_place(void **state)
 	nl = robot_left_counts(&r);
 	nr = robot_right_counts(&r);
 	th = (long double)(nr - nl) * K_Q16 / 65536 / TRACK_UM;
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	assert_true(absl(turn32_error(p.heading_turn32, th)) <= 2.0L);
 	assert_int_equal(p.x_um, 0);
 	assert_int_equal(p.y_um, 0);
@@ -256,7 +312,7 @@ static void test_rotation_in_place(void **state)
  * whatever the angle per tick, if the arc integration is exact. */
 static void check_circle(int32_t dl, int32_t dr, int ticks, long double tol_um)
 {
-	struct odometry o;
+	struct odo o;
 	struct odometry_pose p;
 	uint16_t l = 0, r = 0;
 	long double k = K_Q16 / 65536.0L;
@@ -264,13 +320,13 @@ static void check_circle(int32_t dl, int32_t dr, int ticks, long double tol_um)
 	long double phi = (long double)(dr - dl) * k / TRACK_UM * ticks;
 	long double x = radius * ref_sin(phi), y = radius * (1 - ref_cos(phi));
 
-	odometry_init(&o, &cfg_default, 0, 0);
+	odo_init(&o, &cfg_default, 0, 0);
 	for (int i = 0; i < ticks; i++) {
 		l = (uint16_t)(l + dl);
 		r = (uint16_t)(r + dr);
-		assert_int_equal(odometry_update(&o, l, r), 0);
+		assert_int_equal(odo_update(&o, l, r), 0);
 	}
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	print_message("circle R %.1Lf mm, %.4Lf rad: x %d (%.2Lf) y %d (%.2Lf)\n", radius / 1000,
 		      phi, p.x_um, x, p.y_um, y);
 	assert_true(absl(p.x_um - x) <= tol_um);
@@ -298,14 +354,14 @@ static void test_arcs_of_known_radius(void **state)
  * times the 785 mm path plus the wheel error itself: below 20 um. */
 static void test_driven_quarter_circle(void **state)
 {
-	struct odometry o;
+	struct odo o;
 	struct robot r;
 	struct odometry_pose p;
 	const long double radius = 500000;
 	int n = trapezoid_ticks(radius * PI_L / 2, steps, 20000);
 
 	(void)state;
-	odometry_init(&o, &cfg_default, 40000, 7);
+	odo_init(&o, &cfg_default, 40000, 7);
 	robot_init(&r, &cfg_default, 40000, 7);
 	for (int i = 0; i < n; i++) {
 		long double dphi = steps[i] / radius;
@@ -314,7 +370,7 @@ static void test_driven_quarter_circle(void **state)
 					    dphi * (radius + TRACK_UM / 2.0L)),
 				 0);
 	}
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	print_message("quarter circle: x %d y %d heading error %.1Lf units\n", p.x_um, p.y_um,
 		      turn32_error(p.heading_turn32, PI_L / 2));
 	assert_true(absl(p.x_um - radius) <= 20.0L);
@@ -324,30 +380,30 @@ static void test_driven_quarter_circle(void **state)
 }
 
 /* The position moved once per period of 2^shift ticks (odometry_count() every tick, then
- * odometry_advance() along the period's summed travels, as board.c does with two rates): a
+ * odometry_advance() along the period's summed travels, as planner.c does with two rates): a
  * quarter circle of 500 mm radius then a straight with speed ramps, and a rotation in place.
- * Every tick (shift 0), the pair is odometry_update() bit for bit; every 8 ticks the curvature
+ * Every tick (shift 0), the pair is odo_update() bit for bit; every 8 ticks the curvature
  * changes within a period only at the ramps' ends and at the turn's start and end, and the
  * position stays within 1 um of the per-tick one. */
-static void advance_period(struct odometry *o, struct odometry *per_tick, uint8_t shift,
-			   int left_counts, int right_counts, int32_t dtheta_turn32)
+static void advance_period(struct odo *o, struct odo *per_tick, uint8_t shift, int left_counts,
+			   int right_counts, int32_t dtheta_turn32)
 {
-	/* The period's travels from its counts, as board.c takes them. */
-	int32_t l = odometry_travel_q16(o->left.k, (int16_t)left_counts);
-	int32_t r = odometry_travel_q16(o->right.k, (int16_t)right_counts);
+	/* The period's travels from its counts, as planner.c takes them. */
+	int32_t l = odometry_travel_q16(o->c.left.k, (int16_t)left_counts);
+	int32_t r = odometry_travel_q16(o->c.right.k, (int16_t)right_counts);
 	struct odometry_arc a;
 
-	if (shift == 0) { /* a tick's: odometry_update()'s */
-		assert_int_equal(l, per_tick->step.left_q16);
-		assert_int_equal(r, per_tick->step.right_q16);
-		o->step.left_q16 = l;
-		o->step.right_q16 = r;
+	if (shift == 0) { /* a tick's: odo_update()'s */
+		assert_int_equal(l, per_tick->travel_left_q16);
+		assert_int_equal(r, per_tick->travel_right_q16);
+		o->travel_left_q16 = l;
+		o->travel_right_q16 = r;
 	}
-	odometry_arc_of(&a, l, r, dtheta_turn32, o->heading_turn32);
-	odometry_advance(o, &a);
+	odometry_arc_of(&a, l, r, dtheta_turn32, o->c.heading_turn32);
+	odometry_advance(&o->p, &a);
 }
 
-static void drive_in_periods(uint8_t shift, struct odometry *o, struct odometry *per_tick)
+static void drive_in_periods(uint8_t shift, struct odo *o, struct odo *per_tick)
 {
 	struct robot r;
 	const long double radius = 500000;
@@ -358,8 +414,8 @@ static void drive_in_periods(uint8_t shift, struct odometry *o, struct odometry 
 
 	memset(o, 0, sizeof(*o)); /* padding too: the two are compared as bytes */
 	memset(per_tick, 0, sizeof(*per_tick));
-	odometry_init(o, &cfg_default, 40000, 7);
-	odometry_init(per_tick, &cfg_default, 40000, 7);
+	odo_init(o, &cfg_default, 40000, 7);
+	odo_init(per_tick, &cfg_default, 40000, 7);
 	robot_init(&r, &cfg_default, 40000, 7);
 	for (int leg = 0; leg < 3; leg++) {
 		if (leg == 1)
@@ -376,9 +432,9 @@ static void drive_in_periods(uint8_t shift, struct odometry *o, struct odometry 
 			r.right_um += dr;
 			lc = (uint16_t)((r.left0 + robot_left_counts(&r)) & 0xffff);
 			rc = (uint16_t)((r.right0 + robot_right_counts(&r)) & 0xffff);
-			assert_int_equal(odometry_update(per_tick, lc, rc), 0);
-			assert_int_equal(odometry_count(o, lc, rc), 0);
-			sum_th += o->step.dtheta_turn32;
+			assert_int_equal(odo_update(per_tick, lc, rc), 0);
+			assert_int_equal(odometry_count(&o->c, lc, rc), 0);
+			sum_th += o->c.step.dtheta_turn32;
 			if (((total + 1) & ((1 << shift) - 1)) == 0) {
 				advance_period(o, per_tick, shift, lc - base_l, rc - base_r,
 					       sum_th);
@@ -395,15 +451,15 @@ static void drive_in_periods(uint8_t shift, struct odometry *o, struct odometry 
 
 static void test_position_in_periods(void **state)
 {
-	struct odometry o, t;
+	struct odo o, t;
 	struct odometry_pose p, q;
 
 	(void)state;
 	drive_in_periods(0, &o, &t);
 	assert_memory_equal(&o, &t, sizeof(o));
 	drive_in_periods(3, &o, &t);
-	p = odometry_get_pose(&o);
-	q = odometry_get_pose(&t);
+	p = odo_pose(&o);
+	q = odo_pose(&t);
 	print_message("position in periods of 8 ticks: (%d, %d) um, per tick (%d, %d) um\n", p.x_um,
 		      p.y_um, q.x_um, q.y_um);
 	assert_int_equal(p.heading_turn32, q.heading_turn32);
@@ -425,33 +481,33 @@ static void test_position_in_periods(void **state)
  * travel from its counts is the sum of its ticks'. */
 static void test_travel_of_counts(void **state)
 {
-	struct odometry o;
+	struct odo o;
 	struct odometry_config wide = cfg_default;
 
 	(void)state;
-	assert_int_equal(odometry_init(&o, &cfg_default, 0, 0), 0);
+	assert_int_equal(odo_init(&o, &cfg_default, 0, 0), 0);
 	for (int n = -3000; n <= 3000; n += (n > -40 && n < 40) ? 1 : 37) {
-		assert_int_equal(odometry_travel_q16(o.left.k, (int16_t)n), n * (int32_t)K_Q16);
-		assert_int_equal(odometry_travel_q16(o.right.k, (int16_t)n), n * (int32_t)K_Q16);
+		assert_int_equal(odometry_travel_q16(o.c.left.k, (int16_t)n), n * (int32_t)K_Q16);
+		assert_int_equal(odometry_travel_q16(o.c.right.k, (int16_t)n), n * (int32_t)K_Q16);
 	}
 	/* Clamped beyond 2^31 [um * 2^16]: 3417 counts of K_Q16. */
-	assert_int_equal(odometry_travel_q16(o.left.k, 3417), 3417 * (int32_t)K_Q16);
-	assert_int_equal(odometry_travel_q16(o.left.k, 3418), ODOMETRY_STEP_Q16_MAX);
-	assert_int_equal(odometry_travel_q16(o.left.k, INT16_MIN), -ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_travel_q16(o.c.left.k, 3417), 3417 * (int32_t)K_Q16);
+	assert_int_equal(odometry_travel_q16(o.c.left.k, 3418), ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_travel_q16(o.c.left.k, INT16_MIN), -ODOMETRY_STEP_Q16_MAX);
 	/* 256 um a count: 127 counts are 2^31 - 2^24 [um * 2^16], 128 clamp. */
 	wide.left_um_per_count_q16 = ODOMETRY_UM_PER_COUNT_Q16_MAX;
-	assert_int_equal(odometry_set_config(&o, &wide), 0);
-	assert_int_equal(odometry_travel_q16(o.left.k, 127), 127 * ((int32_t)1 << 24));
-	assert_int_equal(odometry_travel_q16(o.left.k, -127), -127 * ((int32_t)1 << 24));
-	assert_int_equal(odometry_travel_q16(o.left.k, 128), ODOMETRY_STEP_Q16_MAX);
-	assert_int_equal(odometry_travel_q16(o.left.k, -128), -ODOMETRY_STEP_Q16_MAX);
-	assert_int_equal(odometry_travel_q16(o.left.k, INT16_MIN), -ODOMETRY_STEP_Q16_MAX);
-	assert_int_equal(odometry_travel_q16(o.right.k, 100), 100 * (int32_t)K_Q16);
+	assert_int_equal(odometry_set_config(&o.c, &wide), 0);
+	assert_int_equal(odometry_travel_q16(o.c.left.k, 127), 127 * ((int32_t)1 << 24));
+	assert_int_equal(odometry_travel_q16(o.c.left.k, -127), -127 * ((int32_t)1 << 24));
+	assert_int_equal(odometry_travel_q16(o.c.left.k, 128), ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_travel_q16(o.c.left.k, -128), -ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_travel_q16(o.c.left.k, INT16_MIN), -ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_travel_q16(o.c.right.k, 100), 100 * (int32_t)K_Q16);
 }
 
 static void test_square(void **state)
 {
-	struct odometry o;
+	struct odo o;
 	struct robot r;
 	struct odometry_pose p;
 	long double k = K_Q16 / 65536.0L, x = 0, y = 0;
@@ -459,7 +515,7 @@ static void test_square(void **state)
 	long long side_counts = round_ll(1e6L / k);
 
 	(void)state;
-	odometry_init(&o, &cfg_default, 0, 0);
+	odo_init(&o, &cfg_default, 0, 0);
 	robot_init(&r, &cfg_default, 0, 0);
 	for (int side = 0; side < 4; side++) {
 		long long l0 = robot_left_counts(&r), r0 = robot_right_counts(&r);
@@ -471,13 +527,13 @@ static void test_square(void **state)
 		assert_true(robot_right_counts(&r) - r0 == robot_left_counts(&r) - l0);
 		x += len * ref_cos(th);
 		y += len * ref_sin(th);
-		p = odometry_get_pose(&o);
+		p = odo_pose(&o);
 		print_message("corner %d: x %d (%.2Lf) y %d (%.2Lf)\n", side, p.x_um, x, p.y_um, y);
 		assert_true(absl(p.x_um - x) <= 2.0L);
 		assert_true(absl(p.y_um - y) <= 2.0L);
 		drive_rotation(&r, &o, 2 * quarter * k / TRACK_UM);
 	}
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	assert_true(absl(p.x_um - x) <= 2.0L);
 	assert_true(absl(p.y_um - y) <= 2.0L);
 	/* Each whole-count turn is within k / b rad of a quarter turn: the square closes within
@@ -488,38 +544,38 @@ static void test_square(void **state)
 
 static void test_counter_wraparound(void **state)
 {
-	struct odometry o;
+	struct odo o;
 	const struct odometry_config fine = {60000, 60000, TRACK_UM};
 	uint16_t l = 65500, r = 30;
 	struct odometry_pose p;
 
 	(void)state;
-	odometry_init(&o, &cfg_default, l, r);
+	odo_init(&o, &cfg_default, l, r);
 	/* Left wraps forwards past 65535, right wraps backwards past 0 on the way back. */
 	for (int i = 0; i < 10; i++) {
 		l = (uint16_t)(l + 200);
 		r = (uint16_t)(r + 200);
-		assert_int_equal(odometry_update(&o, l, r), 0);
+		assert_int_equal(odo_update(&o, l, r), 0);
 	}
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	assert_int_equal(p.x_um, round_ll(2000.0L * K_Q16 / 65536));
 	assert_int_equal(p.heading_turn32, 0);
 	for (int i = 0; i < 15; i++) {
 		l = (uint16_t)(l - 200);
 		r = (uint16_t)(r - 200);
-		assert_int_equal(odometry_update(&o, l, r), 0);
+		assert_int_equal(odo_update(&o, l, r), 0);
 	}
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	assert_int_equal(p.x_um, round_ll(-1000.0L * K_Q16 / 65536));
 	assert_int_equal(p.y_um, 0);
 	assert_int_equal(p.heading_turn32, 0);
 	/* The largest steps a 16-bit counter can tell apart, +32767 and -32768 counts, with a
 	 * factor small enough (0.92 um per count) for them to stay below 32.8 mm. */
-	odometry_init(&o, &fine, 0, 0);
-	assert_int_equal(odometry_update(&o, 32767, 32767), 0);
-	assert_int_equal(odometry_get_step(&o).ds_um, round_ll(32767.0L * 60000 / 65536));
-	assert_int_equal(odometry_update(&o, 65535, 65535), 0);
-	assert_int_equal(odometry_get_step(&o).ds_um, round_ll(-32768.0L * 60000 / 65536));
+	odo_init(&o, &fine, 0, 0);
+	assert_int_equal(odo_update(&o, 32767, 32767), 0);
+	assert_int_equal(odometry_get_step(&o.c).ds_um, round_ll(32767.0L * 60000 / 65536));
+	assert_int_equal(odo_update(&o, 65535, 65535), 0);
+	assert_int_equal(odometry_get_step(&o.c).ds_um, round_ll(-32768.0L * 60000 / 65536));
 }
 
 static uint64_t rng_state = 0x9e3779b97f4a7c15u;
@@ -540,14 +596,14 @@ static void test_heading_does_not_drift(void **state)
 	static int16_t dl_log[500000], dr_log[500000];
 	const struct odometry_config cfg = {628319, 629001, 281234};
 	const struct odometry_pose start = {0, 0, 0x12345678u};
-	struct odometry o;
+	struct odo o;
 	long long nl = 0, nr = 0;
 	uint16_t l = 777, r = 65000;
 	long double worst = 0;
 
 	(void)state;
-	odometry_init(&o, &cfg, l, r);
-	odometry_set_pose(&o, &start);
+	odo_init(&o, &cfg, l, r);
+	odo_set_pose(&o, &start);
 	for (int i = 0; i < 1000000; i++) {
 		int32_t dl, dr;
 
@@ -566,13 +622,13 @@ static void test_heading_does_not_drift(void **state)
 		nr += dr;
 		l = (uint16_t)(l + dl);
 		r = (uint16_t)(r + dr);
-		assert_int_equal(odometry_update(&o, l, r), 0);
+		assert_int_equal(odo_update(&o, l, r), 0);
 		if (i % 997 == 0) {
 			long double th = ((long double)nr * cfg.right_um_per_count_q16 -
 					  (long double)nl * cfg.left_um_per_count_q16) /
 					 65536 / cfg.track_um;
 			long double e =
-				absl(turn32_error(odometry_get_pose(&o).heading_turn32,
+				absl(turn32_error(odo_pose(&o).heading_turn32,
 						  th + 2 * PI_L * start.heading_turn32 / TURN32));
 
 			if (e > worst)
@@ -582,30 +638,29 @@ static void test_heading_does_not_drift(void **state)
 	print_message("worst heading error %.2Lf units\n", worst);
 	assert_true(worst <= 2.0L);
 	assert_true(nl == 0 && nr == 0);
-	assert_int_equal(odometry_get_pose(&o).heading_turn32, start.heading_turn32);
+	assert_int_equal(odo_pose(&o).heading_turn32, start.heading_turn32);
 }
 
 /* 100 turns the same way: the heading follows the closed form within 2 units plus the effective
  * track's relative error (below 1e-10, odometry.c) times the angle. */
 static void test_many_turns(void **state)
 {
-	struct odometry o;
+	struct odo o;
 	uint16_t l = 0, r = 0;
 	long long n = 0;
 	long double worst = 0;
 
 	(void)state;
-	odometry_init(&o, &cfg_default, 0, 0);
+	odo_init(&o, &cfg_default, 0, 0);
 	while (n < 100LL * 91749) { /* a turn is pi b = 91749 counts of each wheel */
 		n += 150;
 		l = (uint16_t)(l - 150);
 		r = (uint16_t)(r + 150);
-		assert_int_equal(odometry_update(&o, l, r), 0);
+		assert_int_equal(odo_update(&o, l, r), 0);
 		if (n % 15000 == 0) {
 			long double th = 2.0L * n * K_Q16 / 65536 / TRACK_UM;
 			long double tol = 2.0L + th / (2 * PI_L) * TURN32 * 1e-10L;
-			long double e =
-				absl(turn32_error(odometry_get_pose(&o).heading_turn32, th));
+			long double e = absl(turn32_error(odo_pose(&o).heading_turn32, th));
 
 			assert_true(e <= tol);
 			if (e > worst)
@@ -613,8 +668,8 @@ static void test_many_turns(void **state)
 		}
 	}
 	print_message("100 turns: worst heading error %.2Lf units\n", worst);
-	assert_int_equal(odometry_get_pose(&o).x_um, 0);
-	assert_int_equal(odometry_get_pose(&o).y_um, 0);
+	assert_int_equal(odo_pose(&o).x_um, 0);
+	assert_int_equal(odo_pose(&o).y_um, 0);
 }
 
 /* Right factor 0.1 % larger: equal counts drive a circle of radius b/2 (kr + kl) / (kr - kl)
@@ -622,7 +677,7 @@ static void test_many_turns(void **state)
 static void test_wheel_gain_effect(void **state)
 {
 	const struct odometry_config cfg = {628319, 628947, TRACK_UM};
-	struct odometry o;
+	struct odo o;
 	struct odometry_pose p;
 	uint16_t c = 0;
 	long double kl = cfg.left_um_per_count_q16 / 65536.0L;
@@ -632,12 +687,12 @@ static void test_wheel_gain_effect(void **state)
 	long double d = 100.0L * 2000 * (kr + kl) / 2;
 
 	(void)state;
-	odometry_init(&o, &cfg, 0, 0);
+	odo_init(&o, &cfg, 0, 0);
 	for (int i = 0; i < 2000; i++) {
 		c = (uint16_t)(c + 100);
-		assert_int_equal(odometry_update(&o, c, c), 0);
+		assert_int_equal(odo_update(&o, c, c), 0);
 	}
-	p = odometry_get_pose(&o);
+	p = odo_pose(&o);
 	print_message("gain: x %d (%.1Lf) y %d (%.1Lf), d^2 dE / 2b = %.1Lf\n", p.x_um,
 		      radius * ref_sin(phi), p.y_um, radius * (1 - ref_cos(phi)),
 		      d * d * (kr / kl - 1) / (2 * TRACK_UM));
@@ -649,54 +704,53 @@ static void test_wheel_gain_effect(void **state)
 
 static void test_config_and_pose_changes(void **state)
 {
-	struct odometry o;
+	struct odo o;
 	struct odometry_config bad = cfg_default, wide = cfg_default;
 	struct odometry_pose p, q = {-123456, 654321, 1u << 30};
 	uint16_t l = 0, r = 0;
 
 	(void)state;
 	bad.track_um = 0;
-	assert_int_equal(odometry_init(&o, &bad, 0, 0), -EDOM);
-	assert_int_equal(odometry_init(&o, &cfg_default, 0, 0), 0);
+	assert_int_equal(odo_init(&o, &bad, 0, 0), -EDOM);
+	assert_int_equal(odo_init(&o, &cfg_default, 0, 0), 0);
 	for (int i = 0; i < 500; i++) {
 		l = (uint16_t)(l + 30);
 		r = (uint16_t)(r + 50);
-		odometry_update(&o, l, r);
+		odo_update(&o, l, r);
 	}
-	p = odometry_get_pose(&o);
-	assert_int_equal(odometry_set_config(&o, &bad), -EDOM);
+	p = odo_pose(&o);
+	assert_int_equal(odometry_set_config(&o.c, &bad), -EDOM);
 	wide.track_um = 2 * TRACK_UM;
-	assert_int_equal(odometry_set_config(&o, &wide), 0);
-	assert_true(odometry_get_pose(&o).x_um == p.x_um);
-	assert_true(odometry_get_pose(&o).y_um == p.y_um);
-	assert_true(odometry_get_pose(&o).heading_turn32 == p.heading_turn32);
+	assert_int_equal(odometry_set_config(&o.c, &wide), 0);
+	assert_true(odo_pose(&o).x_um == p.x_um);
+	assert_true(odo_pose(&o).y_um == p.y_um);
+	assert_true(odo_pose(&o).heading_turn32 == p.heading_turn32);
 	/* With twice the track the same counts turn half as much. */
 	l = (uint16_t)(l - 1000);
 	r = (uint16_t)(r + 1000);
-	odometry_update(&o, l, r);
-	assert_true(absl(turn32_error(odometry_get_pose(&o).heading_turn32 - p.heading_turn32,
+	odo_update(&o, l, r);
+	assert_true(absl(turn32_error(odo_pose(&o).heading_turn32 - p.heading_turn32,
 				      2000.0L * K_Q16 / 65536 / (2 * TRACK_UM))) <= 2.0L);
 
-	odometry_set_pose(&o, &q);
-	p = odometry_get_pose(&o);
+	odo_set_pose(&o, &q);
+	p = odo_pose(&o);
 	assert_int_equal(p.x_um, q.x_um);
 	assert_int_equal(p.y_um, q.y_um);
 	assert_int_equal(p.heading_turn32, q.heading_turn32);
 	/* Straight on along +y (heading a quarter turn). */
 	l = (uint16_t)(l + 1000);
 	r = (uint16_t)(r + 1000);
-	odometry_update(&o, l, r);
-	p = odometry_get_pose(&o);
+	odo_update(&o, l, r);
+	p = odo_pose(&o);
 	assert_int_equal(p.x_um, q.x_um);
 	assert_int_equal(p.y_um, q.y_um + round_ll(1000.0L * K_Q16 / 65536));
 
 	/* 20000 counts of 256 um in one tick is 5 m: reported, and clamped to 32.8 mm. */
 	wide.left_um_per_count_q16 = ODOMETRY_UM_PER_COUNT_Q16_MAX;
 	wide.right_um_per_count_q16 = ODOMETRY_UM_PER_COUNT_Q16_MAX;
-	assert_int_equal(odometry_set_config(&o, &wide), 0);
-	assert_int_equal(odometry_update(&o, (uint16_t)(l + 20000), (uint16_t)(r + 20000)),
-			 -ERANGE);
-	assert_int_equal(odometry_get_step(&o).left_q16, ODOMETRY_STEP_Q16_MAX);
+	assert_int_equal(odometry_set_config(&o.c, &wide), 0);
+	assert_int_equal(odo_update(&o, (uint16_t)(l + 20000), (uint16_t)(r + 20000)), -ERANGE);
+	assert_int_equal(o.travel_left_q16, ODOMETRY_STEP_Q16_MAX);
 }
 
 int main(void)

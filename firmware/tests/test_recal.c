@@ -11,6 +11,7 @@
 
 #include "fixmath.h"
 #include "recal.h"
+#include "uncertainty_setup.h"
 
 #define PI 3.14159265358979323846
 
@@ -68,9 +69,9 @@ static int on_line(const struct recal_config *c, double x, double y)
  * reset's bounds, 99 %, no noise). */
 static void uncertainty_known(struct uncertainty *u, uint8_t radius_mm, uint32_t heading_bound)
 {
-	static const struct uncertainty_config quiet = {0, 0, 280000, 0, 0, 0, 776, 16, 1000};
+	static const struct uncertainty_setup quiet = {0, 0, 280000, 0, 0, 0, 776, 16, 1000};
 
-	assert_int_equal(uncertainty_init(u, &quiet), 0);
+	assert_int_equal(uncertainty_setup_init(u, &quiet), 0);
 	uncertainty_reset(u, (uint32_t)radius_mm * 1000, heading_bound);
 	assert_int_equal(uncertainty_get_radius_mm(u), radius_mm);
 }

@@ -12,12 +12,13 @@
 #include <cmocka.h>
 
 #include "uncertainty.h"
+#include "uncertainty_setup.h"
 
 #define PI_L 3.14159265358979323846264338327950288L
 #define TRACK_UM 280000u
 
 /* 0.1 mm^2/m per wheel (physics.md: 0.04..0.25), no systematic error, 99 %, 16 ticks. */
-static const struct uncertainty_config cfg_noise = {6554, 6554, TRACK_UM, 0, 0, 0, 776, 16, 1000};
+static const struct uncertainty_setup cfg_noise = {6554, 6554, TRACK_UM, 0, 0, 0, 776, 16, 1000};
 
 static long double absl(long double v)
 {
@@ -82,7 +83,7 @@ static void test_straight_lateral_sigma(void **state)
 	long double yy, xx, sigma;
 
 	(void)state;
-	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	assert_int_equal(uncertainty_setup_init(&u, &cfg_noise), 0);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 0);
 	heading_rad = 0;
 	drive(&u, 1000, 1000, 2000, TRACK_UM);
@@ -118,7 +119,7 @@ static void test_straight_any_heading(void **state)
 	long double c = -0.70710678118654752440L, s = 0.70710678118654752440L, across;
 
 	(void)state;
-	uncertainty_init(&u, &cfg_noise);
+	uncertainty_setup_init(&u, &cfg_noise);
 	heading_rad = 3 * PI_L / 4;
 	drive(&u, 1000, 1000, 2000, TRACK_UM);
 	settle(&u);
@@ -138,7 +139,7 @@ static void test_straight_fast(void **state)
 	long double var_long = k * len / 4;
 
 	(void)state;
-	uncertainty_init(&u, &cfg_noise);
+	uncertainty_setup_init(&u, &cfg_noise);
 	heading_rad = 0;
 	drive(&u, 4000, 4000, 500, TRACK_UM);
 	settle(&u);
@@ -160,7 +161,7 @@ static void test_rotation_in_place_grows(void **state)
 	uint8_t r0;
 
 	(void)state;
-	uncertainty_init(&u, &cfg_noise);
+	uncertainty_setup_init(&u, &cfg_noise);
 	uncertainty_reset(&u, 1000, 0);
 	r0 = uncertainty_get_radius_mm(&u);
 	assert_int_equal(r0, 1);
@@ -180,11 +181,11 @@ static void test_rotation_in_place_grows(void **state)
  * 15. */
 static void test_systematic_ratio(void **state)
 {
-	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16, 1000};
+	const struct uncertainty_setup cfg = {0, 0, 300000, 1000, 0, 0, 776, 16, 1000};
 	struct uncertainty u;
 
 	(void)state;
-	uncertainty_init(&u, &cfg);
+	uncertainty_setup_init(&u, &cfg);
 	heading_rad = 0;
 	drive(&u, 1000, 1000, 323 * BATCH, 300000);
 	settle(&u);
@@ -204,12 +205,12 @@ static void test_systematic_ratio(void **state)
  * straight d an offset (Eb / b) theta d: 1 mm / 280 mm * 2 pi * 1 m = 22.44 mm -> 23. */
 static void test_systematic_track(void **state)
 {
-	const struct uncertainty_config cfg = {0, 0, TRACK_UM, 0, 1000, 0, 776, 16, 1000};
+	const struct uncertainty_setup cfg = {0, 0, TRACK_UM, 0, 1000, 0, 776, 16, 1000};
 	struct uncertainty u;
 	long ticks = (long)(PI_L * TRACK_UM / 1000 + 0.5L);
 
 	(void)state;
-	uncertainty_init(&u, &cfg);
+	uncertainty_setup_init(&u, &cfg);
 	heading_rad = 0;
 	drive(&u, -1000, 1000, ticks, TRACK_UM);
 	settle(&u);
@@ -233,7 +234,7 @@ static void test_systematic_track(void **state)
  * test_systematic_ratio.) */
 static void test_radius_monotonic(void **state)
 {
-	const struct uncertainty_config cfg = {16384, 9830, TRACK_UM, 500, 100, 300, 776, 8, 1000};
+	const struct uncertainty_setup cfg = {16384, 9830, TRACK_UM, 500, 100, 300, 776, 8, 1000};
 	struct uncertainty u;
 	uint8_t last = 0;
 	static const long double moves[][3] = {
@@ -242,7 +243,7 @@ static void test_radius_monotonic(void **state)
 	};
 
 	(void)state;
-	uncertainty_init(&u, &cfg);
+	uncertainty_setup_init(&u, &cfg);
 	heading_rad = 0;
 	for (size_t m = 0; m < sizeof(moves) / sizeof(moves[0]); m++)
 		for (long i = 0; i < (long)moves[m][2]; i += 10) {
@@ -263,7 +264,7 @@ static void test_resets(void **state)
 	const int32_t sigma = 659;
 
 	(void)state;
-	uncertainty_init(&u, &cfg_noise);
+	uncertainty_setup_init(&u, &cfg_noise);
 	uncertainty_reset(&u, 10000, 0);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 10);
 	uncertainty_reset(&u, 10001, 0);
@@ -323,13 +324,13 @@ static void test_resets(void **state)
 
 static void test_saturation(void **state)
 {
-	struct uncertainty_config cfg = cfg_noise;
+	struct uncertainty_setup cfg = cfg_noise;
 	struct uncertainty u;
 
 	(void)state;
 	cfg.noise_left_mm2_per_m_q16 = UNCERTAINTY_NOISE_Q16_MAX;
 	cfg.noise_right_mm2_per_m_q16 = UNCERTAINTY_NOISE_Q16_MAX;
-	assert_int_equal(uncertainty_init(&u, &cfg), 0);
+	assert_int_equal(uncertainty_setup_init(&u, &cfg), 0);
 	heading_rad = 0;
 	/* 16 mm^2/m per wheel: after 1 m the lateral sigma is 11.7 mm (radius 36 mm), after
 	 * 16 m 750 mm. */
@@ -350,21 +351,21 @@ static void test_saturation(void **state)
 
 static void test_config_checks(void **state)
 {
-	struct uncertainty_config cfg = cfg_noise;
+	struct uncertainty_setup cfg = cfg_noise;
 	struct uncertainty u;
 
 	(void)state;
 	cfg.batch_ms = 0;
-	assert_int_equal(uncertainty_init(&u, &cfg), -EDOM);
+	assert_int_equal(uncertainty_setup_init(&u, &cfg), -EDOM);
 	cfg = cfg_noise;
 	cfg.k_q8 = 0;
-	assert_int_equal(uncertainty_init(&u, &cfg), -EDOM);
+	assert_int_equal(uncertainty_setup_init(&u, &cfg), -EDOM);
 	cfg = cfg_noise;
 	cfg.track_error_um = TRACK_UM + 1;
-	assert_int_equal(uncertainty_init(&u, &cfg), -EDOM);
-	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
-	assert_int_equal(uncertainty_set_config(&u, &cfg), -EDOM);
-	assert_int_equal(u.cfg.track_error_um, 0);
+	assert_int_equal(uncertainty_setup_init(&u, &cfg), -EDOM);
+	assert_int_equal(uncertainty_setup_init(&u, &cfg_noise), 0);
+	assert_int_equal(uncertainty_setup_set(&u, &cfg), -EDOM);
+	assert_int_equal(u.model.track_error_um, 0);
 }
 
 /* A component along a direction known again: the covariance turned into (along, lateral)
@@ -379,7 +380,7 @@ static void test_reset_along(void **state)
 	uint8_t before;
 
 	(void)state;
-	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	assert_int_equal(uncertainty_setup_init(&u, &cfg_noise), 0);
 	uncertainty_reset(&u, 0, 1u << 21); /* a heading error to make it oblique and large */
 	heading_rad = PI_L / 6;
 	drive(&u, 1000, 1000, 2000, TRACK_UM);
@@ -437,7 +438,7 @@ static void test_heading_bound(void **state)
 	uint32_t b;
 
 	(void)state;
-	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	assert_int_equal(uncertainty_setup_init(&u, &cfg_noise), 0);
 	assert_int_equal(uncertainty_get_heading_bound_turn32(&u), 0);
 	uncertainty_reset(&u, 0, 1u << 24);
 	b = uncertainty_get_heading_bound_turn32(&u);
@@ -451,18 +452,18 @@ static void test_heading_bound(void **state)
  * systematic offset became a fixed error); a reset of that coordinate clears it. */
 static void test_new_bounds_keep_what_was_accumulated(void **state)
 {
-	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16, 1000};
-	struct uncertainty_config none = cfg;
+	const struct uncertainty_setup cfg = {0, 0, 300000, 1000, 0, 0, 776, 16, 1000};
+	struct uncertainty_setup none = cfg;
 	struct uncertainty u;
 
 	(void)state;
 	none.ratio_error_ppm = 0;
-	uncertainty_init(&u, &cfg);
+	uncertainty_setup_init(&u, &cfg);
 	heading_rad = 0;
 	drive(&u, 1000, 1000, 345 * BATCH, 300000);
 	settle(&u);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 17);
-	assert_int_equal(uncertainty_set_config(&u, &none), 0);
+	assert_int_equal(uncertainty_setup_set(&u, &none), 0);
 	assert_int_equal(uncertainty_get_radius_mm(&u), 17);
 	drive(&u, -1000, -1000, 345 * BATCH, 300000);
 	settle(&u);
@@ -476,12 +477,12 @@ static void test_new_bounds_keep_what_was_accumulated(void **state)
  * is 1000e-6 * 1 m / 0.3 m = 3.33 mrad (0.19 degree), with no noise at all. */
 static void test_heading_bound_counts_the_drift(void **state)
 {
-	const struct uncertainty_config cfg = {0, 0, 300000, 1000, 0, 0, 776, 16, 1000};
+	const struct uncertainty_setup cfg = {0, 0, 300000, 1000, 0, 0, 776, 16, 1000};
 	struct uncertainty u;
 	long double rad;
 
 	(void)state;
-	uncertainty_init(&u, &cfg);
+	uncertainty_setup_init(&u, &cfg);
 	heading_rad = 0;
 	drive(&u, 1000, 1000, 1000, 300000);
 	settle(&u);
@@ -499,7 +500,7 @@ static void test_widen(void **state)
 	uint8_t r;
 
 	(void)state;
-	assert_int_equal(uncertainty_init(&u, &cfg_noise), 0);
+	assert_int_equal(uncertainty_setup_init(&u, &cfg_noise), 0);
 	uncertainty_widen(&u, 0, 10000);
 	settle(&u);
 	/* rounded up at each step: sigma to 4 um, then the millimetre */

@@ -183,7 +183,7 @@ static int64_t le(const uint8_t *b, int n)
 static void compare_servo(const struct run *r)
 {
 	const struct avr_layout *l = avrsim_layout(r->h);
-	const struct odometry *o = &r->ref->board.odometry;
+	const struct odometry_counter *o = &r->ref->board.servo.counter;
 	uint16_t b = avrsim_board(r->h);
 	uint8_t hd[4], lc[2], rc[2], d[4];
 
@@ -198,11 +198,12 @@ static void compare_servo(const struct run *r)
 		fail_msg("tick %u: AVR heading %lu [turn * 2^32], native %lu", r->tick,
 			 (unsigned long)le(hd, 4), (unsigned long)o->heading_turn32);
 	avrsim_peek(r->h, (uint16_t)(b + l->duty), d, 4);
-	if ((int16_t)le(d, 2) != r->ref->board.last_out.duty_q15[0] ||
-	    (int16_t)le(d + 2, 2) != r->ref->board.last_out.duty_q15[1])
+	if ((int16_t)le(d, 2) != r->ref->board.servo.last_out.duty_q15[0] ||
+	    (int16_t)le(d + 2, 2) != r->ref->board.servo.last_out.duty_q15[1])
 		fail_msg("tick %u: the AVR's duties %d, %d, the native core's %d, %d", r->tick,
 			 (int16_t)le(d, 2), (int16_t)le(d + 2, 2),
-			 r->ref->board.last_out.duty_q15[0], r->ref->board.last_out.duty_q15[1]);
+			 r->ref->board.servo.last_out.duty_q15[0],
+			 r->ref->board.servo.last_out.duty_q15[1]);
 }
 
 /* The position, which the slow steps integrate (once a period with two rates): compared once
@@ -210,7 +211,7 @@ static void compare_servo(const struct run *r)
 static void compare_position(const struct run *r)
 {
 	const struct avr_layout *l = avrsim_layout(r->h);
-	const struct odometry *o = &r->ref->board.odometry;
+	const struct odometry_position *o = &r->ref->board.planner.position;
 	uint16_t b = avrsim_board(r->h);
 	uint8_t x[4], y[4], xf[2], yf[2];
 
@@ -319,7 +320,7 @@ static void test_annex_bit_identical(void **state)
 			      (unsigned long long)avrsim_stats(r.h)->compares_held);
 	print_positions(&r);
 	avrsim_peek(r.h, (uint16_t)(avrsim_board(r.h) + avrsim_layout(r.h)->slow_overruns), ov, 2);
-	assert_int_equal(ov[0] | ov[1] << 8, ref.board.slow_overruns);
+	assert_int_equal(ov[0] | ov[1] << 8, ref.board.servo.slow_overruns);
 	assert_int_equal(r.m.pos[0][0], 200);
 	assert_int_equal(r.m.pos[0][1], 100);
 	assert_int_equal(r.m.pos[1][0], 100);

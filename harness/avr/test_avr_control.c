@@ -413,7 +413,7 @@ static void test_odometry_arcs(void **state)
 		int32_t dtheta = val((unsigned)t_bits[below(8)]);
 		uint32_t heading = below(4) ? rnd() : (uint32_t)trig[0] + (uint32_t)(dtheta / 2);
 		int32_t args[11];
-		const struct odometry *o = &t->host.odo;
+		const struct odometry_position *o = &t->host.odo;
 
 		if (below(8) == 0) {
 			l = below(2) ? INT32_MAX : INT32_MIN;

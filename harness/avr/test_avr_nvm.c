@@ -78,7 +78,7 @@ static uint8_t avr_calibrated(const struct avrsim *h, struct board_calibration *
 
 static struct factors host_factors(const struct host *h)
 {
-	const struct odometry_config *c = &h->board.odometry.cfg;
+	const struct odometry_config *c = &h->board.servo.counter.cfg;
 	struct factors f = {c->left_um_per_count_q16, c->right_um_per_count_q16, c->track_um};
 
 	return f;
@@ -156,7 +156,7 @@ static void test_calibration_survives_power_cycle(void **state)
 	assert_int_equal(c.ratio_ppm, cal.ratio_ppm);
 	assert_int_equal(c.scale_ppm, cal.scale_ppm);
 	assert_int_equal(c.track_10um, cal.track_10um);
-	assert_int_equal(host.board.calibrated, 1);
+	assert_int_equal(host.board.planner.calibrated, 1);
 	assert_factors_equal(avr_factors(h), installed);
 	assert_factors_equal(avr_factors(h), host_factors(&host));
 	/* Nothing written again: the record is the one loaded. */

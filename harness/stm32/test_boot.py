@@ -113,7 +113,7 @@ def test_the_application_enters_the_bootloader_only_when_no_order_runs(
     assert e.value.reason == Reject.REFUSED_BUSY
     b.sleep(0.05)
     assert not b.in_boot() and b.duty != (0, 0) and master.check_busy() & Status.BUSY_TRAJET
-    b.bus.i2c_rdwr(i2c_msg.write(2, bytes([17, 0x12, 0x34])))
+    b.bus.i2c_rdwr(i2c_msg.write(2, bytes([30, 0x12, 0x34])))  # BOOTLOADER, a wrong key
     assert master.last_reject().reason == Reject.OUT_OF_RANGE
     master.wait_idle(10.0)
     b.sleep(0.05)

@@ -79,14 +79,14 @@ def ram_board(b: Stm32Board) -> Any:
 
 
 def factors(board: Any) -> tuple[int, int, int]:
-    oc = board.odometry.cfg
+    oc = board.servo.counter.cfg
     return int(oc.left_um_per_count_q16), int(oc.right_um_per_count_q16), int(oc.track_um)
 
 
 def installed(board: Any) -> Cal | None:
-    if not board.calibrated:
+    if not board.planner.calibrated:
         return None
-    c = board.calibration
+    c = board.planner.calibration
     return int(c.ratio_ppm), int(c.track_10um), int(c.scale_ppm)
 
 
@@ -222,7 +222,7 @@ def test_a_full_log_is_erased_only_when_the_board_is_idle(elf: Any) -> None:
         b.sleep(0.001)
         assert b.now_ns < 20e9, "never erased: the order never ended"
         if b.flash.erases:
-            assert ram_board(b).orders.state == 0, "erased while an order runs"
+            assert ram_board(b).planner.orders.state == 0, "erased while an order runs"
     b.sleep(0.6)
     # The erase stalled the CPU (a quarter of a second of ticks lost), the watchdog widened
     # for it did not reset the chip, and the record is alone in the log.

@@ -70,7 +70,7 @@ def test_cut_encoder_is_detected_identically(elf: Any) -> None:
         dev.sleep(1.5)
         board.check_busy()
     assert_same_runs(b, r)
-    assert r.board.faults.cause == FAULT_ENCODER_LOST
+    assert r.board.planner.faults.cause == FAULT_ENCODER_LOST
 
 
 def test_watchdog_resets_the_chip_when_the_ticks_stop(elf: Any) -> None:

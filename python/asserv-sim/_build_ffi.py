@@ -240,22 +240,22 @@ struct odometry_config {
     uint32_t right_um_per_count_q16;
     uint32_t track_um;
 };
-struct odometry { struct odometry_config cfg; ...; };
+struct odometry_counter { struct odometry_config cfg; ...; };
 struct uncertainty_config {
     uint32_t noise_left_mm2_per_m_q16;
     uint32_t noise_right_mm2_per_m_q16;
+    uint16_t k_q8;
+    uint16_t batch_ms;
+};
+struct uncertainty_model {
     uint32_t track_um;
     uint32_t ratio_error_ppm;
     uint32_t track_error_um;
     uint32_t scale_error_ppm;
-    uint16_t k_q8;
-    uint16_t batch_ms;
-    uint16_t rate_hz;
 };
-struct uncertainty { struct uncertainty_config cfg; ...; };
+struct uncertainty { struct uncertainty_config cfg; struct uncertainty_model model; ...; };
 struct control_gains { uint16_t p; uint16_t i; uint16_t d; };
 struct control_config {
-    uint16_t tick_hz;
     int16_t duty_max_q15;
     int32_t ff_speed_q15_per_m_s;
     int32_t ff_accel_q15_per_m_s2;
@@ -275,7 +275,6 @@ struct faults_config {
     int32_t lost_min_um;
     uint8_t repeat_max;
     uint16_t repeat_window_ms;
-    uint16_t rate_hz;
 };
 struct orders_config {
     uint32_t drive_track_um;
@@ -289,7 +288,6 @@ struct orders_config {
     int32_t push_max_um;
     int32_t basket_contact_um;
     uint8_t n_baskets;
-    uint16_t tick_hz;
     uint8_t aim_delay_steps;
     uint32_t jerk_um_s3;
     int32_t grip_um_s2;
@@ -301,12 +299,19 @@ struct board_unseen {
     uint32_t reach_um;
     ...;
 };
+struct board_residuals {
+    uint32_t ratio_error_ppm;
+    uint32_t track_error_um;
+    uint32_t scale_error_ppm;
+};
 struct board_config {
     uint16_t tick_hz;
     uint8_t slow_shift;
     uint8_t planner_ticks;
     struct odometry_config odometry;
     struct uncertainty_config uncertainty;
+    struct board_residuals calibrated;
+    struct board_residuals uncalibrated;
     struct control_config control;
     struct faults_config faults;
     struct orders_config orders;
@@ -335,17 +340,32 @@ struct orders {
     ...;
 };
 struct board_calibration { int32_t ratio_ppm; int32_t scale_ppm; uint16_t track_10um; };
-struct board {
-    struct board_config cfg;
-    struct proto proto;
-    struct odometry odometry;
+struct servo {
+    struct odometry_counter counter;
+    struct orders_axis sp_dist;
+    struct orders_axis sp_angle;
+    uint16_t tick;
+    uint16_t slow_overruns;
+    ...;
+};
+struct planner {
     struct uncertainty uncertainty;
     struct orders orders;
     struct faults faults;
-    uint8_t status;
     struct control_gains gains;
+    uint8_t status;
+    uint8_t shocks;
     uint8_t calibrated;
     struct board_calibration calibration;
+    ...;
+};
+struct mailbox { ...; };
+struct board {
+    struct board_config cfg;
+    struct proto proto;
+    struct servo servo;
+    struct planner planner;
+    struct mailbox mailbox;
     ...;
 };
 
@@ -360,24 +380,7 @@ struct host {
     ...;
 };
 
-struct host_sample {
-    double t_s;
-    double x_mm, y_mm;
-    double heading_deg;
-    double est_x_mm, est_y_mm;
-    double est_heading_deg;
-    double radius_mm;
-    double v_mm_s;
-    double omega_deg_s;
-    double v_set_mm_s;
-    double omega_set_deg_s;
-    double duty_left, duty_right;
-    double current_left_A, current_right_A;
-    double contact_force_N;
-    double status;
-    double order_state;
-    double shocks;
-};
+@HOST_SAMPLE@
 
 void board_default_config(struct board_config *cfg);
 void host_board_config(const struct sim_config *sc, const struct sim_field *f,
@@ -469,8 +472,17 @@ uint32_t asim_bus_read(struct host *h, uint8_t *out, uint32_t n, uint64_t byte_n
 }
 """
 
+
+def _host_sample() -> str:
+    """struct host_sample as gen_trace.py wrote it (firmware/ports/host/trace.toml), between its
+    cdef markers: the one list of the trace's columns."""
+    text = (PORTS / "host" / "host_sample_gen.h").read_text()
+    begin, end = "/* cdef: begin */", "/* cdef: end */"
+    return text[text.index(begin) + len(begin) : text.index(end)]
+
+
 ffibuilder = FFI()
-ffibuilder.cdef(CDEF)
+ffibuilder.cdef(CDEF.replace("@HOST_SAMPLE@", _host_sample()))
 ffibuilder.set_source(
     "asserv_sim._core",
     PREAMBLE,

@@ -216,7 +216,7 @@ MESSAGES: tuple[Message, ...] = (
     ),
     Message(
         'BOOTLOADER',
-        17,
+        30,
         'SET',
         (Field('key', 'u16', 45063, 45063), ),
         1,
@@ -274,7 +274,7 @@ class Reject(enum.IntEnum):
     REFUSED_PB_GRAVE = 6
     QUEUE_FULL = 7
     ABORTED = 8
-    REFUSED_BUSY = 9
+    REFUSED_BUSY = 16
 
 
 class Filtre(enum.IntEnum):

@@ -69,6 +69,27 @@ class GotoOption(enum.IntFlag):
     RECALAGE_LIGNE = 1  # recalibration on floor lines
     RECALAGE_BORD = 2  # recalibration by contact with the field border
 
+    @classmethod
+    def parse(cls, text: str) -> int:
+        """GOTO's options as the CLI and the scenario files write them: a number (``3``,
+        ``0x2``), or names joined by ``+`` or ``|``: ``ligne``, ``bord``, ``ligne+bord``,
+        ``RECALAGE_BORD``, in any case. ValueError names what is not an option."""
+        try:
+            return int(text, 0)
+        except ValueError:
+            pass
+        value = 0
+        for part in text.replace("|", "+").split("+"):
+            name = part.strip().upper()
+            name = {"LIGNE": "RECALAGE_LIGNE", "BORD": "RECALAGE_BORD"}.get(name, name)
+            try:
+                value |= cls[name]
+            except KeyError:
+                raise ValueError(
+                    f"{text!r} is not GOTO options (a number, or ligne, bord, ligne+bord)"
+                ) from None
+        return value
+
 
 class Outcome(enum.Enum):
     """How an order ended, as ``Board.complete`` tells it (docs/strategy.md)."""

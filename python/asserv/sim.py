@@ -27,32 +27,11 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from . import field as fieldmod
+from ._columns import TRACE_FIELDS
 from ._core import ffi, lib
 from .bus import VirtualBus
 
 #: The columns of ``Simulator.trace``, in the order of ``struct host_sample`` (host.h).
-TRACE_FIELDS = (
-    "t_s",
-    "x_mm",
-    "y_mm",
-    "heading_deg",
-    "est_x_mm",
-    "est_y_mm",
-    "est_heading_deg",
-    "radius_mm",
-    "v_mm_s",
-    "omega_deg_s",
-    "v_set_mm_s",
-    "omega_set_deg_s",
-    "duty_left",
-    "duty_right",
-    "current_left_A",
-    "current_right_A",
-    "contact_force_N",
-    "status",
-    "order_state",
-    "shocks",
-)
 TRACE_DTYPE = np.dtype([(name, "<f8") for name in TRACE_FIELDS])
 
 
@@ -395,7 +374,7 @@ class Simulator:
     @property
     def calibration(self) -> Calibration | None:
         """The odometry calibration the board has installed, or None (uncalibrated)."""
-        b = self._h.board
+        b = self._h.board.planner
         if not b.calibrated:
             return None
         c = b.calibration
@@ -540,7 +519,7 @@ class Simulator:
         wheels. With q = configured factor / true factor per wheel, a straight line is seen
         turning by (qR - qL) s / b, and a turn as mean(q) b_true / b times itself: the track the
         heading needs is mean(q) times the true one (docs/calibration.md)."""
-        sc, oc = self._sc, self._h.board.odometry.cfg
+        sc, oc = self._sc, self._h.board.servo.counter.cfg
         q = []
         for i, k in enumerate((oc.left_um_per_count_q16, oc.right_um_per_count_q16)):
             true_um = 2 * math.pi * sc.enc_radius_mm * 1000 * (1 + sc.enc_radius_error[i])

@@ -37,7 +37,7 @@ def test_calibration_meets_the_goals(seed: int) -> None:
     assert abs(after.track_mm) <= 0.1
     assert abs(after.scale) <= 0.0006
     # what the board runs with is what the procedure computed
-    cfg = sim._h.board.odometry.cfg
+    cfg = sim._h.board.servo.counter.cfg
     assert cfg.track_um == res.after.track_10um * 10
     assert [s.true_turn_deg for s in res.segments] == [360, 3600, 0, 0, 0]
     assert sum("flat on the east border" in line for line in lines) == 3

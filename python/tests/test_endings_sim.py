@@ -37,7 +37,7 @@ SOAK = settings(
 
 def gains(sim: Simulator) -> tuple[int, int, int]:
     """The gains the board gave the servo last (board.h: the soft ones during a border push)."""
-    g = sim._h.board.gains
+    g = sim._h.board.planner.gains
     return (int(g.p), int(g.i), int(g.d))
 
 
@@ -118,7 +118,7 @@ def no_basket_in_reach(sim: Simulator, board: Board, angle: int) -> None:
     board.goto_panier(angle)
     assert board.wait_idle(30) == Status.PB_MOTEUR  # the basket was not reached
     assert board.debug().end_reason == EndReason.NO_BASKET
-    assert sim._h.board.faults.cause == 0  # no check fired: not a motor fault
+    assert sim._h.board.planner.faults.cause == 0  # no check fired: not a motor fault
 
 
 def test_goto_panier_without_a_basket_says_so() -> None:

@@ -39,7 +39,7 @@ def drive(sim: Simulator, speed_cm_s: int = 100) -> Board:
 
 def cause(sim: Simulator) -> str:
     """Which check fired last (firmware/core/faults.h), from the board's memory."""
-    return CAUSES[sim._h.board.faults.cause]
+    return CAUSES[sim._h.board.planner.faults.cause]
 
 
 def status_bits(sim: Simulator) -> np.ndarray:
@@ -240,7 +240,7 @@ def test_a_corner_against_a_wall_is_not_a_cut_wire(
     else:
         board.goto_reverse(100)
     assert not board.wait_idle(10) & MOTOR_BITS
-    assert sim._h.board.faults.lost_suspect == 0
+    assert sim._h.board.planner.faults.lost_suspect == 0
 
 
 def test_a_low_friction_patch_makes_a_wheel_slip() -> None:

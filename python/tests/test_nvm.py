@@ -14,7 +14,7 @@ MAGIC = b"ac\x01\x00"  # calib_store.h: magic, version, reserved
 
 
 def factors(sim: Simulator) -> tuple[int, int, int]:
-    oc = sim._h.board.odometry.cfg
+    oc = sim._h.board.servo.counter.cfg
     return (int(oc.left_um_per_count_q16), int(oc.right_um_per_count_q16), int(oc.track_um))
 
 

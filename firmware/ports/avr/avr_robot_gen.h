@@ -14,7 +14,6 @@ static void avr_robot_gen(struct board_config *cfg)
 	cfg->odometry.right_um_per_count_q16 = 5147185;
 	/* free wheels 280 mm apart */
 	cfg->odometry.track_um = 280000;
-	cfg->uncertainty.track_um = 280000;
 	/* driven wheels 160 mm apart */
 	cfg->orders.drive_track_um = 160000;
 	/* motor encoders: pi 65 mm / (48 counts * 20.25) = 210.086 um per count, * 2^16 */

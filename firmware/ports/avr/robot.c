@@ -33,6 +33,4 @@ void avr_robot_config(struct board_config *cfg)
 	/* A GOTO's first aim at the step after the one that takes it: both in one step (both
 	 * profiles' first runs) take the worst load over a period from 38 % to 45 % at 1 m/s. */
 	cfg->orders.aim_delay_steps = CONFIG_AVR_SLOW_SHIFT == 0 ? 0 : 1;
-	cfg->control.tick_hz = CONFIG_AVR_TICK_HZ;
-	cfg->orders.tick_hz = CONFIG_AVR_TICK_HZ;
 }

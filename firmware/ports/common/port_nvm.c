@@ -34,11 +34,11 @@ int port_nvm_load(struct port_nvm *s, struct board *b)
 
 void port_nvm_poll(struct port_nvm *s, const struct board *b)
 {
-	/* b->calibration changes only in the slow steps (SET_ODOMETRIE), which run in this
+	/* b->planner.calibration changes only in the planner (SET_ODOMETRIE), which run in this
 	 * context: no torn read. A calibration that comes while a record is half written
 	 * restarts the write with its own record. */
-	if (b->calibrated && (!s->have || !same(&b->calibration, &s->stored))) {
-		s->stored = b->calibration;
+	if (b->planner.calibrated && (!s->have || !same(&b->planner.calibration, &s->stored))) {
+		s->stored = b->planner.calibration;
 		s->have = 1;
 		calib_store_encode(&s->stored, s->rec);
 		s->pos = 0;

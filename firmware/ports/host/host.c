@@ -96,7 +96,6 @@ void host_board_config(const struct sim_config *sc, const struct sim_field *f,
 	bc->odometry.left_um_per_count_q16 = bc->odometry.right_um_per_count_q16 =
 		(uint32_t)lround(two_pi * sc->enc_radius_mm * 1000.0 / sc->enc_cpr * 65536.0);
 	bc->odometry.track_um = (uint32_t)lround(sc->enc_track_mm * 1000.0);
-	bc->uncertainty.track_um = bc->odometry.track_um;
 	bc->orders.drive_track_um = (uint32_t)lround(sc->drive_track_mm * 1000.0);
 	bc->faults.motor_um_per_count_q16 =
 		(uint32_t)lround(two_pi * sc->drive_radius_mm * 1000.0 /
@@ -265,19 +264,19 @@ static void record(const struct host *h, struct host_sample *r)
 	r->est_x_mm = est.x_um * 1e-3;
 	r->est_y_mm = est.y_um * 1e-3;
 	r->est_heading_deg = turn32_deg(est.heading_turn32);
-	r->radius_mm = uncertainty_get_radius_mm(&b->uncertainty);
+	r->radius_mm = uncertainty_get_radius_mm(&b->planner.uncertainty);
 	r->v_mm_s = t.v_mm_s;
 	r->omega_deg_s = t.omega_rad_s * rad_deg;
-	r->v_set_mm_s = b->sp_dist.vel_um_s * 1e-3;
-	r->omega_set_deg_s = b->sp_angle.vel_um_s / half_track_um * rad_deg;
+	r->v_set_mm_s = b->servo.sp_dist.vel_um_s * 1e-3;
+	r->omega_set_deg_s = b->servo.sp_angle.vel_um_s / half_track_um * rad_deg;
 	r->duty_left = duty[HAL_LEFT] / 32768.0;
 	r->duty_right = duty[HAL_RIGHT] / 32768.0;
 	r->current_left_A = t.current_A[SIM_LEFT];
 	r->current_right_A = t.current_A[SIM_RIGHT];
 	r->contact_force_N = t.contact_force_N;
 	r->status = proto_status(&b->proto); /* what CHECK_BUSY answers now */
-	r->order_state = b->orders.state;
-	r->shocks = b->shocks;
+	r->order_state = b->planner.orders.state;
+	r->shocks = b->planner.shocks;
 }
 
 uint64_t host_advance_ns(struct host *h, uint64_t duration_ns, struct host_sample *buf,

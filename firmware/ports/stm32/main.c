@@ -36,7 +36,8 @@ int main(void)
 	stm32_adc_sample();
 	port_sample(&in);
 	port_sample_period(&in);
-	/* One rate only: SysTick runs board_slow() through port_slow() right after the tick. */
+	/* One rate only (planner_ticks 0): board_tick() runs board_slow() itself, inside
+	 * port_control_tick(); the port_slow() after it in SysTick then finds nothing due. */
 	if (board_init(&asserv_board, &cfg, &in) != 0) {
 		/* A configuration the core refuses: motors off, no bus, wait for a new binary. */
 		for (;;)
@@ -95,7 +96,7 @@ void SysTick_Handler(void)
 	stm32_adc_sample();
 	port_control_tick(&asserv_board);
 	port_slow(&asserv_board);
-	if (asserv_board.boot_request)
+	if (asserv_board.planner.boot_request)
 		stm32_boot_enter(); /* BOOTLOADER (boot_enter.c): does not return */
 	IWDG_KR = IWDG_KR_RELOAD;
 	GPIO_BSRR(PIN_TICK_PORT) = 1u << (PIN_TICK + 16u);

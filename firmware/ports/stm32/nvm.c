@@ -157,9 +157,9 @@ static uint8_t board_snapshot(const struct board *b, struct board_calibration *c
 	uint8_t on;
 
 	__asm__ volatile("cpsid i" ::: "memory");
-	on = b->calibrated;
-	*cal = b->calibration;
-	*idle = !orders_busy(&b->orders);
+	on = b->planner.calibrated;
+	*cal = b->planner.calibration;
+	*idle = !orders_busy(&b->planner.orders);
 	__asm__ volatile("cpsie i" ::: "memory");
 	return on;
 }

@@ -16,6 +16,4 @@ void stm32_robot_config(struct board_config *cfg)
 	cfg->orders.basket_contact_um = 125000;
 	cfg->tick_hz = 1000;
 	cfg->slow_shift = 0;
-	cfg->control.tick_hz = 1000;
-	cfg->orders.tick_hz = 1000;
 }

@@ -47,7 +47,7 @@ enum cta_op {
 struct cta_state {
 	struct pid pid;
 	struct control ctl;
-	struct odometry odo;
+	struct odometry_position odo;
 };
 
 void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res);

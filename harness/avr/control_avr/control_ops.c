@@ -74,7 +74,6 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		break;
 	case CTA_CTL_INIT:
 		memset(&cc, 0, sizeof(cc));
-		cc.tick_hz = (uint16_t)arg[0];
 		cc.duty_max_q15 = (int16_t)arg[1];
 		cc.ff_speed_q15_per_m_s = arg[2];
 		cc.ff_accel_q15_per_m_s2 = arg[3];
@@ -84,7 +83,7 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 			cc.presets[k].i = (uint16_t)arg[6 + 3 * k];
 			cc.presets[k].d = (uint16_t)arg[7 + 3 * k];
 		}
-		ret = control_init(c, &cc);
+		ret = control_init(c, &cc, (uint16_t)arg[0]);
 		break;
 	case CTA_CTL_GAINS:
 		g.p = (uint16_t)arg[0];
@@ -112,7 +111,7 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		break;
 	case CTA_ODO_ADVANCE: {
 		struct odometry_arc a;
-		struct odometry *o = &s->odo;
+		struct odometry_position *o = &s->odo;
 
 		o->x_um = (uint32_t)arg[4];
 		o->y_um = (uint32_t)arg[5];

@@ -1,0 +1,52 @@
+/* Template port: the start of a new port. It compiles and links with the core and the common
+ * port layer (its build: firmware/CMakeLists.txt, target asserv_template), and every function of
+ * the porting contract (firmware/hal/) is a stub that says what it must do, one file per header:
+ * encoder.c, motor.c, sensors.c, i2c.c, tick.c, nvm.c. To start a port: copy this folder to
+ * ports/<name>, rename the template_ prefix, fill in each stub from the chip's reference manual,
+ * attach template_tick_isr() and template_i2c_event() to the chip's interrupts, and describe the
+ * robot in robot/<name>.toml. ports/avr and ports/stm32 are two finished examples. */
+#include "hal.h"
+#include "port.h"
+#include "port_nvm.h"
+#include "protocol_defs.h"
+#include "template_port.h"
+
+struct board asserv_board;
+
+/* The calibration's record in the storage: loaded at start, written by the main loop. */
+static struct port_nvm template_nvm;
+
+/* The robot this board drives: the reference robot's defaults here; a real port takes its own,
+ * generated from robot/<name>.toml (the AVR's avr_robot_config(), the STM32's). */
+void template_robot_config(struct board_config *cfg)
+{
+	board_default_config(cfg);
+}
+
+int main(void)
+{
+	struct board_config cfg;
+	struct board_inputs in;
+
+	/* Clocks, pins, timers, ADC: the chip's own start-up, with the motors off. */
+	template_robot_config(&cfg);
+	/* The counts the odometry starts from, so that the first tick sees no jump. */
+	port_sample(&in);
+	port_sample_period(&in);
+	if (board_init(&asserv_board, &cfg, &in) != 0) {
+		/* A configuration the core refuses: motors off, no bus, wait for a new binary. */
+		for (;;)
+			;
+	}
+	/* A blank or corrupt record leaves the board uncalibrated: it runs all the same. */
+	port_nvm_load(&template_nvm, &asserv_board);
+	hal_i2c_slave_init(PROTO_ADDRESS);
+	/* start the watchdog here */
+	hal_tick_start(cfg.tick_hz);
+	/* enable interrupts here */
+	for (;;) {
+		/* One byte write at most per turn, never waited for. A port with two rates runs
+		 * port_slow(&asserv_board) here first (tick.c). Then sleep until an interrupt. */
+		port_nvm_poll(&template_nvm, &asserv_board);
+	}
+}
