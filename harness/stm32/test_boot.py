@@ -452,7 +452,7 @@ def test_asserv_flash_updates_the_board_and_says_what_runs(
     assert run_bus_command(args, bus_factory=lambda n: Unclosed(b.bus)) == 0
     out = capsys.readouterr()
     assert "board 0xf446: runs version 1" in out.out
-    assert "verified: the board read the 46" in out.out
+    assert f"verified: the board read the {len(new.data)} bytes back" in out.out
     assert "running: application version 3" in out.out and "power is cut" in out.out
     app_runs(b, 3)
     # The same image again: nothing written, started again.
