@@ -11,16 +11,18 @@ at their instant (the CPU runs from RAM meanwhile: no stall), and the applicatio
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 from random import Random
 from typing import Any
 
-from board import Stm32Board
+from board import TICK_NS, Stm32Board
 from elftools.elf.elffile import ELFFile
 from emu import FLASH_BASE, FLASH_SIZE, IRQ0, NVM_BASE, NVM_SIZE, SRAM_BASE, EmuError
 from periph import Flash
 from unicorn import UC_HOOK_MEM_WRITE_PROT
 
+from asserv._core import lib
 from asserv.update import Image, load_image, slot_bytes
 
 IRQ_FLASH = 4  # RM0390 Table 38
@@ -304,15 +306,27 @@ class BootBoard(Stm32Board):
         super().control_tick()
 
     def advance_ns(self, duration_ns: int) -> None:
-        """As the lockstep, and in the bootloader the flash's end-of-operation interrupt at the
-        operation's end."""
+        """The lockstep's loop (board._Lockstep), with one more event: in the bootloader, the
+        end of a flash operation, where its interrupt wakes the main loop (an operation that a
+        tick starts ends within the same call too)."""
         end = self.now_ns + duration_ns
-        while self.flash.busy() and self.in_boot() and self.now_ns + self.flash.busy_ns < end:
-            super().advance_ns(max(1, self.flash.busy_ns))
-            if not self.flash.busy():
-                self._run()
-        if end > self.now_ns:
-            super().advance_ns(end - self.now_ns)
+        while self.now_ns < end:
+            if self.now_ns == self.ticks * TICK_NS:
+                self.control_tick()
+                self.ticks += 1
+                if self.trace is not None:
+                    self.trace.append(hashlib.blake2b(self.board_state(), digest_size=16).digest())
+            nxt = min(self.ticks * TICK_NS, end)
+            waking = self.flash.busy() and self.in_boot()
+            if waking:
+                nxt = min(nxt, self.now_ns + max(1, self.flash.busy_ns))
+            if nxt <= self.now_ns:
+                break  # a stall of the CPU on the flash moved the time past the end
+            lib.sim_advance_ns(self.sim, nxt - self.now_ns)
+            self.time_passes(nxt - self.now_ns)
+            self.now_ns = nxt
+            if waking and not self.flash.busy() and self.in_boot():
+                self._run()  # the end-of-operation interrupt
 
     # ---- helpers for the tests ---------------------------------------------------------------
     def request_bootloader(self) -> None:

@@ -113,7 +113,9 @@ class Cpu:
             self.idle_pcs.add(self.boot_symbols["boot_idle"] & ~1)
             at = self.boot_symbols["boot_idle"] & ~1
             self.uc.hook_add(UC_HOOK_CODE, lambda uc, a, s, u: uc.emu_stop(), begin=at, end=at)
-        self.reset_base = FLASH_BASE if boot_elf is not None else self.symbols["stm32_vectors"]
+        self.reset_base = (
+            FLASH_BASE if boot_elf is not None else self.symbols.get("stm32_vectors", FLASH_BASE)
+        )
         self.halt = False  # set by a model (a system reset): run_until_idle returns at once
         self.exception_returns = 0
         self.insns = 0

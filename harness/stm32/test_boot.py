@@ -488,3 +488,35 @@ def test_asserv_flash_refuses_bad_files_in_one_line(
         assert main(["--bus", "1", "flash", str(path)]) == 2
         err = capsys.readouterr().err
         assert words in err and len(err.splitlines()) == 1 and "Traceback" not in err
+
+
+def test_asserv_flash_says_when_no_bootloader_answers(elf: Path) -> None:
+    """A board without a bootloader (the AVR's, the simulator's: the host build here) takes
+    BOOTLOADER and carries on; `asserv flash` says so, naming the AVR's ISP route."""
+    from asserv.sim import Simulator
+    from asserv.update import flash
+
+    sim = Simulator(seed=0)
+    board = Board(sim.bus)
+    with pytest.raises(UpdateError, match=r"no bootloader answers.*ISP route"):
+        flash(board, load_image(elf))
+    assert board.check_busy() == 0 and board.last_reject().count == 0  # the board runs on
+
+
+def test_flash_sh_writes_the_run_slot_the_bootloader_writes(elf: Path, tmp_path: Path) -> None:
+    """firmware/ports/stm32/flash.sh builds the run slot (header, then the image) in shell, for
+    st-flash: the same bytes as asserv.update.slot_bytes, which the bootloader accepts."""
+    import shutil
+    import subprocess
+
+    from asserv.update import slot_bytes
+
+    script = (ROOT / "firmware" / "ports" / "stm32" / "flash.sh").read_text()
+    part = script[script.index("crc32() {") : script.index('st-flash write "$BUILD/slot.bin"')]
+    shutil.copy(elf.with_suffix(".bin"), tmp_path / "asserv_stm32.bin")
+    subprocess.run(
+        ["bash", "-c", "set -euo pipefail\n" + part],
+        env={"BUILD": str(tmp_path), "PATH": "/usr/bin:/bin"},
+        check=True,
+    )
+    assert (tmp_path / "slot.bin").read_bytes() == slot_bytes(load_image(elf))

@@ -377,6 +377,20 @@ AFTER_A_CUT = (
 )
 
 
+def _in_bootloader(board: Any) -> bool | None:
+    """Which firmware answers, from a plain read, which changes nothing in either: the
+    application gives its status, its PEC, then 0xFF; the bootloader its STATUS (an offset never
+    0xFFFFFFFF) or its INFO ("BL"). Two reads: the application's first may still give a reply
+    the master selected and never read; its second is the status. None when a read fails."""
+    msg = i2c_msg.read(board.address, 7)
+    try:
+        for _ in range(2):
+            board.bus.i2c_rdwr(msg)
+    except OSError:
+        return None
+    return bytes(msg)[2:6] != b"\xff" * 4
+
+
 def flash(
     board: Any, image: Image, progress: Callable[[int, int], None] | None = None
 ) -> list[str]:
@@ -401,10 +415,9 @@ def _flash(
     ]
     clock = clock_of(board.bus)
     u = Updater(board.bus, board.address)
-    try:
-        u.info()
+    if _in_bootloader(board):
         lines.append("the board is in its bootloader already")
-    except (UpdateError, OSError):
+    else:
         try:
             board.bootloader()
         except OrderRejected as e:
@@ -412,14 +425,17 @@ def _flash(
                 f"the board refused to leave its application ({e.reason.name}): an order runs;"
                 " stop the robot (asserv stop), wait, and flash again"
             ) from None
-        clock.sleep(0.05)
-    try:
-        info: BootInfo = u._retry(u.info, tries=5)
-    except (UpdateError, OSError):
-        raise UpdateError(
-            "the board took BOOTLOADER but no bootloader answers: a board without one (the AVR"
-            " board has none: docs/update.md gives its ISP route), or its bootloader is not flashed"
-        ) from None
+        for _ in range(10):
+            clock.sleep(0.02)
+            if _in_bootloader(board):
+                break
+        else:
+            raise UpdateError(
+                "the board took BOOTLOADER but no bootloader answers: a board without one (the"
+                " AVR board has none: docs/update.md gives its ISP route), or its bootloader is"
+                " not flashed"
+            )
+    info: BootInfo = u._retry(u.info, tries=5)
     if info.board_id != image.board_id:
         raise UpdateError(
             f"this board is 0x{info.board_id:04x} ({BOARD_IDS.get(info.board_id, 'unknown')}),"
@@ -444,11 +460,7 @@ def _flash(
     while True:
         clock.sleep(0.1)
         try:
-            # A plain read changes nothing in either: the application gives its status, its
-            # PEC, then 0xFF; the bootloader its STATUS, whose offset is never 0xFFFFFFFF.
-            msg = i2c_msg.read(board.address, 7)
-            board.bus.i2c_rdwr(msg)
-            if bytes(msg)[2:6] == b"\xff" * 4:
+            if _in_bootloader(board) is False:
                 version = Board(board.bus, board.address, pec=True).version()
                 break
         except (AsservError, OSError):
