@@ -31,12 +31,23 @@ static void default_uncertainty(struct board_config *c)
 	c->uncalibrated.scale_error_ppm = 3500;
 }
 
+/* [ms] see default_control() */
+#define GAIN_SLEW_MS 50
+
 static void default_control(struct board_config *c)
 {
 	c->control.duty_max_q15 = 32767;
 	c->control.ff_speed_q15_per_m_s = ROBOT_FF_SPEED_Q15_PER_M_S;
 	c->control.ff_accel_q15_per_m_s2 = ROBOT_FF_ACCEL_Q15_PER_M_S2;
 	c->control.ff_angle_accel_q15_per_m_s2 = ROBOT_FF_ANGLE_ACCEL_Q15_PER_M_S2;
+	/* A change of gains takes in its step at the duty of the grip's acceleration every
+	 * GAIN_SLEW_MS: the feed-forward's duty of grip_um_s2 along the distance, and of
+	 * grip_um_s2 / rot_grip of wheel arc turning (orders.h, "a + k a' <= grip"). */
+	c->control.gain_slew_q15_per_s[0] = (int32_t)((int64_t)ROBOT_FF_ACCEL_Q15_PER_M_S2 *
+						      ROBOT_GRIP_UM_S2 / GAIN_SLEW_MS / 1000);
+	c->control.gain_slew_q15_per_s[1] =
+		(int32_t)((int64_t)ROBOT_FF_ANGLE_ACCEL_Q15_PER_M_S2 * ROBOT_GRIP_UM_S2 * 256 /
+			  ROBOT_ROT_GRIP_Q8 / GAIN_SLEW_MS / 1000);
 	c->control.presets[FILTRE_STD] = (struct control_gains){205, 400, 160};
 	c->control.presets[FILTRE_SOUPLE] = (struct control_gains){40, 0, 60};
 	c->control.presets[FILTRE_RAIDE] = (struct control_gains){400, 1200, 250};

@@ -12,6 +12,16 @@ static int32_t per_um_q20(int32_t per_m)
 	return (int32_t)fx_div_round64((int64_t)per_m << 20, 1000000);
 }
 
+/* v clipped to +-lim, for a lim in 0..32767. */
+static inline int16_t clip16(int32_t v, int16_t lim)
+{
+	if (v > lim)
+		return lim;
+	if (v < -lim)
+		return (int16_t)-lim;
+	return (int16_t)v;
+}
+
 static struct pid_config pid_config_of(const struct control_config *cfg, uint16_t tick_hz,
 				       const struct control_gains *g)
 {
@@ -32,8 +42,12 @@ int control_init(struct control *c, const struct control_config *cfg, uint16_t t
 	if (cfg->duty_max_q15 <= 0 || cfg->ff_speed_q15_per_m_s < 0 ||
 	    cfg->ff_speed_q15_per_m_s > 1000000 || cfg->ff_accel_q15_per_m_s2 < 0 ||
 	    cfg->ff_accel_q15_per_m_s2 > 1000000 || cfg->ff_angle_accel_q15_per_m_s2 < 0 ||
-	    cfg->ff_angle_accel_q15_per_m_s2 > 1000000)
+	    cfg->ff_angle_accel_q15_per_m_s2 > 1000000 || tick_hz == 0)
 		return -1;
+	for (int i = 0; i < 2; i++)
+		if (cfg->gain_slew_q15_per_s[i] < 1 ||
+		    cfg->gain_slew_q15_per_s[i] > ((int32_t)1 << 24))
+			return -1;
 	c->cfg = *cfg;
 	c->tick_hz = tick_hz;
 	c->k_speed_q20 = per_um_q20(cfg->ff_speed_q15_per_m_s);
@@ -49,6 +63,15 @@ int control_init(struct control *c, const struct control_config *cfg, uint16_t t
 	pc = pid_config_of(cfg, tick_hz, &c->gains);
 	if (pid_init(&c->dist, &pc) || pid_init(&c->angle, &pc))
 		return -1;
+	for (int i = 0; i < 2; i++) { /* at least 1 a tick, so that a step always ends */
+		c->slew_q15[i] = (int32_t)fx_div_round64(cfg->gain_slew_q15_per_s[i], tick_hz);
+		if (c->slew_q15[i] < 1)
+			c->slew_q15[i] = 1;
+	}
+	c->bump_pending = 0;
+	c->bumping = 0;
+	c->bump_q15[0] = 0;
+	c->bump_q15[1] = 0;
 	c->dist_err_um = 0;
 	c->angle_err_um = 0;
 	c->duty_q15[0] = 0;
@@ -61,6 +84,13 @@ void control_set_gains(struct control *c, const struct control_gains *g)
 	struct pid_config pc = pid_config_of(&c->cfg, c->tick_hz, g);
 
 	c->gains = *g;
+	/* The output as the old gains left it, step included: the next tick measures the new
+	 * gains' step from it (issue 31: the stiffer P's correction of a following error that
+	 * softer gains had let grow, applied at once, asked a wheel for more than its grip). */
+	c->bump_from_q15[0] = clip16(c->dist.out_q15 + c->bump_q15[0], c->cfg.duty_max_q15);
+	c->bump_from_q15[1] = clip16(c->angle.out_q15 + c->bump_q15[1], c->cfg.duty_max_q15);
+	c->bump_pending = 3;
+	c->bumping = 1;
 	pid_set_config(&c->dist, &pc);
 	pid_set_config(&c->angle, &pc);
 }
@@ -69,6 +99,33 @@ void control_reset(struct control *c)
 {
 	pid_reset(&c->dist);
 	pid_reset(&c->angle);
+	c->bump_pending = 0;
+	c->bumping = 0;
+	c->bump_q15[0] = 0;
+	c->bump_q15[1] = 0;
+}
+
+/* The PID output u of axis i (0 distance, 1 angle) with what is left of a change of gains'
+ * step: the first tick after the change gives the old output, and the step then goes by
+ * slew_q15[i] a tick. Called only while bumping. */
+static int32_t bumpless(struct control *c, uint8_t i, int16_t u)
+{
+	int32_t b;
+
+	if (c->bump_pending & (1u << i)) {
+		c->bump_pending &= (uint8_t) ~(1u << i);
+		c->bump_q15[i] = (int32_t)c->bump_from_q15[i] - u;
+	}
+	b = c->bump_q15[i];
+	if (b > c->slew_q15[i])
+		c->bump_q15[i] = b - c->slew_q15[i];
+	else if (b < -c->slew_q15[i])
+		c->bump_q15[i] = b + c->slew_q15[i];
+	else
+		c->bump_q15[i] = 0;
+	if (!c->bump_pending && c->bump_q15[0] == 0 && c->bump_q15[1] == 0)
+		c->bumping = 0;
+	return u + b;
 }
 
 /* round(v k / 2^20) for a coefficient k <= 2^20 (1 full duty per m/s): two 16 x 16 products for
@@ -81,16 +138,6 @@ static int32_t ff_term_c(int32_t v, int32_t k)
 	if (k > 0xffff)
 		r += fx_mul_q(v, (int32_t)fx_hi16((uint32_t)k), 4);
 	return r;
-}
-
-/* v clipped to +-lim, for a lim in 0..32767. */
-static inline int16_t clip16(int32_t v, int16_t lim)
-{
-	if (v > lim)
-		return lim;
-	if (v < -lim)
-		return (int16_t)-lim;
-	return (int16_t)v;
 }
 
 /* round(v k / 2^20): by the architecture's kernel for the coefficients below 2^16, which the
@@ -128,11 +175,15 @@ void control_update(struct control *c, const struct orders_axis *sp_dist,
 	/* Steering first: when the sum would saturate a motor, the distance command gives way,
 	 * so the robot keeps its heading (a saturated turn would otherwise curve the path). */
 	u = pid_update(&c->angle, c->angle_err_um);
+	if (c->bumping)
+		u = bumpless(c, 1, (int16_t)u);
 	u += feed_forward(c, &c->ff_acc[1], c->k_angle_accel_q20, sp_angle);
 	lim = c->cfg.duty_max_q15;
 	a = clip16(u, lim);
 	head = (int16_t)(lim - (a < 0 ? -a : a));
 	u = pid_update(&c->dist, c->dist_err_um);
+	if (c->bumping)
+		u = bumpless(c, 0, (int16_t)u);
 	u += feed_forward(c, &c->ff_acc[0], c->k_accel_q20, sp_dist);
 	d = clip16(u, head);
 	c->duty_q15[0] = (int16_t)(d - a); /* left */

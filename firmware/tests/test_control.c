@@ -21,6 +21,8 @@ static void config(struct control_config *cfg, int32_t ff_speed, int32_t ff_acce
 	cfg->ff_speed_q15_per_m_s = ff_speed;
 	cfg->ff_accel_q15_per_m_s2 = ff_accel;
 	cfg->ff_angle_accel_q15_per_m_s2 = ff_angle_accel;
+	cfg->gain_slew_q15_per_s[0] = 131800;
+	cfg->gain_slew_q15_per_s[1] = 43400;
 	/* presets all zero: no PID output */
 }
 

@@ -213,7 +213,7 @@ static void test_control_edges(void **state)
 		for (size_t b = 0; b < nc; b++) {
 			assert_int_equal(CHECK(t, CTA_CTL_INIT, 1000, 32767, coef[a], coef[b],
 					       coef[nc - 1 - b], 205, 400, 160, 40, 0, 60, 400,
-					       1200, 250),
+					       1200, 250, 131800),
 					 0);
 			for (size_t i = 0; i < nv; i++)
 				for (size_t j = 0; j < nv; j++)
@@ -351,6 +351,9 @@ static void control_round(struct target *t)
 {
 	int32_t g[9], sp[6] = {0}, m[2] = {0, 0};
 	int32_t fs = ff_coef(), fa = ff_coef(), fan = ff_coef(), h = hz(), l = limit();
+	/* The gain slew: 1 a tick at most, the robot's, or at its bound (2^24 [duty_q15/s]). */
+	static const int32_t slews[] = {1, 131800, (int32_t)1 << 24};
+	int32_t sl = slews[below(3)];
 
 	for (int j = 0; j < 9; j++)
 		g[j] = gain();
@@ -358,12 +361,12 @@ static void control_round(struct target *t)
 		static const int32_t robot[9] = {205, 400, 160, 40, 0, 60, 400, 1200, 250};
 
 		memcpy(g, robot, sizeof(g));
-		fs = 19980, fa = 1400, fan = 900, h = 1000, l = 32767;
+		fs = 19980, fa = 1400, fan = 900, h = 1000, l = 32767, sl = 131800;
 	}
 	if (below(20) == 0)
 		l = -(int32_t)below(3);
 	if (CHECK(t, CTA_CTL_INIT, h, l, fs, fa, fan, g[0], g[1], g[2], g[3], g[4], g[5], g[6],
-		  g[7], g[8]))
+		  g[7], g[8], sl))
 		return;
 	for (int s = 0; s < STEPS_PER_ROUND; s++) {
 		uint32_t k = below(100);

@@ -273,6 +273,7 @@ struct control_config {
     int32_t ff_speed_q15_per_m_s;
     int32_t ff_accel_q15_per_m_s2;
     int32_t ff_angle_accel_q15_per_m_s2;
+    int32_t gain_slew_q15_per_s[2];
     struct control_gains presets[...];
 };
 struct faults_config {

@@ -13,8 +13,8 @@
 #include "odometry.h"
 #include "pid.h"
 
-#define CTA_N_ARGS 14
-#define CTA_N_RES 26
+#define CTA_N_ARGS 15
+#define CTA_N_RES 28
 
 #define CTA_OFF_OP 0                                /* uint8_t: the operation, 0 when done */
 #define CTA_OFF_ARGS 4                              /* int32_t[CTA_N_ARGS] */
@@ -31,7 +31,7 @@ enum cta_op {
 	CTA_PID_RESET,   /* pid_reset() */
 	CTA_PID_UPDATE,  /* pid_update(err_um) */
 	CTA_CTL_INIT,    /* control_init(tick_hz, duty_max_q15, ff speed, accel, angle accel,
-			  * the presets' p i d x 3) */
+			  * the presets' p i d x 3, gain slew) */
 	CTA_CTL_GAINS,   /* control_set_gains(p, i, d) */
 	CTA_CTL_PRESET,  /* control_set_gains(preset n), -1 for no such preset */
 	CTA_CTL_RESET,   /* control_reset() */

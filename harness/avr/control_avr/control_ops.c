@@ -83,6 +83,8 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 			cc.presets[k].i = (uint16_t)arg[6 + 3 * k];
 			cc.presets[k].d = (uint16_t)arg[7 + 3 * k];
 		}
+		cc.gain_slew_q15_per_s[0] = arg[14];
+		cc.gain_slew_q15_per_s[1] = arg[14] / 3 + 1;
 		ret = control_init(c, &cc, (uint16_t)arg[0]);
 		break;
 	case CTA_CTL_GAINS:
@@ -149,6 +151,8 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		res[15] = c->dist.d_err_fast_um;
 		pid_state(&c->dist, res + 16);
 		pid_state(&c->angle, res + 21);
+		res[26] = c->bump_q15[0];
+		res[27] = c->bump_q15[1];
 	} else if (op == CTA_ODO_ADVANCE) {
 		res[1] = (int32_t)s->odo.x_um;
 		res[2] = (int32_t)s->odo.y_um;
