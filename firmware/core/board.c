@@ -55,7 +55,6 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	if (planner_init(&b->planner, cfg, in, 0) ||
 	    servo_init(&b->servo, cfg, in, &b->planner.orders))
 		return -1;
-	b->planner.transactions_seen = b->proto.transactions;
 	mailbox_init(b, in);
 	recal_sense_init(&b->servo.lines, &b->mailbox.up[0].edges,
 			 odometry_get_distance_um(&b->servo.counter));
@@ -213,6 +212,7 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 	struct board_handover *draft = &mb->down[mb->down_index ^ 1u];
 	struct control_gains g;
 
+	pl->fed = 1; /* an accepted write: the master is alive (SET_TIMEOUT) */
 	if ((pl->status & STATUS_PB_GRAVE) &&
 	    proto_lookup(msg->designation)->kind == PROTO_KIND_ORDRE)
 		return; /* raced the PB_GRAVE publication: refused like the protocol layer does */
@@ -252,6 +252,8 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 		pl->timeout_ticks =
 			((uint32_t)a[ARG_SET_TIMEOUT_TIMEOUT_MS] * pl->slow_hz + 999u) / 1000u;
 		break;
+	case PROTO_HEARTBEAT:
+		break; /* nothing but the master alive */
 	case PROTO_SET_ODOMETRIE:
 		/* in range by the message table; see set_odometrie */
 		(void)set_odometrie(pl, &mb->wheels, cfg, msg);

@@ -115,7 +115,6 @@ struct board_snapshot {
 	uint8_t wheels_replaced;
 	uint16_t wheel_k[2][2];
 	uint8_t msg_head; /* the messages queued until then; later ones wait a period */
-	uint8_t transactions;
 };
 
 /* What the planner hands the servo (the mailbox's down half), taken planner_ticks after the
@@ -186,10 +185,10 @@ struct planner {
 	uint16_t free_base[2];            /* the free wheels' counts at the last period's end */
 	uint8_t status;                   /* STATUS_* owned by the core */
 	uint32_t timeout_ticks;           /* SET_TIMEOUT [slow ticks], 0: off (power-on) */
-	uint32_t silent_ticks;     /* [slow ticks] since a transaction last addressed the board */
-	uint8_t transactions_seen; /* proto.transactions at the last slow tick */
-	uint8_t timed_out;         /* the last order was stopped by the timeout */
-	uint8_t calibrated;        /* a calibration is installed: calibration holds it */
+	uint32_t silent_ticks;            /* [slow ticks] since the master's last accepted write */
+	uint8_t fed;                      /* an accepted write this period (step_silence()) */
+	uint8_t timed_out;                /* the last order was stopped by the timeout */
+	uint8_t calibrated;               /* a calibration is installed: calibration holds it */
 	struct board_calibration calibration;
 	uint16_t motor_base[2]; /* the motors' counts at the last period's end */
 	/* Since each free wheel last counted: its motor's net travel, and how much of it has

@@ -41,6 +41,7 @@ int planner_init(struct planner *pl, const struct board_config *cfg, const struc
 	pl->status = 0;
 	pl->timeout_ticks = 0;
 	pl->silent_ticks = 0;
+	pl->fed = 0;
 	pl->timed_out = 0;
 	pl->calibrated = 0;
 	pl->calibration = (struct board_calibration){0, 0, 0};
@@ -93,6 +94,8 @@ void planner_update_status(struct planner *pl)
 		s |= STATUS_BUSY_TRAJET;
 		if (pl->orders.designation == PROTO_GOTO_PANIER)
 			s |= STATUS_BUSY_GOTO_PANIER;
+	} else if (pl->timed_out) {
+		s |= STATUS_PB_MOTEUR; /* abandoned for the master's silence, not finished */
 	}
 	pl->status = s;
 }
@@ -324,13 +327,15 @@ static void step_pose(struct planner *pl, const struct board_config *cfg,
 	planner_measure(pl, cfg, p, &pl->m);
 }
 
-/* Step 3b: the master's silence (SET_TIMEOUT): any transaction that addresses the board, even a
- * poll or a rejected write, shows the master alive. When it has been silent for the timeout,
- * the running order stops at the current limits, as by STOP. */
-static void step_silence(struct planner *pl, const struct board_snapshot *p)
+/* Step 3b: the master's silence (SET_TIMEOUT): only its accepted writes (orders, settings,
+ * HEARTBEAT) show it alive, as board_apply() counts them in fed; a poll does not, since a
+ * master's polling thread (or a viewer) can run on while its strategy has hung. When it has
+ * been silent for the timeout, the running order stops at the current limits, as by STOP, and
+ * ends abandoned (PB_MOTEUR, DEBUG TIMEOUT) rather than looking finished. */
+static void step_silence(struct planner *pl)
 {
-	if (p->transactions != pl->transactions_seen) {
-		pl->transactions_seen = p->transactions;
+	if (pl->fed) {
+		pl->fed = 0;
 		pl->silent_ticks = 0;
 	} else if (pl->silent_ticks < UINT32_MAX) {
 		pl->silent_ticks++;
@@ -389,7 +394,10 @@ static void step_handover(struct planner *pl, struct mailbox *mb, uint8_t slow_s
 	const struct board_handover *now = &mb->down[mb->down_index];
 	struct board_handover *next = &mb->down[mb->down_index ^ 1u];
 
-	next->motors_off = (pl->status & (STATUS_PB_GRAVE | STATUS_PB_MOTEUR)) != 0;
+	/* A stop for the master's silence braked and holds, as STOP: its PB_MOTEUR says abandoned,
+	 * not a motor problem. */
+	next->motors_off = (pl->status & STATUS_PB_GRAVE) ||
+			   ((pl->status & STATUS_PB_MOTEUR) && !pl->timed_out);
 	if (next->motors_off) {
 		orders_abort(&pl->orders, &pl->m, pl->orders.end_reason);
 		next->jump = 1;
@@ -429,7 +437,7 @@ static void planner_steps(struct board *b)
 	 * master's silence. */
 	while (b->proto.tail != p->msg_head && proto_poll(&b->proto, &msg))
 		board_apply(pl, mb, cfg, &msg);
-	step_silence(pl, p);
+	step_silence(pl);
 
 	/* 4. Stop conditions. */
 	step_stops(pl, draft, cfg, p, travel_q16);

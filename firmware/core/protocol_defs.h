@@ -11,7 +11,7 @@
 #define PROTO_QUEUE_DEPTH 8
 #define PROTO_MAX_PARAMS 3
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 17
+#define PROTO_N_MSGS 18
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -31,6 +31,7 @@
 #define PROTO_LAST_REJECT 14 /* extension */
 #define PROTO_SET_TIMEOUT 15 /* extension */
 #define PROTO_SET_ODOMETRIE 16 /* extension */
+#define PROTO_HEARTBEAT 22 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -39,7 +40,7 @@
 #define STATUS_BUSY_GOTO_PANIER (1u << 2) /* a GOTO_PANIER is running */
 #define STATUS_CHOC_PANIER (1u << 3) /* the last trajectory ended on a basket contact or a basket-side shock sensor */
 #define STATUS_CHOC_BORD (1u << 4) /* the last trajectory ended on a border-side shock sensor */
-#define STATUS_PB_MOTEUR (1u << 5) /* the last trajectory was abandoned on a motor problem (following error, overcurrent, slip) */
+#define STATUS_PB_MOTEUR (1u << 5) /* the last trajectory was abandoned: a motor problem (following error, overcurrent, slip), the master's silence (SET_TIMEOUT) or a reset; DEBUG's end_reason says which */
 #define STATUS_COMMANDE_REJETEE (1u << 6) /* the last write was rejected (extension; cleared by the next accepted order or setting) */
 
 /* Bits of VERSION's capabilities. */
@@ -48,8 +49,9 @@
 #define CAP_LAST_REJECT (1u << 2) /* the LAST_REJECT reply */
 #define CAP_DEBUG (1u << 3) /* the DEBUG telemetry frame */
 #define CAP_TIMEOUT (1u << 4) /* the SET_TIMEOUT setting: the robot stops when the master goes silent */
+#define CAP_HEARTBEAT (1u << 10) /* SET_TIMEOUT is fed by accepted writes only (orders, settings, HEARTBEAT), not by reads; a timed-out order ends PB_MOTEUR */
 #define CAP_CALIBRATED (1u << 5) /* an odometry calibration is installed (SET_ODOMETRIE, or the one the board kept: docs/calibration.md) */
-#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT) /* the features; a state bit is set while it holds */
+#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT | CAP_HEARTBEAT) /* the features; a state bit is set while it holds */
 
 /* reject codes. */
 #define REJECT_NONE 0 /* no write rejected since reset */

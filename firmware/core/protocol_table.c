@@ -43,6 +43,7 @@ const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
 	{PROTO_LAST_REJECT, PROTO_KIND_ETAT, 0, 0, 1, 1, 3, 16},
 	{PROTO_SET_TIMEOUT, PROTO_KIND_SET, 1, 1, 3, 3, 0, 16},
 	{PROTO_SET_ODOMETRIE, PROTO_KIND_SET, 3, 3, 7, 7, 0, 17},
+	{PROTO_HEARTBEAT, PROTO_KIND_SET, 0, 0, 1, 1, 0, 20},
 	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 20},
 };
 
@@ -82,8 +83,10 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[14];
 	case 16:
 		return &proto_msgs[15];
-	case 200:
+	case 22:
 		return &proto_msgs[16];
+	case 200:
+		return &proto_msgs[17];
 	default:
 		return NULL;
 	}

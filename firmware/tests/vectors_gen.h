@@ -41,6 +41,8 @@ static const struct vec_write vec_writes[] = {
 	{"LAST_REJECT (extension)", {0x0e}, 1, PROTO_LAST_REJECT, 0, {0}, REJECT_NONE},
 	{"DEBUG", {0xc8}, 1, PROTO_DEBUG, 0, {0}, REJECT_NONE},
 	{"SET_TIMEOUT 500 ms (extension)", {0x0f, 0x01, 0xf4}, 3, PROTO_SET_TIMEOUT, 1, {500}, REJECT_NONE},
+	{"HEARTBEAT (extension)", {0x16}, 1, PROTO_HEARTBEAT, 0, {0}, REJECT_NONE},
+	{"HEARTBEAT with two extra bytes", {0x16, 0x00, 0x00}, 3, -1, 0, {0}, REJECT_BAD_LENGTH},
 	{"SET_TIMEOUT 0: off", {0x0f, 0x00, 0x00}, 3, PROTO_SET_TIMEOUT, 1, {0}, REJECT_NONE},
 	{"SET_TIMEOUT at its limit, with PEC", {0x0f, 0xff, 0xff, 0x3b}, 4, PROTO_SET_TIMEOUT, 1, {65535}, REJECT_NONE},
 	{"GOTO 200,100 with PEC", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x00, 0xce}, 7, PROTO_GOTO, 3, {200, 100, 0}, REJECT_NONE},
@@ -171,7 +173,7 @@ static const struct vec_step vec_steps_14[] = {
 	{'r', 0, 0, {0}, 1, {0x00}, 0},
 };
 static const struct vec_step vec_steps_15[] = {
-	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x00, 0x1f}, 0},
+	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x04, 0x1f}, 0},
 };
 static const struct vec_step vec_steps_16[] = {
 	{'w', 0, 6, {0x00, 0x00, 0xc8, 0x00, 0x64, 0x04}, 0, {0}, 0},

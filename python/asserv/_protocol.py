@@ -201,7 +201,7 @@ MESSAGES: tuple[Message, ...] = (
         (),
         (),
         True,
-        'stop the running order when no transaction has addressed the board for this long (0: never, the power-on value)',
+        'stop the running order when the master has written nothing accepted for this long (0: never, the power-on value); reads do not count',
     ),
     Message(
         'SET_ODOMETRIE',
@@ -213,6 +213,17 @@ MESSAGES: tuple[Message, ...] = (
         (),
         True,
         'odometry calibration: right/left wheel-factor ratio, encoder track and common wheel scale (docs/calibration.md)',
+    ),
+    Message(
+        'HEARTBEAT',
+        22,
+        'SET',
+        (),
+        0,
+        (),
+        (),
+        True,
+        "the master's strategy is alive: feeds SET_TIMEOUT and changes nothing else",
     ),
     Message(
         'DEBUG',
@@ -248,6 +259,7 @@ class Capability(enum.IntFlag):
     LAST_REJECT = 4
     DEBUG = 8
     TIMEOUT = 16
+    HEARTBEAT = 1024
     CALIBRATED = 32
 
 

@@ -101,6 +101,9 @@ class AsyncBoard:
     async def set_timeout(self, timeout_ms: int) -> None:
         await self._call(self.board.set_timeout, timeout_ms)
 
+    async def heartbeat(self) -> None:
+        await self._call(self.board.heartbeat)
+
     async def set_new_pos(self, err_x_mm: int, err_y_mm: int, err_angle_deg: int) -> None:
         await self._call(self.board.set_new_pos, err_x_mm, err_y_mm, err_angle_deg)
 

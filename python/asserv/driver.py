@@ -355,11 +355,17 @@ class Board:
         self._command("SET_FILTRE_RAW", _integer("p", p), _integer("i", i), _integer("d", d))
 
     def set_timeout(self, timeout_ms: int) -> None:
-        """SET_TIMEOUT (extension): stop the running order when no transaction has addressed the
-        board for ``timeout_ms`` (1..65535 ms); 0, the power-on value, turns it off. Every call
-        of this driver is a transaction, ``check_busy()`` included, so a master that polls more
-        often than the timeout keeps the robot going (docs/failure-model.md)."""
+        """SET_TIMEOUT (extension): stop the running order when the master has written nothing
+        accepted for ``timeout_ms`` (1..65535 ms); 0, the power-on value, turns it off. Only
+        writes feed it (orders, settings, ``heartbeat()``): a polling thread that lives on while
+        the strategy has hung does not, so such a master is stopped; the order then ends
+        PB_MOTEUR with DEBUG end_reason TIMEOUT (docs/failure-model.md, section 5)."""
         self._command("SET_TIMEOUT", _integer("timeout_ms", timeout_ms))
+
+    def heartbeat(self) -> None:
+        """HEARTBEAT (extension): the strategy is alive; feeds SET_TIMEOUT, changes nothing
+        else. Call it from the thread that decides, not from a polling thread."""
+        self._command("HEARTBEAT")
 
     def set_new_pos(self, err_x_mm: int, err_y_mm: int, err_angle_deg: int) -> None:
         """SET_NEW_POS: the error of the board's estimate (estimate minus truth), which the
