@@ -98,6 +98,24 @@ static void set_new_pos(struct planner *pl, const struct proto_msg *msg)
 	planner_set_pose(pl, &p);
 }
 
+/* SET_FIX: the fix in the core's units, fused at the time it was measured (fix.c). */
+static void set_fix(struct planner *pl, const struct proto_msg *msg)
+{
+	const int32_t *a = msg->arg;
+	struct fix_meas z;
+
+	z.x_um = a[ARG_SET_FIX_X_MM] * UM_PER_MM;
+	z.y_um = a[ARG_SET_FIX_Y_MM] * UM_PER_MM;
+	/* 0.01 degree: 2^32 / 36000 turn32 each, in 64 bits */
+	z.heading_turn32 = (uint32_t)(((int64_t)a[ARG_SET_FIX_HEADING_CDEG] << 32) / 36000);
+	z.sigma_um = (uint32_t)a[ARG_SET_FIX_SIGMA_MM] * UM_PER_MM;
+	/* 0.1 degree: 2^32 / 3600 turn32 each, rounded up (the noise is never understated) */
+	z.sigma_turn32 =
+		(uint32_t)((((uint64_t)a[ARG_SET_FIX_SIGMA_HEADING_DDEG] << 32) + 3599u) / 3600u);
+	z.age_ms = (uint16_t)a[ARG_SET_FIX_AGE_MS];
+	(void)fix_apply(&pl->fix, &pl->position, &pl->m.pose, &pl->uncertainty, &z);
+}
+
 /* A nominal wheel factor times (1 + a / den) [um/count * 2^16], rounded. */
 static int64_t scaled_factor(int64_t factor_q16, int32_t a, int32_t den)
 {
@@ -254,6 +272,9 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 		break;
 	case PROTO_HEARTBEAT:
 		break; /* nothing but the master alive */
+	case PROTO_SET_FIX:
+		set_fix(pl, msg);
+		break;
 	case PROTO_SET_ODOMETRIE:
 		/* in range by the message table; see set_odometrie */
 		(void)set_odometrie(pl, &mb->wheels, cfg, msg);
@@ -312,6 +333,11 @@ void board_publish(const struct planner *pl, const struct board_snapshot *p, str
 	s->debug.current_left_ma = p->in.current_ma[0];
 	s->debug.current_right_ma = p->in.current_ma[1];
 	s->debug.order_state = pl->orders.state;
+	s->fix.fused = pl->fix.info.fused;
+	s->fix.outliers = pl->fix.info.outliers;
+	s->fix.too_old = pl->fix.info.too_old;
+	s->fix.last = pl->fix.info.last;
+	s->fix.last_d2 = pl->fix.info.last_d2;
 	s->debug.end_reason = (pl->timed_out && !orders_busy(&pl->orders)) ? END_REASON_TIMEOUT
 									   : pl->orders.end_reason;
 }

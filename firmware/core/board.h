@@ -18,6 +18,7 @@
 
 #include "control.h"
 #include "faults.h"
+#include "fix.h"
 #include "odometry.h"
 #include "orders.h"
 #include "protocol.h"
@@ -197,6 +198,7 @@ struct planner {
 	uint32_t silent_widened[2];
 	uint32_t silent_min_counts; /* faults.lost_min_um in motor counts */
 	uint32_t silent_turn_q16;   /* max(1, encoder track / drive track) [2^-16] */
+	struct fix fix;             /* the pose history and the fixes (SET_FIX) */
 };
 
 /* Between the two: each half a double buffer of one type. up[up_index] is the period the servo

@@ -60,6 +60,7 @@ int planner_init(struct planner *pl, const struct board_config *cfg, const struc
 						      << 16) /
 						     cfg->faults.motor_um_per_count_q16);
 	pl->silent_turn_q16 = board_turn_q16(cfg, cfg->odometry.track_um);
+	fix_init(&pl->fix, slow_hz);
 	return 0;
 }
 
@@ -106,6 +107,7 @@ void planner_set_pose(struct planner *pl, const struct odometry_pose *pose)
 {
 	odometry_set_position(&pl->position, pose->x_um, pose->y_um);
 	pl->m.pose = *pose;
+	fix_forget(&pl->fix, pose, &pl->uncertainty); /* older fixes would undo it */
 }
 
 void planner_set_gains(struct planner *pl, struct board_handover *draft,
@@ -428,6 +430,7 @@ static void planner_steps(struct board *b)
 			   pl->m.pose.heading_turn32);
 	silent_wheels(pl, cfg, travel_q16, p->in.motor_count);
 	uncertainty_advance(&pl->uncertainty, b->servo.slow_mask); /* its stages as fast in time */
+	fix_record(&pl->fix, &pl->m.pose, &pl->uncertainty);       /* for the fixes to come */
 
 	/* 2. The switches; line crossings. */
 	pl->shocks = p->in.shocks;

@@ -4,6 +4,8 @@
 #include <stddef.h>
 #include <string.h>
 
+#include "feature_set.h"
+
 #define ADDR_W ((uint8_t)(PROTO_ADDRESS << 1))
 #define ADDR_R ((uint8_t)((PROTO_ADDRESS << 1) | 1u))
 
@@ -92,7 +94,8 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 	case PROTO_VERSION:
 		out[n++] = PROTO_VERSION_MAJOR;
 		out[n++] = PROTO_VERSION_MINOR;
-		n += put_u16(&out[n], (uint16_t)(CAP_ALL | (s->calibrated ? CAP_CALIBRATED : 0u)));
+		n += put_u16(&out[n],
+			     (uint16_t)(CAP_BUILD | (s->calibrated ? CAP_CALIBRATED : 0u)));
 		break;
 	case PROTO_LAST_REJECT:
 		out[n++] = p->last_reject;
@@ -112,6 +115,13 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 		n += put_u16(&out[n], (uint16_t)d->current_right_ma);
 		out[n++] = d->order_state;
 		out[n++] = d->end_reason;
+		break;
+	case PROTO_FIX_INFO:
+		n += put_u16(&out[n], s->fix.fused);
+		n += put_u16(&out[n], s->fix.outliers);
+		n += put_u16(&out[n], s->fix.too_old);
+		out[n++] = s->fix.last;
+		out[n++] = s->fix.last_d2;
 		break;
 	default:
 		break;
@@ -215,6 +225,8 @@ static void end_write(struct proto *p)
 		return;
 	}
 	reason = decode_params(p, d, n_params, &m);
+	if (reason == REJECT_NONE && !feature_set_has(d->designation))
+		reason = REJECT_UNSUPPORTED;
 	if (reason != REJECT_NONE) {
 		reject(p, reason);
 		return;

@@ -40,6 +40,15 @@ struct proto_debug {
 	uint8_t end_reason;
 };
 
+/* What FIX_INFO reads (protocol/messages.toml gives units). */
+struct proto_fix {
+	uint16_t fused;
+	uint16_t outliers;
+	uint16_t too_old;
+	uint8_t last;
+	uint8_t last_d2;
+};
+
 /* Everything a reply can carry, all of one control tick. */
 struct proto_snapshot {
 	int16_t x_mm;
@@ -51,6 +60,7 @@ struct proto_snapshot {
 	/* An odometry calibration is installed: VERSION's CAP_CALIBRATED. */
 	uint8_t calibrated;
 	struct proto_debug debug;
+	struct proto_fix fix;
 };
 
 struct proto {

@@ -7,11 +7,11 @@
 #define PROTO_ADDRESS 2 /* 7-bit I2C address */
 #define PROTO_VERSION_MAJOR 1
 #define PROTO_VERSION_MINOR 0
-#define PROTO_MAX_WRITE 8 /* [bytes] designation + params + PEC */
+#define PROTO_MAX_WRITE 12 /* [bytes] designation + params + PEC */
 #define PROTO_QUEUE_DEPTH 8
-#define PROTO_MAX_PARAMS 3
+#define PROTO_MAX_PARAMS 6
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 18
+#define PROTO_N_MSGS 20
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -32,6 +32,8 @@
 #define PROTO_SET_TIMEOUT 15 /* extension */
 #define PROTO_SET_ODOMETRIE 16 /* extension */
 #define PROTO_HEARTBEAT 22 /* extension */
+#define PROTO_SET_FIX 23 /* extension */
+#define PROTO_FIX_INFO 24 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -50,8 +52,9 @@
 #define CAP_DEBUG (1u << 3) /* the DEBUG telemetry frame */
 #define CAP_TIMEOUT (1u << 4) /* the SET_TIMEOUT setting: the robot stops when the master goes silent */
 #define CAP_HEARTBEAT (1u << 10) /* SET_TIMEOUT is fed by accepted writes only (orders, settings, HEARTBEAT), not by reads; a timed-out order ends PB_MOTEUR */
+#define CAP_FIX (1u << 11) /* SET_FIX and FIX_INFO: position fixes fused at their measured time, weighted by their noise */
 #define CAP_CALIBRATED (1u << 5) /* an odometry calibration is installed (SET_ODOMETRIE, or the one the board kept: docs/calibration.md) */
-#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT | CAP_HEARTBEAT) /* the features; a state bit is set while it holds */
+#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT | CAP_HEARTBEAT | CAP_FIX) /* the features; a state bit is set while it holds */
 
 /* reject codes. */
 #define REJECT_NONE 0 /* no write rejected since reset */
@@ -63,6 +66,7 @@
 #define REJECT_REFUSED_PB_GRAVE 6 /* an order was sent while PB_GRAVE is set */
 #define REJECT_QUEUE_FULL 7 /* more writes than the board can take before its next control tick */
 #define REJECT_ABORTED 8 /* the write was cut short by a bus error */
+#define REJECT_UNSUPPORTED 12 /* the message is compiled out of this build (its capability bit reads 0 in VERSION) */
 
 /* filter codes. */
 #define FILTRE_STD 0 /* standard gains for trajectories */
@@ -91,6 +95,13 @@
 #define END_REASON_TIMEOUT 8 /* stopped because the master went silent (SET_TIMEOUT) */
 #define END_REASON_NO_BASKET 9 /* GOTO_PANIER drove its whole push without touching a basket (PB_MOTEUR) */
 
+/* fix_result codes. */
+#define FIX_RESULT_NONE 0 /* no fix since power-on */
+#define FIX_RESULT_FUSED 1 /* fused: the pose and the error radius corrected */
+#define FIX_RESULT_OUTLIER 2 /* rejected: too far from the estimate for both uncertainties (squared Mahalanobis distance over the gate); the pose is left as it was */
+#define FIX_RESULT_TOO_OLD 3 /* rejected: measured before the oldest pose the board keeps */
+#define FIX_RESULT_STALE 4 /* rejected: measured before the last recalibration or SET_NEW_POS, which it would undo */
+
 /* Index of each parameter in struct proto_msg.arg[]. */
 #define ARG_GOTO_X_MM 0
 #define ARG_GOTO_Y_MM 1
@@ -112,6 +123,12 @@
 #define ARG_SET_ODOMETRIE_RATIO_PPM 0
 #define ARG_SET_ODOMETRIE_TRACK_10UM 1
 #define ARG_SET_ODOMETRIE_SCALE_PPM 2
+#define ARG_SET_FIX_X_MM 0
+#define ARG_SET_FIX_Y_MM 1
+#define ARG_SET_FIX_HEADING_CDEG 2
+#define ARG_SET_FIX_SIGMA_MM 3
+#define ARG_SET_FIX_SIGMA_HEADING_DDEG 4
+#define ARG_SET_FIX_AGE_MS 5
 
 /* Reply lengths [bytes], without PEC. */
 #define PROTO_CHECK_BUSY_REPLY_LEN 1
@@ -119,6 +136,7 @@
 #define PROTO_INFO_CHOC_REPLY_LEN 1
 #define PROTO_VERSION_REPLY_LEN 4
 #define PROTO_LAST_REJECT_REPLY_LEN 3
+#define PROTO_FIX_INFO_REPLY_LEN 8
 #define PROTO_DEBUG_REPLY_LEN 22
 
 enum proto_type { PROTO_U8, PROTO_S8, PROTO_U16, PROTO_S16 };

@@ -24,6 +24,12 @@ const struct proto_param_desc proto_params[] = {
 	{-30000, 30000, PROTO_S16, 0x00}, /* SET_ODOMETRIE.ratio_ppm */
 	{1639, 65535, PROTO_U16, 0x00}, /* SET_ODOMETRIE.track_10um */
 	{-30000, 30000, PROTO_S16, 0x00}, /* SET_ODOMETRIE.scale_ppm */
+	{-32000, 32000, PROTO_S16, 0x00}, /* SET_FIX.x_mm */
+	{-32000, 32000, PROTO_S16, 0x00}, /* SET_FIX.y_mm */
+	{-18000, 18000, PROTO_S16, 0x00}, /* SET_FIX.heading_cdeg */
+	{1, 255, PROTO_U8, 0x00}, /* SET_FIX.sigma_mm */
+	{0, 255, PROTO_U8, 0x00}, /* SET_FIX.sigma_heading_ddeg */
+	{0, 500, PROTO_U16, 0x00}, /* SET_FIX.age_ms */
 };
 
 const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
@@ -44,7 +50,9 @@ const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
 	{PROTO_SET_TIMEOUT, PROTO_KIND_SET, 1, 1, 3, 3, 0, 16},
 	{PROTO_SET_ODOMETRIE, PROTO_KIND_SET, 3, 3, 7, 7, 0, 17},
 	{PROTO_HEARTBEAT, PROTO_KIND_SET, 0, 0, 1, 1, 0, 20},
-	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 20},
+	{PROTO_SET_FIX, PROTO_KIND_SET, 6, 6, 11, 11, 0, 20},
+	{PROTO_FIX_INFO, PROTO_KIND_ETAT, 0, 0, 1, 1, 8, 26},
+	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 26},
 };
 
 const struct proto_msg_desc *proto_lookup(uint8_t designation)
@@ -85,8 +93,12 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[15];
 	case 22:
 		return &proto_msgs[16];
-	case 200:
+	case 23:
 		return &proto_msgs[17];
+	case 24:
+		return &proto_msgs[18];
+	case 200:
+		return &proto_msgs[19];
 	default:
 		return NULL;
 	}

@@ -861,3 +861,120 @@ uint8_t uncertainty_get_radius_mm(const struct uncertainty *u)
 {
 	return u->radius_mm;
 }
+
+/* The covariance as a 3 x 3 matrix (x, y in 4 um, the heading in 2^-16 rad), for a fusion. */
+struct cov3 {
+	int64_t p[3][3];
+};
+
+/* Everything the radius adds to the covariance, folded into it: the systematic terms (as
+ * fold_systematic()), then the fixed errors, each bound a sigma of bound / k. */
+static void fold_all(struct uncertainty *u, struct cov3 *m)
+{
+	fold_systematic(u);
+	if (!u->saturated) {
+		u->xx = var_plus_sigma(u, u->xx, sigma_of_bound(u, div_up(u->fixed_um[0], 4)),
+				       VAR_CAP);
+		u->yy = var_plus_sigma(u, u->yy, sigma_of_bound(u, div_up(u->fixed_um[1], 4)),
+				       VAR_CAP);
+	}
+	u->fixed_um[0] = 0;
+	u->fixed_um[1] = 0;
+	m->p[0][0] = u->xx;
+	m->p[0][1] = m->p[1][0] = u->xy;
+	m->p[1][1] = u->yy;
+	m->p[0][2] = m->p[2][0] = u->xt;
+	m->p[1][2] = m->p[2][1] = u->yt;
+	m->p[2][2] = u->tt;
+}
+
+/* round(a / b), b > 0. */
+static int64_t div_round_s64(int64_t a, int64_t b)
+{
+	return a >= 0 ? (a + b / 2) / b : -((-a + b / 2) / b);
+}
+
+/* One coordinate i of the fix, of variance r and innovation nu[i]: the state moves by the gain
+ * times the innovation (delta[], and the later coordinates' innovations with it), the
+ * covariance loses the gain times its row i (the diagonal rounded up: it stays a bound).
+ * Returns nu[i]^2 / s [2^-8], saturating. */
+static uint64_t fuse_one(struct cov3 *m, int64_t nu[3], int64_t delta[3], uint8_t i, int64_t r)
+{
+	int64_t s = m->p[i][i] + r;
+	int64_t g[3] = {m->p[0][i], m->p[1][i], m->p[2][i]};
+	int64_t v = nu[i];
+	uint64_t d2 = ((uint64_t)(v * v) << 8) / (uint64_t)s;
+
+	for (uint8_t j = 0; j < 3; j++) {
+		int64_t d = div_round_s64(g[j] * v, s);
+
+		delta[j] += d;
+		nu[j] -= d;
+		for (uint8_t k = 0; k < 3; k++)
+			m->p[j][k] -= j == k ? (g[j] * g[k]) / s : div_round_s64(g[j] * g[k], s);
+	}
+	return d2;
+}
+
+/* A 64-bit variance back into the covariance's 32 bits, within 0..cap. */
+static int32_t var_back(int64_t v, int32_t cap)
+{
+	return v < 0 ? 0 : v > cap ? cap : (int32_t)v;
+}
+
+/* A covariance term back into 32 bits, within +-sqrt(a b) (a valid correlation). */
+static int32_t cov_back(int64_t v, int32_t a, int32_t b)
+{
+	int64_t lim = (int64_t)fx_isqrt32_up((uint32_t)a) * fx_isqrt32_up((uint32_t)b);
+
+	return (int32_t)(v > lim ? lim : v < -lim ? -lim : v);
+}
+
+/* The innovations in the covariance's units, rounded; 1 when one is beyond any use (264 m). */
+static int innovations(const struct uncertainty_fix *f, int64_t nu[3])
+{
+	nu[0] = div_round_s64(f->dx_um, UNCERTAINTY_POS_UM);
+	nu[1] = div_round_s64(f->dy_um, UNCERTAINTY_POS_UM);
+	nu[2] = fx_shr_round64((int64_t)f->dheading_turn32 * TWO_PI_Q16, 32);
+	return nu[0] > (1 << 26) || nu[0] < -(1 << 26) || nu[1] > (1 << 26) || nu[1] < -(1 << 26);
+}
+
+int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
+		     struct uncertainty_correction *c)
+{
+	struct uncertainty w = *u;
+	struct cov3 m;
+	int64_t nu[3], delta[3] = {0, 0, 0};
+	int64_t rp = (int64_t)((f->sigma_um + UNCERTAINTY_POS_UM - 1) / UNCERTAINTY_POS_UM);
+	int64_t rt = (int64_t)heading_units(f->sigma_turn32);
+	uint64_t d2 = 0;
+	int far = innovations(f, nu);
+
+	c->d2_q8 = UINT32_MAX;
+	if (far) /* beyond the field: nothing to fuse */
+		return 1;
+	fold_all(&w, &m);
+	rp = rp * rp + 1;
+	rt = rt * rt + 1;
+	d2 += fuse_one(&m, nu, delta, 0, rp);
+	d2 += fuse_one(&m, nu, delta, 1, rp);
+	if (f->sigma_turn32)
+		d2 += fuse_one(&m, nu, delta, 2, rt);
+	c->d2_q8 = d2 > UINT32_MAX ? UINT32_MAX : (uint32_t)d2;
+	if (!w.saturated && f->gate_q8 && d2 > f->gate_q8)
+		return 1;
+	w.saturated = 0;
+	w.xx = var_back(m.p[0][0], VAR_CAP);
+	w.yy = var_back(m.p[1][1], VAR_CAP);
+	w.tt = var_back(m.p[2][2], TT_CAP);
+	w.xy = cov_back(m.p[0][1], w.xx, w.yy);
+	w.xt = cov_back(m.p[0][2], w.xx, w.tt);
+	w.yt = cov_back(m.p[1][2], w.yy, w.tt);
+	*u = w;
+	uncertainty_widen(u, f->growth_um, 0);
+	request_radius(u);
+	c->dx_um = (int32_t)(delta[0] * UNCERTAINTY_POS_UM);
+	c->dy_um = (int32_t)(delta[1] * UNCERTAINTY_POS_UM);
+	c->dheading_turn32 = (int32_t)fx_shr_round64(delta[2] * TURN32_PER_RAD, 16);
+	return 0;
+}

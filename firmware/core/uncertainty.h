@@ -182,4 +182,32 @@ uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u);
  * interrupt-safe: no (between two ticks). */
 int uncertainty_cap_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um);
 
+/* A position fix against the estimate at the time it was measured (uncertainty_fuse()). */
+struct uncertainty_fix {
+	int32_t dx_um, dy_um;    /* fix - estimate [um] */
+	int32_t dheading_turn32; /* fix - estimate, wrapped [turn * 2^32] */
+	uint32_t sigma_um;       /* standard deviation of x and of y [um] */
+	uint32_t sigma_turn32;   /* of the heading [turn * 2^32]; 0: the fix has no heading */
+	uint32_t growth_um;      /* how much the radius grew since it was measured [um] */
+	uint32_t gate_q8;        /* largest squared Mahalanobis distance accepted [2^-8]; 0: any */
+};
+
+/* What a fix moved the estimate by, at the time it was measured. */
+struct uncertainty_correction {
+	int32_t dx_um, dy_um;
+	int32_t dheading_turn32;
+	uint32_t d2_q8; /* the fix's squared Mahalanobis distance to the estimate [2^-8] */
+};
+
+/* Fuse a position fix with the covariance (a Kalman update, one coordinate at a time: the fix's
+ * noise is diagonal). The systematic terms are folded in first, each bound as a sigma of
+ * bound / k, so that the radius that follows is k sigma of the fused covariance. The growth since
+ * the fix was measured is added back afterwards (as uncertainty_widen()): the fix says nothing of
+ * what the odometry did since. A fix whose squared Mahalanobis distance passes gate_q8 changes
+ * nothing and returns 1 (an outlier); otherwise 0, c says how far to move the estimate at the
+ * measured time, and the radius is refreshed at once. A saturated covariance takes any fix.
+ * In 64 bits: it runs at a fix (10 Hz), not every tick. interrupt-safe: no. */
+int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
+		     struct uncertainty_correction *c);
+
 #endif

@@ -71,6 +71,14 @@ struct proto_debug {
     uint8_t end_reason;
 };
 
+struct proto_fix {
+    uint16_t fused;
+    uint16_t outliers;
+    uint16_t too_old;
+    uint8_t last;
+    uint8_t last_d2;
+};
+
 struct proto_snapshot {
     int16_t x_mm;
     int16_t y_mm;
@@ -80,6 +88,7 @@ struct proto_snapshot {
     uint8_t sensors;
     uint8_t calibrated;
     struct proto_debug debug;
+    struct proto_fix fix;
 };
 
 struct proto { ...; };
@@ -348,7 +357,16 @@ struct servo {
     uint16_t slow_overruns;
     ...;
 };
+struct fix_info {
+    uint16_t fused;
+    uint16_t outliers;
+    uint16_t too_old;
+    uint8_t last;
+    uint8_t last_d2;
+};
+struct fix { struct fix_info info; ...; };
 struct planner {
+    struct fix fix;
     struct uncertainty uncertainty;
     struct orders orders;
     struct faults faults;

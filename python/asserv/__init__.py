@@ -7,10 +7,20 @@
 from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _version
 
-from ._protocol import ADDRESS, Capability, EndReason, Filtre, OrderState, Reject, Status
+from ._protocol import (
+    ADDRESS,
+    Capability,
+    EndReason,
+    Filtre,
+    FixResult,
+    OrderState,
+    Reject,
+    Status,
+)
 from .bus import Clock, I2CDevice, ProtocolDevice, VirtualBus
 from .codec import (
     Debug,
+    FixInfo,
     FrameError,
     LastReject,
     PecError,
@@ -30,6 +40,7 @@ from .driver import (
     NoAcknowledge,
     OrderRejected,
     PecMismatch,
+    Unsupported,
 )
 
 try:
@@ -48,6 +59,8 @@ __all__ = [
     "Debug",
     "EndReason",
     "Filtre",
+    "FixInfo",
+    "FixResult",
     "FrameError",
     "GotoOption",
     "I2CDevice",
@@ -61,6 +74,7 @@ __all__ = [
     "ProtocolDevice",
     "Reject",
     "Status",
+    "Unsupported",
     "Version",
     "VirtualBus",
     "__version__",

@@ -8,7 +8,7 @@ from typing import Literal
 
 ADDRESS = 2
 VERSION = (1, 0)
-MAX_WRITE = 8
+MAX_WRITE = 12
 QUEUE_DEPTH = 8
 
 FieldType = Literal["u8", "s8", "u16", "s16"]
@@ -226,6 +226,28 @@ MESSAGES: tuple[Message, ...] = (
         "the master's strategy is alive: feeds SET_TIMEOUT and changes nothing else",
     ),
     Message(
+        'SET_FIX',
+        23,
+        'SET',
+        (Field('x_mm', 's16', -32000, 32000), Field('y_mm', 's16', -32000, 32000), Field('heading_cdeg', 's16', -18000, 18000), Field('sigma_mm', 'u8', 1, 255), Field('sigma_heading_ddeg', 'u8', 0, 255), Field('age_ms', 'u16', 0, 500), ),
+        6,
+        (),
+        (),
+        True,
+        'a position fix (lidar, camera) with its noise and age: fused with the odometry at the time it was measured, or rejected as an outlier (FIX_INFO says which)',
+    ),
+    Message(
+        'FIX_INFO',
+        24,
+        'ETAT',
+        (),
+        0,
+        (Field('fused', 'u16', 0, 65535), Field('outliers', 'u16', 0, 65535), Field('too_old', 'u16', 0, 65535), Field('last', 'u8', 0, 255), Field('last_d2', 'u8', 0, 255), ),
+        (),
+        True,
+        "what became of the fixes: counts since power-on (wrapping) and the last one's result",
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
@@ -260,6 +282,7 @@ class Capability(enum.IntFlag):
     DEBUG = 8
     TIMEOUT = 16
     HEARTBEAT = 1024
+    FIX = 2048
     CALIBRATED = 32
 
 
@@ -275,6 +298,7 @@ class Reject(enum.IntEnum):
     REFUSED_PB_GRAVE = 6
     QUEUE_FULL = 7
     ABORTED = 8
+    UNSUPPORTED = 12
 
 
 class Filtre(enum.IntEnum):
@@ -311,3 +335,13 @@ class EndReason(enum.IntEnum):
     BORDER = 7
     TIMEOUT = 8
     NO_BASKET = 9
+
+
+class FixResult(enum.IntEnum):
+    """What became of a position fix (FIX_INFO)."""
+
+    NONE = 0
+    FUSED = 1
+    OUTLIER = 2
+    TOO_OLD = 3
+    STALE = 4

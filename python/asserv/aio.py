@@ -21,7 +21,7 @@ from typing import Any, TypeVar
 
 from ._protocol import Filtre, Status
 from .bus import SystemClock
-from .codec import Debug, LastReject, Pose, Version
+from .codec import Debug, FixInfo, LastReject, Pose, Version
 from .driver import Board, GotoOption, Outcome
 
 __all__ = ["AsyncBoard"]
@@ -110,6 +110,17 @@ class AsyncBoard:
     async def declare_pose(self, x_mm: int, y_mm: int, angle_deg: int) -> None:
         await self._call(self.board.declare_pose, x_mm, y_mm, angle_deg)
 
+    async def fix(
+        self,
+        x_mm: float,
+        y_mm: float,
+        heading_deg: float | None,
+        sigma_mm: float,
+        sigma_deg: float | None,
+        age_ms: float,
+    ) -> None:
+        await self._call(self.board.fix, x_mm, y_mm, heading_deg, sigma_mm, sigma_deg, age_ms)
+
     # Queries.
     async def check_busy(self) -> Status:
         return await self._call(self.board.check_busy)
@@ -128,3 +139,6 @@ class AsyncBoard:
 
     async def debug(self) -> Debug:
         return await self._call(self.board.debug)
+
+    async def fix_info(self) -> FixInfo:
+        return await self._call(self.board.fix_info)

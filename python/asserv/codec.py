@@ -19,6 +19,7 @@ from ._protocol import (
     Capability,
     EndReason,
     Field,
+    FixResult,
     Message,
     OrderState,
     Reject,
@@ -295,7 +296,19 @@ class Debug:
     end_reason: EndReason
 
 
-Reply = Status | Pose | int | Version | LastReject | Debug
+@dataclass(frozen=True)
+class FixInfo:
+    """FIX_INFO (extension): the fixes' counts since power-on (wrapping at 65536) and the last
+    one's result."""
+
+    fused: int
+    outliers: int
+    too_old: int
+    last: FixResult
+    last_d2: int
+
+
+Reply = Status | Pose | int | Version | LastReject | Debug | FixInfo
 
 
 class PecError(ValueError):
@@ -359,11 +372,13 @@ def decode_reply(
             order_state=OrderState(v["order_state"]),
             end_reason=EndReason(v["end_reason"]),
         )
+    if msg.name == "FIX_INFO":
+        return FixInfo(values[0], values[1], values[2], FixResult(values[3]), values[4])
     raise AssertionError(f"no decoder for {msg.name}")  # the table check keeps this unreachable
 
 
 def reply_fields(reply: Reply) -> dict[str, int]:
     """The reply's values by table field name, for printing and for comparing with the table."""
-    if isinstance(reply, Pose | Version | LastReject | Debug):
+    if isinstance(reply, Pose | Version | LastReject | Debug | FixInfo):
         return {f.name: int(getattr(reply, f.name)) for f in fields(reply)}
     return {"value": int(reply)}
