@@ -67,6 +67,84 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	return 0;
 }
 
+void board_keep_save(const struct planner *pl)
+{
+	struct board_keep *k = pl->keep;
+
+	k->x_um = pl->m.pose.x_um;
+	k->y_um = pl->m.pose.y_um;
+	k->heading_turn32 = pl->m.pose.heading_turn32;
+	k->radius_um = pl->uncertainty.saturated ? UINT32_MAX : pl->uncertainty.radius_um;
+	uncertainty_keep(&pl->uncertainty, &k->u);
+	k->speed_um_s = fx_mag32(pl->m.dist_speed_um_s);
+	k->turn_um_s = fx_mag32(pl->m.angle_speed_um_s);
+	/* an order running, or abandoned at a reset and not yet replaced: reported again */
+	k->busy =
+		(uint8_t)(orders_busy(&pl->orders) || ((pl->status & STATUS_PB_MOTEUR) &&
+						       pl->orders.end_reason == END_REASON_RESET));
+	k->resets = pl->reset.count;
+	k->pose_lost = pl->reset.pose_lost;
+	k->spare = 0;
+	keep_seal(k);
+}
+
+/* A kept record after a reset: the pose and radius it held, widened by the travel it may have
+ * missed (down_ms, and the planner period since it was written, at its speed). */
+static void resume(struct planner *pl, const struct board_config *cfg, const struct board_keep *k,
+		   uint16_t down_ms)
+{
+	const struct odometry_pose pose = {k->x_um, k->y_um, k->heading_turn32};
+	uint64_t ms = (uint64_t)down_ms + (1000u + pl->slow_hz - 1u) / pl->slow_hz;
+	/* the farthest point moves reach / (drive track / 2) times as fast as the angle axis */
+	uint64_t v = k->speed_um_s + ((uint64_t)k->turn_um_s * cfg->unseen.reach_um * 2u +
+				      cfg->orders.drive_track_um - 1u) /
+					     cfg->orders.drive_track_um;
+	uint64_t pos = (v * ms + 999u) / 1000u;
+	/* each wheel's arc on the angle axis, as one encoder wheel's travel (uncertainty_widen())
+	 */
+	uint64_t wheel =
+		((((uint64_t)k->turn_um_s * ms + 999u) / 1000u * 2u * pl->silent_turn_q16) +
+		 0xffffu) >>
+		16;
+
+	planner_set_pose(pl, &pose);
+	uncertainty_resume(&pl->uncertainty, k->radius_um, &k->u,
+			   pos > UINT32_MAX ? UINT32_MAX : (uint32_t)pos,
+			   wheel > UINT32_MAX ? UINT32_MAX : (uint32_t)wheel);
+	pl->reset.widened_mm = (uint8_t)(pos >= 255000u ? 255u : (pos + 999u) / 1000u);
+}
+
+int board_restart(struct board *b, const struct board_config *cfg, const struct board_inputs *in,
+		  struct board_keep *keep, uint8_t cause, uint16_t down_ms)
+{
+	const struct board_keep k = *keep; /* before anything writes it */
+	struct planner *pl = &b->planner;
+	int valid = keep_valid(&k);
+
+	if (board_init(b, cfg, in))
+		return -1;
+	pl->keep = keep;
+	pl->reset.tracked = 1;
+	pl->reset.cause = cause;
+	if (cause != RESET_CAUSE_POWER_ON) {
+		pl->reset.count = valid ? (uint8_t)(k.resets < 255u ? k.resets + 1u : 255u) : 1u;
+		if (valid && !k.pose_lost) {
+			resume(pl, cfg, &k, down_ms);
+		} else { /* nothing kept: the estimate is the power-on one, the truth unknown */
+			uncertainty_reset(&pl->uncertainty, UINT32_MAX, (uint32_t)1 << 31);
+			pl->reset.pose_lost = 1;
+		}
+		if (!valid || k.busy) { /* abandoned, or may have been */
+			pl->status |= STATUS_PB_MOTEUR;
+			pl->orders.end_reason = END_REASON_RESET;
+		}
+	}
+	board_keep_save(pl);
+	board_publish(pl, &b->mailbox.up[1], &b->proto);
+	proto_flip(&b->proto);
+	return 0;
+}
+
 /* A new order clears what the last one ended with. */
 static void start_order(struct planner *pl)
 {
@@ -96,6 +174,7 @@ static void set_new_pos(struct planner *pl, const struct proto_msg *msg)
 	/* Only the estimate moves, not the axes: the robot stays put, and a running GOTO re-aims
 	 * from the corrected estimate at its next update (a frozen one keeps its targets). */
 	planner_set_pose(pl, &p);
+	pl->reset.pose_lost = 0; /* the master set it: motion orders again (board_restart()) */
 }
 
 /* SET_FIX: the fix in the core's units, fused at the time it was measured (fix.c). */
@@ -234,6 +313,9 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 	if ((pl->status & STATUS_PB_GRAVE) &&
 	    proto_lookup(msg->designation)->kind == PROTO_KIND_ORDRE)
 		return; /* raced the PB_GRAVE publication: refused like the protocol layer does */
+	if (pl->reset.pose_lost && proto_lookup(msg->designation)->kind == PROTO_KIND_ORDRE &&
+	    msg->designation != PROTO_STOP)
+		return; /* the same for a lost pose (REFUSED_NO_POSE) */
 	switch (msg->designation) {
 	case PROTO_GOTO:
 	case PROTO_GOTO_REVERSE:
@@ -333,6 +415,11 @@ void board_publish(const struct planner *pl, const struct board_snapshot *p, str
 	s->debug.current_left_ma = p->in.current_ma[0];
 	s->debug.current_right_ma = p->in.current_ma[1];
 	s->debug.order_state = pl->orders.state;
+	s->reset.tracked = pl->reset.tracked;
+	s->reset.cause = pl->reset.cause;
+	s->reset.count = pl->reset.count;
+	s->reset.pose_lost = pl->reset.pose_lost;
+	s->reset.widened_mm = pl->reset.widened_mm;
 	s->fix.fused = pl->fix.info.fused;
 	s->fix.outliers = pl->fix.info.outliers;
 	s->fix.too_old = pl->fix.info.too_old;

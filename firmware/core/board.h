@@ -19,6 +19,7 @@
 #include "control.h"
 #include "faults.h"
 #include "fix.h"
+#include "keep.h"
 #include "odometry.h"
 #include "orders.h"
 #include "protocol.h"
@@ -199,6 +200,14 @@ struct planner {
 	uint32_t silent_min_counts; /* faults.lost_min_um in motor counts */
 	uint32_t silent_turn_q16;   /* max(1, encoder track / drive track) [2^-16] */
 	struct fix fix;             /* the pose history and the fixes (SET_FIX) */
+	struct board_keep *keep;    /* the port's record that survives a reset, or NULL */
+	struct board_reset {
+		uint8_t tracked;    /* the port reports its resets (board_restart()) */
+		uint8_t cause;      /* RESET_CAUSE_* of the last start */
+		uint8_t count;      /* resets since power-on, saturating */
+		uint8_t pose_lost;  /* motion orders refused until SET_NEW_POS */
+		uint8_t widened_mm; /* the radius's widening for the time the board was down */
+	} reset;
 };
 
 /* Between the two: each half a double buffer of one type. up[up_index] is the period the servo
@@ -232,6 +241,17 @@ void board_default_config(struct board_config *cfg);
  * RAM, so cfg must not point into b. Returns 0, or -1 when the configuration is out of range.
  * Interrupt-safe: no. */
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
+
+/* A start that knows why (keep.h): board_init(), then after any reset but a power-on the pose
+ * and the radius that keep held resume, the radius widened by what the robot may have
+ * travelled in down_ms (the time the board was down, start-up included) at the speed it had;
+ * a running order is reported abandoned (PB_MOTEUR, DEBUG end_reason RESET). When keep does not
+ * hold a valid record, the pose is lost: the radius reads 255 and motion orders are refused
+ * (REFUSED_NO_POSE) until SET_NEW_POS. A power-on (cause RESET_CAUSE_POWER_ON) is board_init()
+ * exactly. From then on the planner writes keep at every period. keep lives outside b, in RAM
+ * the port's start-up does not clear. Returns board_init()'s result. Interrupt-safe: no. */
+int board_restart(struct board *b, const struct board_config *cfg, const struct board_inputs *in,
+		  struct board_keep *keep, uint8_t cause, uint16_t down_ms);
 
 /* Install an odometry calibration, as SET_ODOMETRIE does (a port calls it after board_init()
  * with the one it stored). The pose is kept; the error radius keeps what it has accumulated and

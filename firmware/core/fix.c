@@ -107,8 +107,11 @@ static void carry(struct fix_entry *q, const struct fix_entry *then,
 
 /* The fix against the estimate then: the innovation, the noise, the growth since. */
 static void innovation(const struct fix *f, const struct fix_meas *z, const struct fix_entry *then,
-		       const struct uncertainty *u, struct uncertainty_fix *uf)
+		       const struct fix_entry *now_e, const struct uncertainty *u,
+		       struct uncertainty_fix *uf)
 {
+	uf->since_dx_um = now_e->x_um - then->x_um;
+	uf->since_dy_um = now_e->y_um - then->y_um;
 	uf->dx_um = z->x_um - then->x_um;
 	uf->dy_um = z->y_um - then->y_um;
 	uf->dheading_turn32 =
@@ -170,7 +173,7 @@ uint8_t fix_apply(struct fix *f, struct odometry_position *pos, struct odometry_
 
 	if (why != FIX_RESULT_NONE)
 		return count(f, why, 0);
-	innovation(f, z, &then, u, &uf);
+	innovation(f, z, &then, &now_e, u, &uf);
 	if (uf.gate_q8 == 0) /* the estimate is what is off: widened to reach the fix */
 		uncertainty_widen(u, fx_mag32(uf.dx_um) + fx_mag32(uf.dy_um), 0);
 	before = u->radius_um;

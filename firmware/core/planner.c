@@ -61,6 +61,8 @@ int planner_init(struct planner *pl, const struct board_config *cfg, const struc
 						     cfg->faults.motor_um_per_count_q16);
 	pl->silent_turn_q16 = board_turn_q16(cfg, cfg->odometry.track_um);
 	fix_init(&pl->fix, slow_hz);
+	pl->keep = NULL;
+	pl->reset = (struct board_reset){0, RESET_CAUSE_POWER_ON, 0, 0, 0};
 	return 0;
 }
 
@@ -466,6 +468,8 @@ void board_slow(struct board *b)
 
 	arch_barrier(); /* the snapshot after slow_due said it is there */
 	planner_steps(b);
+	if (b->planner.keep) /* 8. What a reset keeps (keep.h). */
+		board_keep_save(&b->planner);
 	/* 7. The reply snapshot, made public at the hand-over with the servo's new state. */
 	board_publish(&b->planner, &mb->up[mb->up_index ^ 1u], &b->proto);
 	mb->down[mb->down_index ^ 1u].publish = 1;

@@ -94,8 +94,8 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 	case PROTO_VERSION:
 		out[n++] = PROTO_VERSION_MAJOR;
 		out[n++] = PROTO_VERSION_MINOR;
-		n += put_u16(&out[n],
-			     (uint16_t)(CAP_BUILD | (s->calibrated ? CAP_CALIBRATED : 0u)));
+		n += put_u16(&out[n], (uint16_t)(CAP_BUILD | (s->calibrated ? CAP_CALIBRATED : 0u) |
+						 (s->reset.tracked ? CAP_RESET_INFO : 0u)));
 		break;
 	case PROTO_LAST_REJECT:
 		out[n++] = p->last_reject;
@@ -115,6 +115,12 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 		n += put_u16(&out[n], (uint16_t)d->current_right_ma);
 		out[n++] = d->order_state;
 		out[n++] = d->end_reason;
+		break;
+	case PROTO_RESET_INFO:
+		out[n++] = s->reset.cause;
+		out[n++] = s->reset.count;
+		out[n++] = s->reset.pose_lost;
+		out[n++] = s->reset.widened_mm;
 		break;
 	case PROTO_FIX_INFO:
 		n += put_u16(&out[n], s->fix.fused);
@@ -241,10 +247,17 @@ static void end_write(struct proto *p)
 		reject(p, REJECT_REFUSED_PB_GRAVE);
 		return;
 	}
+	if (d->kind == PROTO_KIND_ORDRE && d->designation != PROTO_STOP &&
+	    published(p)->reset.pose_lost && !p->pose_declared) {
+		reject(p, REJECT_REFUSED_NO_POSE);
+		return;
+	}
 	if ((uint8_t)(p->head - p->tail) >= PROTO_QUEUE_DEPTH) {
 		reject(p, REJECT_QUEUE_FULL);
 		return;
 	}
+	if (d->designation == PROTO_SET_NEW_POS)
+		p->pose_declared = 1;
 	p->queue[p->head % PROTO_QUEUE_DEPTH] = m;
 	p->head++;
 	p->rejected = 0;

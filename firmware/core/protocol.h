@@ -49,6 +49,15 @@ struct proto_fix {
 	uint8_t last_d2;
 };
 
+/* What RESET_INFO reads, and whether the port reports its resets (CAP_RESET_INFO). */
+struct proto_reset {
+	uint8_t tracked;
+	uint8_t cause;
+	uint8_t count;
+	uint8_t pose_lost;
+	uint8_t widened_mm;
+};
+
 /* Everything a reply can carry, all of one control tick. */
 struct proto_snapshot {
 	int16_t x_mm;
@@ -61,6 +70,7 @@ struct proto_snapshot {
 	uint8_t calibrated;
 	struct proto_debug debug;
 	struct proto_fix fix;
+	struct proto_reset reset;
 };
 
 struct proto {
@@ -94,6 +104,9 @@ struct proto {
 	uint8_t orders_taken;              /* core side */
 	volatile uint8_t orders_published; /* core side, read by the interrupt */
 	uint8_t pending_status;            /* busy bits of the last accepted order */
+	/* A SET_NEW_POS accepted since power-on or a reset: the orders after it in the queue are
+	 * not refused for a lost pose (REFUSED_NO_POSE) that it will set. */
+	uint8_t pose_declared;
 
 	/* Queue: the interrupt advances head, the core advances tail (free-running counters). */
 	struct proto_msg queue[PROTO_QUEUE_DEPTH];

@@ -11,7 +11,7 @@
 #define PROTO_QUEUE_DEPTH 8
 #define PROTO_MAX_PARAMS 6
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 20
+#define PROTO_N_MSGS 21
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -34,6 +34,7 @@
 #define PROTO_HEARTBEAT 22 /* extension */
 #define PROTO_SET_FIX 23 /* extension */
 #define PROTO_FIX_INFO 24 /* extension */
+#define PROTO_RESET_INFO 25 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -53,6 +54,7 @@
 #define CAP_TIMEOUT (1u << 4) /* the SET_TIMEOUT setting: the robot stops when the master goes silent */
 #define CAP_HEARTBEAT (1u << 10) /* SET_TIMEOUT is fed by accepted writes only (orders, settings, HEARTBEAT), not by reads; a timed-out order ends PB_MOTEUR */
 #define CAP_FIX (1u << 11) /* SET_FIX and FIX_INFO: position fixes fused at their measured time, weighted by their noise */
+#define CAP_RESET_INFO (1u << 12) /* RESET_INFO: the reset cause and count; the pose kept across a reset, or orders refused until it is set */
 #define CAP_CALIBRATED (1u << 5) /* an odometry calibration is installed (SET_ODOMETRIE, or the one the board kept: docs/calibration.md) */
 #define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT | CAP_HEARTBEAT | CAP_FIX) /* the features; a state bit is set while it holds */
 
@@ -67,6 +69,7 @@
 #define REJECT_QUEUE_FULL 7 /* more writes than the board can take before its next control tick */
 #define REJECT_ABORTED 8 /* the write was cut short by a bus error */
 #define REJECT_UNSUPPORTED 12 /* the message is compiled out of this build (its capability bit reads 0 in VERSION) */
+#define REJECT_REFUSED_NO_POSE 13 /* a motion order after a reset that lost the pose (RESET_INFO): refused until SET_NEW_POS sets it */
 
 /* filter codes. */
 #define FILTRE_STD 0 /* standard gains for trajectories */
@@ -94,6 +97,7 @@
 #define END_REASON_BORDER 7 /* GOTO with border recalibration touched the border, recalibrated and backed off (CHOC_BORD) */
 #define END_REASON_TIMEOUT 8 /* stopped because the master went silent (SET_TIMEOUT) */
 #define END_REASON_NO_BASKET 9 /* GOTO_PANIER drove its whole push without touching a basket (PB_MOTEUR) */
+#define END_REASON_RESET 12 /* the board was reset while the order ran (RESET_INFO says why); PB_MOTEUR */
 
 /* fix_result codes. */
 #define FIX_RESULT_NONE 0 /* no fix since power-on */
@@ -101,6 +105,13 @@
 #define FIX_RESULT_OUTLIER 2 /* rejected: too far from the estimate for both uncertainties (squared Mahalanobis distance over the gate); the pose is left as it was */
 #define FIX_RESULT_TOO_OLD 3 /* rejected: measured before the oldest pose the board keeps */
 #define FIX_RESULT_STALE 4 /* rejected: measured before the last recalibration or SET_NEW_POS, which it would undo */
+
+/* reset_cause codes. */
+#define RESET_CAUSE_POWER_ON 0 /* power-on: the board starts as the 2002 specification says */
+#define RESET_CAUSE_BROWN_OUT 1 /* the supply dipped below the brown-out level (a motor's current spike) */
+#define RESET_CAUSE_WATCHDOG 2 /* the watchdog fired */
+#define RESET_CAUSE_PIN 3 /* the reset pin (a button, a programmer) */
+#define RESET_CAUSE_SOFTWARE 4 /* the firmware asked for it */
 
 /* Index of each parameter in struct proto_msg.arg[]. */
 #define ARG_GOTO_X_MM 0
@@ -137,6 +148,7 @@
 #define PROTO_VERSION_REPLY_LEN 4
 #define PROTO_LAST_REJECT_REPLY_LEN 3
 #define PROTO_FIX_INFO_REPLY_LEN 8
+#define PROTO_RESET_INFO_REPLY_LEN 4
 #define PROTO_DEBUG_REPLY_LEN 22
 
 enum proto_type { PROTO_U8, PROTO_S8, PROTO_U16, PROTO_S16 };

@@ -52,6 +52,7 @@ const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
 	{PROTO_HEARTBEAT, PROTO_KIND_SET, 0, 0, 1, 1, 0, 20},
 	{PROTO_SET_FIX, PROTO_KIND_SET, 6, 6, 11, 11, 0, 20},
 	{PROTO_FIX_INFO, PROTO_KIND_ETAT, 0, 0, 1, 1, 8, 26},
+	{PROTO_RESET_INFO, PROTO_KIND_ETAT, 0, 0, 1, 1, 4, 26},
 	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 26},
 };
 
@@ -97,8 +98,10 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[17];
 	case 24:
 		return &proto_msgs[18];
-	case 200:
+	case 25:
 		return &proto_msgs[19];
+	case 200:
+		return &proto_msgs[20];
 	default:
 		return NULL;
 	}

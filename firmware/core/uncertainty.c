@@ -888,6 +888,24 @@ static void fold_all(struct uncertainty *u, struct cov3 *m)
 	m->p[2][2] = u->tt;
 }
 
+/* The covariance carried along a travel (dx, dy) [um] with the heading error: F m F^T with
+ * F = [[1, 0, a], [0, 1, b], [0, 0, 1]], a = -dy, b = dx in [4 um per 2^-16 rad] (sign -1: back
+ * to the measured time). */
+static void carry_cov(struct cov3 *m, int32_t dx_um, int32_t dy_um, int sign)
+{
+	int64_t a = -(int64_t)dy_um / UNCERTAINTY_POS_UM * sign; /* [2^-16] */
+	int64_t b = (int64_t)dx_um / UNCERTAINTY_POS_UM * sign;
+	int64_t at = (a * m->p[2][2]) >> 16, bt = (b * m->p[2][2]) >> 16;
+	int64_t xt = m->p[0][2], yt = m->p[1][2];
+
+	m->p[0][0] += 2 * ((a * xt) >> 16) + ((a * at) >> 16);
+	m->p[1][1] += 2 * ((b * yt) >> 16) + ((b * bt) >> 16);
+	m->p[0][1] += ((a * yt) >> 16) + ((b * xt) >> 16) + ((a * bt) >> 16);
+	m->p[1][0] = m->p[0][1];
+	m->p[0][2] = m->p[2][0] = xt + at;
+	m->p[1][2] = m->p[2][1] = yt + bt;
+}
+
 /* round(a / b), b > 0. */
 static int64_t div_round_s64(int64_t a, int64_t b)
 {
@@ -954,6 +972,7 @@ int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 	if (far) /* beyond the field: nothing to fuse */
 		return 1;
 	fold_all(&w, &m);
+	carry_cov(&m, f->since_dx_um, f->since_dy_um, -1);
 	rp = rp * rp + 1;
 	rt = rt * rt + 1;
 	d2 += fuse_one(&m, nu, delta, 0, rp);
@@ -963,6 +982,7 @@ int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 	c->d2_q8 = d2 > UINT32_MAX ? UINT32_MAX : (uint32_t)d2;
 	if (!w.saturated && f->gate_q8 && d2 > f->gate_q8)
 		return 1;
+	carry_cov(&m, f->since_dx_um, f->since_dy_um, 1);
 	w.saturated = 0;
 	w.xx = var_back(m.p[0][0], VAR_CAP);
 	w.yy = var_back(m.p[1][1], VAR_CAP);
@@ -970,11 +990,40 @@ int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 	w.xy = cov_back(m.p[0][1], w.xx, w.yy);
 	w.xt = cov_back(m.p[0][2], w.xx, w.tt);
 	w.yt = cov_back(m.p[1][2], w.yy, w.tt);
+	/* The growth since the measured time, as an independent variance (sigma = growth / k): the
+	 * fixes in flight each add theirs, which a sum of sigmas would count over and over. */
+	if (f->growth_um) {
+		int64_t g = (int64_t)sigma_of_bound(&w, div_up(f->growth_um, UNCERTAINTY_POS_UM));
+
+		w.xx = var_back((int64_t)w.xx + g * g, VAR_CAP);
+		w.yy = var_back((int64_t)w.yy + g * g, VAR_CAP);
+	}
 	*u = w;
-	uncertainty_widen(u, f->growth_um, 0);
 	request_radius(u);
 	c->dx_um = (int32_t)(delta[0] * UNCERTAINTY_POS_UM);
 	c->dy_um = (int32_t)(delta[1] * UNCERTAINTY_POS_UM);
 	c->dheading_turn32 = (int32_t)fx_shr_round64(delta[2] * TURN32_PER_RAD, 16);
 	return 0;
+}
+
+void uncertainty_keep(const struct uncertainty *u, struct uncertainty_kept *k)
+{
+	k->tt = u->saturated ? TT_CAP : u->tt;
+	k->travel2_um = u->travel2_um;
+	k->turn_um = u->turn_um;
+}
+
+void uncertainty_resume(struct uncertainty *u, uint32_t radius_um, const struct uncertainty_kept *k,
+			uint32_t position_um, uint32_t wheel_um)
+{
+	uncertainty_reset(u, radius_um, 0);
+	u->tt = k->tt < 0 ? TT_CAP : k->tt > TT_CAP ? TT_CAP : k->tt;
+	u->travel2_um = k->travel2_um;
+	u->turn_um = k->turn_um;
+	if (!u->saturated)
+		u->tt = var_plus_sigma(u, u->tt, sigma_of_bound(u, sys_heading_units(u)), TT_CAP);
+	u->travel2_um = 0;
+	u->turn_um = 0;
+	uncertainty_widen(u, position_um, wheel_um);
+	request_radius(u);
 }

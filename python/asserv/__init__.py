@@ -15,6 +15,7 @@ from ._protocol import (
     FixResult,
     OrderState,
     Reject,
+    ResetCause,
     Status,
 )
 from .bus import Clock, I2CDevice, ProtocolDevice, VirtualBus
@@ -25,6 +26,7 @@ from .codec import (
     LastReject,
     PecError,
     Pose,
+    ResetInfo,
     Version,
     crc8,
     decode_reply,
@@ -73,6 +75,8 @@ __all__ = [
     "Pose",
     "ProtocolDevice",
     "Reject",
+    "ResetCause",
+    "ResetInfo",
     "Status",
     "Unsupported",
     "Version",

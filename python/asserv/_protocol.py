@@ -248,6 +248,17 @@ MESSAGES: tuple[Message, ...] = (
         "what became of the fixes: counts since power-on (wrapping) and the last one's result",
     ),
     Message(
+        'RESET_INFO',
+        25,
+        'ETAT',
+        (),
+        0,
+        (Field('cause', 'u8', 0, 255), Field('count', 'u8', 0, 255), Field('pose_lost', 'u8', 0, 255), Field('widened_mm', 'u8', 0, 255), ),
+        (),
+        True,
+        "the last reset's cause, the resets since power-on, and whether the pose survived it",
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
@@ -283,6 +294,7 @@ class Capability(enum.IntFlag):
     TIMEOUT = 16
     HEARTBEAT = 1024
     FIX = 2048
+    RESET_INFO = 4096
     CALIBRATED = 32
 
 
@@ -299,6 +311,7 @@ class Reject(enum.IntEnum):
     QUEUE_FULL = 7
     ABORTED = 8
     UNSUPPORTED = 12
+    REFUSED_NO_POSE = 13
 
 
 class Filtre(enum.IntEnum):
@@ -335,6 +348,7 @@ class EndReason(enum.IntEnum):
     BORDER = 7
     TIMEOUT = 8
     NO_BASKET = 9
+    RESET = 12
 
 
 class FixResult(enum.IntEnum):
@@ -345,3 +359,13 @@ class FixResult(enum.IntEnum):
     OUTLIER = 2
     TOO_OLD = 3
     STALE = 4
+
+
+class ResetCause(enum.IntEnum):
+    """Why the board last started (RESET_INFO)."""
+
+    POWER_ON = 0
+    BROWN_OUT = 1
+    WATCHDOG = 2
+    PIN = 3
+    SOFTWARE = 4

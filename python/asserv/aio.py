@@ -21,7 +21,7 @@ from typing import Any, TypeVar
 
 from ._protocol import Filtre, Status
 from .bus import SystemClock
-from .codec import Debug, FixInfo, LastReject, Pose, Version
+from .codec import Debug, FixInfo, LastReject, Pose, ResetInfo, Version
 from .driver import Board, GotoOption, Outcome
 
 __all__ = ["AsyncBoard"]
@@ -142,3 +142,6 @@ class AsyncBoard:
 
     async def fix_info(self) -> FixInfo:
         return await self._call(self.board.fix_info)
+
+    async def reset_info(self) -> ResetInfo:
+        return await self._call(self.board.reset_info)

@@ -23,6 +23,7 @@ from ._protocol import (
     Message,
     OrderState,
     Reject,
+    ResetCause,
     Status,
 )
 
@@ -308,7 +309,19 @@ class FixInfo:
     last_d2: int
 
 
-Reply = Status | Pose | int | Version | LastReject | Debug | FixInfo
+@dataclass(frozen=True)
+class ResetInfo:
+    """RESET_INFO (extension): why the board last started, the resets since power-on, whether
+    the pose survived (pose_lost: motion orders refused until SET_NEW_POS) and what the radius
+    was widened by for the time the board was down."""
+
+    cause: ResetCause
+    count: int
+    pose_lost: bool
+    widened_mm: int
+
+
+Reply = Status | Pose | int | Version | LastReject | Debug | FixInfo | ResetInfo
 
 
 class PecError(ValueError):
@@ -372,6 +385,8 @@ def decode_reply(
             order_state=OrderState(v["order_state"]),
             end_reason=EndReason(v["end_reason"]),
         )
+    if msg.name == "RESET_INFO":
+        return ResetInfo(ResetCause(values[0]), values[1], bool(values[2]), values[3])
     if msg.name == "FIX_INFO":
         return FixInfo(values[0], values[1], values[2], FixResult(values[3]), values[4])
     raise AssertionError(f"no decoder for {msg.name}")  # the table check keeps this unreachable
@@ -379,6 +394,6 @@ def decode_reply(
 
 def reply_fields(reply: Reply) -> dict[str, int]:
     """The reply's values by table field name, for printing and for comparing with the table."""
-    if isinstance(reply, Pose | Version | LastReject | Debug | FixInfo):
+    if isinstance(reply, Pose | Version | LastReject | Debug | FixInfo | ResetInfo):
         return {f.name: int(getattr(reply, f.name)) for f in fields(reply)}
     return {"value": int(reply)}

@@ -35,7 +35,7 @@ from smbus2 import i2c_msg
 from . import codec
 from ._protocol import ADDRESS, Capability, EndReason, Filtre, Reject, Status
 from .bus import Clock, clock_of
-from .codec import Debug, FixInfo, LastReject, Pose, Version
+from .codec import Debug, FixInfo, LastReject, Pose, ResetInfo, Version
 
 __all__ = [
     "AsservError",
@@ -424,6 +424,14 @@ class Board:
         stale, since power-on (each wrapping at 65536), and the last one's result."""
         self._require(Capability.FIX, "FIX_INFO")
         return self._query("FIX_INFO", FixInfo)
+
+    def reset_info(self) -> ResetInfo:
+        """RESET_INFO (extension): the last reset's cause, the resets since power-on, whether
+        the pose survived it (``pose_lost``: motion orders are refused, REFUSED_NO_POSE, until
+        ``set_new_pos()`` or ``declare_pose()``) and the radius's widening for the time the
+        board was down. Read it when the status shows PB_MOTEUR with DEBUG end_reason RESET."""
+        self._require(Capability.RESET_INFO, "RESET_INFO")
+        return self._query("RESET_INFO", ResetInfo)
 
     def _require(self, cap: Capability, what: str) -> None:
         """Raise Unsupported when the board's VERSION lacks cap (read once, then cached)."""

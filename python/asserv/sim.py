@@ -28,6 +28,7 @@ import numpy as np
 
 from . import field as fieldmod
 from ._core import ffi, lib
+from ._protocol import ResetCause
 from .bus import VirtualBus
 
 if TYPE_CHECKING:
@@ -389,6 +390,23 @@ class Simulator:
         goes on; a calibration whose record was not completely written yet (16 bytes, all at
         the first tick after SET_ODOMETRIE's slow steps on the simulator) is lost."""
         lib.host_power_cycle(self._h)
+
+    def reset(
+        self, cause: ResetCause | int | str, keep_ram: bool = True, down_ms: int = 30
+    ) -> None:
+        """A reset of the board between two ticks, to rehearse one mid-match: ``cause`` a
+        ResetCause (or its name: "BROWN_OUT", "WATCHDOG", "PIN", "SOFTWARE"; "POWER_ON" is
+        ``power_cycle()``). The motors are off for ``down_ms`` (0..1000: the start-up; the
+        robot coasts, the physics runs), then the board starts again with that cause: from the
+        RAM it kept (``keep_ram``: its pose and radius resume, widened), or from RAM the reset
+        scrambled (the pose is lost: motion orders refused until SET_NEW_POS). A running order
+        reads PB_MOTEUR, DEBUG end_reason RESET; ``Board.reset_info()`` says the rest."""
+        c = ResetCause[cause] if isinstance(cause, str) else ResetCause(cause)
+        if not 0 <= down_ms <= 1000:
+            raise ValueError(f"reset: down_ms must be 0..1000, not {down_ms}")
+        if lib.host_reset(self._h, int(c), 1 if keep_ram else 0, down_ms):
+            raise RuntimeError("reset: the board refused its configuration")
+        self._tx_open = False
 
     @property
     def nvm(self) -> bytes:

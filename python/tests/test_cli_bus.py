@@ -128,7 +128,7 @@ def test_queries_print_what_the_board_says(capsys: pytest.CaptureFixture[str]) -
     assert out["status"] == "status 0x08: CHOC_PANIER\n"
     assert out["info-choc"] == "sensors 0x81: CAPTEUR_0 CAPTEUR_7\n"
     assert out["version"] == (
-        "protocol 1.0, capabilities 0x041f: PEC STOP LAST_REJECT DEBUG TIMEOUT HEARTBEAT\n"
+        "protocol 1.0, capabilities 0x0c1f: PEC STOP LAST_REJECT DEBUG TIMEOUT HEARTBEAT FIX\n"
     )
     assert out["last-reject"] == "no write rejected since reset\n"
     lines = out["debug"].splitlines()

@@ -180,7 +180,7 @@ def test_version_last_reject_and_debug(pec: bool) -> None:
     v = board.version()
     assert (v.major, v.minor) == (1, 0)
     assert v.capabilities == Capability.PEC | Capability.STOP | Capability.LAST_REJECT | (
-        Capability.DEBUG | Capability.TIMEOUT | Capability.HEARTBEAT
+        Capability.DEBUG | Capability.TIMEOUT | Capability.HEARTBEAT | Capability.FIX
     )
     assert board.last_reject().reason == Reject.NONE
     fields: dict[str, Any] = {

@@ -51,7 +51,7 @@ def setting_of(seed: int) -> tuple[int, int, int]:
 
 
 @settings(
-    max_examples=6,
+    max_examples=12,
     deadline=None,
     derandomize=True,
     phases=[Phase.explicit, Phase.generate],  # a shrink would replay minutes of matches
