@@ -49,7 +49,7 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 		return -1;
 	/* As a chip's start-up clears its RAM: a board initialised again in place (a power
 	 * cycle of the host port) starts from the same state as a fresh one. */
-	memset(b, 0, sizeof(*b));
+	memset(b, 0, offsetof(struct board, keep));
 	b->cfg = *cfg;
 	proto_init(&b->proto);
 	if (planner_init(&b->planner, cfg, in, 0) ||
@@ -67,10 +67,8 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	return 0;
 }
 
-void board_keep_save(const struct planner *pl)
+void board_keep_save(const struct planner *pl, struct board_keep *k)
 {
-	struct board_keep *k = pl->keep;
-
 	k->x_um = pl->m.pose.x_um;
 	k->y_um = pl->m.pose.y_um;
 	k->heading_turn32 = pl->m.pose.heading_turn32;
@@ -115,15 +113,14 @@ static void resume(struct planner *pl, const struct board_config *cfg, const str
 }
 
 int board_restart(struct board *b, const struct board_config *cfg, const struct board_inputs *in,
-		  struct board_keep *keep, uint8_t cause, uint16_t down_ms)
+		  uint8_t cause, uint16_t down_ms)
 {
-	const struct board_keep k = *keep; /* before anything writes it */
+	const struct board_keep k = b->keep; /* before anything writes it */
 	struct planner *pl = &b->planner;
 	int valid = keep_valid(&k);
 
 	if (board_init(b, cfg, in))
 		return -1;
-	pl->keep = keep;
 	pl->reset.tracked = 1;
 	pl->reset.cause = cause;
 	if (cause != RESET_CAUSE_POWER_ON) {
@@ -139,7 +136,7 @@ int board_restart(struct board *b, const struct board_config *cfg, const struct 
 			pl->orders.end_reason = END_REASON_RESET;
 		}
 	}
-	board_keep_save(pl);
+	board_keep_save(pl, &b->keep);
 	board_publish(pl, &b->mailbox.up[1], &b->proto);
 	proto_flip(&b->proto);
 	return 0;

@@ -200,7 +200,6 @@ struct planner {
 	uint32_t silent_min_counts; /* faults.lost_min_um in motor counts */
 	uint32_t silent_turn_q16;   /* max(1, encoder track / drive track) [2^-16] */
 	struct fix fix;             /* the pose history and the fixes (SET_FIX) */
-	struct board_keep *keep;    /* the port's record that survives a reset, or NULL */
 	struct board_reset {
 		uint8_t tracked;    /* the port reports its resets (board_restart()) */
 		uint8_t cause;      /* RESET_CAUSE_* of the last start */
@@ -229,6 +228,10 @@ struct board {
 	struct servo servo;
 	struct planner planner;
 	struct mailbox mailbox;
+	/* What survives a reset (keep.h): last, and left as it is by board_init(), so that a port
+	 * that keeps struct board in RAM its start-up does not clear finds it at board_restart().
+	 * Written at every planner period once board_restart() has run. */
+	struct board_keep keep;
 };
 
 /* Defaults for the reference robot (docs/control.md): 25 mm free wheels at 2000 counts/rev,
@@ -237,9 +240,9 @@ void board_default_config(struct board_config *cfg);
 
 /* Power-on: the pose at cfg->start, the specification's initial limits (10 cm/s, 40 cm/s^2),
  * FILTRE_STD, no order; in gives the encoder counts to start from (no jump at the first tick).
- * Every field of b is set, whatever b held: b is cleared first, as a chip's start-up clears its
- * RAM, so cfg must not point into b. Returns 0, or -1 when the configuration is out of range.
- * Interrupt-safe: no. */
+ * Every field of b but b->keep is set, whatever b held: b is cleared first, as a chip's start-up
+ * clears its RAM, so cfg must not point into b. Returns 0, or -1 when the configuration is out of
+ * range. Interrupt-safe: no. */
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
 
 /* A start that knows why (keep.h): board_init(), then after any reset but a power-on the pose
@@ -248,10 +251,10 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
  * a running order is reported abandoned (PB_MOTEUR, DEBUG end_reason RESET). When keep does not
  * hold a valid record, the pose is lost: the radius reads 255 and motion orders are refused
  * (REFUSED_NO_POSE) until SET_NEW_POS. A power-on (cause RESET_CAUSE_POWER_ON) is board_init()
- * exactly. From then on the planner writes keep at every period. keep lives outside b, in RAM
- * the port's start-up does not clear. Returns board_init()'s result. Interrupt-safe: no. */
+ * exactly. From then on the planner writes b->keep at every period; the port keeps b in RAM its
+ * start-up does not clear. Returns board_init()'s result. Interrupt-safe: no. */
 int board_restart(struct board *b, const struct board_config *cfg, const struct board_inputs *in,
-		  struct board_keep *keep, uint8_t cause, uint16_t down_ms);
+		  uint8_t cause, uint16_t down_ms);
 
 /* Install an odometry calibration, as SET_ODOMETRIE does (a port calls it after board_init()
  * with the one it stored). The pose is kept; the error radius keeps what it has accumulated and

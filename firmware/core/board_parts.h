@@ -56,7 +56,7 @@ int board_calibrate(struct planner *pl, struct board_wheels *w, const struct boa
 		    const struct board_calibration *cal);
 
 /* The planner's pose, radius and order into its keep record, sealed (board.c). */
-void board_keep_save(const struct planner *pl);
+void board_keep_save(const struct planner *pl, struct board_keep *k);
 
 /* The reply snapshot of the planner's last period p, drafted in proto (proto_draft()): the
  * caller flips it public. */

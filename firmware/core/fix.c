@@ -18,6 +18,12 @@ void fix_init(struct fix *f, uint16_t slow_hz)
 	f->spacing = (uint8_t)(spacing > 255u ? 255u : spacing < 1u ? 1u : spacing);
 	f->countdown = f->spacing;
 	f->outliers_in_a_row = 0;
+	f->first = 0;
+	f->pending = 0;
+	for (uint8_t i = 0; i < FIX_QUEUE; i++) {
+		f->waiting[i] = (struct fix_meas){0, 0, 0, 0, 0, 0};
+		f->waiting_t[i] = 0;
+	}
 	f->info = (struct fix_info){0, 0, 0, FIX_RESULT_NONE, 0};
 	for (uint8_t i = 0; i < FIX_HISTORY_N; i++)
 		f->h[i] = (struct fix_entry){0, 0, 0, 0};
@@ -35,11 +41,22 @@ static void push(struct fix *f, const struct odometry_pose *pose, uint32_t radiu
 	f->countdown = f->spacing;
 }
 
-void fix_record(struct fix *f, const struct odometry_pose *pose, const struct uncertainty *u)
+static uint8_t fuse(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
+		    struct uncertainty *u, const struct fix_meas *z, uint32_t t);
+
+void fix_record(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
+		struct uncertainty *u)
 {
 	f->now++;
 	if (--f->countdown == 0)
 		push(f, pose, u->radius_um);
+	if (f->pending && uncertainty_fuse_ready(u)) {
+		uint8_t i = f->first;
+
+		f->first = (uint8_t)((i + 1u) % FIX_QUEUE);
+		f->pending--;
+		(void)fuse(f, pos, pose, u, &f->waiting[i], f->waiting_t[i]);
+	}
 }
 
 /* The j-th newest entry. */
@@ -163,13 +180,33 @@ static uint8_t count(struct fix *f, uint8_t result, uint32_t d2_q8)
 uint8_t fix_apply(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
 		  struct uncertainty *u, const struct fix_meas *z)
 {
+	uint32_t age = ((uint32_t)z->age_ms * f->slow_hz + 500u) / 1000u;
+	uint8_t i;
+
+	(void)pos;
+	(void)pose;
+	(void)u;
+	if (f->pending == FIX_QUEUE) { /* the oldest waited too long */
+		f->first = (uint8_t)((f->first + 1u) % FIX_QUEUE);
+		f->pending--;
+		(void)count(f, FIX_RESULT_TOO_OLD, 0);
+	}
+	i = (uint8_t)((f->first + f->pending) % FIX_QUEUE);
+	f->waiting[i] = *z;
+	f->waiting_t[i] = f->now - age;
+	f->pending++;
+	return FIX_RESULT_NONE;
+}
+
+static uint8_t fuse(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
+		    struct uncertainty *u, const struct fix_meas *z, uint32_t t)
+{
 	struct fix_entry now_e = {pose->x_um, pose->y_um, pose->heading_turn32, u->radius_um};
 	struct fix_entry then;
 	struct uncertainty_fix uf;
 	struct uncertainty_correction c;
 	uint32_t newer, before;
-	uint32_t age = ((uint32_t)z->age_ms * f->slow_hz + 500u) / 1000u;
-	uint8_t why = pose_at(f, f->now - age, &now_e, &then, &newer);
+	uint8_t why = pose_at(f, t, &now_e, &then, &newer);
 
 	if (why != FIX_RESULT_NONE)
 		return count(f, why, 0);
@@ -185,6 +222,8 @@ uint8_t fix_apply(struct fix *f, struct odometry_position *pos, struct odometry_
 
 void fix_forget(struct fix *f, const struct odometry_pose *pose, const struct uncertainty *u)
 {
+	for (; f->pending; f->pending--) /* measured before what set the pose: would undo it */
+		(void)count(f, FIX_RESULT_STALE, 0);
 	f->forget = f->now;
 	f->count = 0;
 	push(f, pose, u->radius_um);

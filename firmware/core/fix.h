@@ -24,6 +24,8 @@
 /* After this many outliers in a row the estimate, not the fixes, is taken to be wrong: the next
  * fix is fused with the radius first widened to reach it. */
 #define FIX_YIELD_AFTER 5
+/* Fixes that may wait for the error radius at once (20 Hz with jitter: 2 in 20 ms). */
+#define FIX_QUEUE (CONFIG_FIX ? 4 : 1)
 
 struct fix_entry {
 	int32_t x_um, y_um;
@@ -60,6 +62,12 @@ struct fix {
 	uint8_t spacing; /* [planner periods] between two entries */
 	uint8_t countdown;
 	uint8_t outliers_in_a_row;
+	/* Fixes waiting for the error radius to be between two batches (uncertainty_fuse_ready()),
+	 * in the order they came, with the period each was measured at: one is fused a period. */
+	struct fix_meas waiting[FIX_QUEUE];
+	uint32_t waiting_t[FIX_QUEUE];
+	uint8_t first;
+	uint8_t pending;
 	struct fix_info info;
 };
 
@@ -67,14 +75,17 @@ struct fix {
 void fix_init(struct fix *f, uint16_t slow_hz);
 
 /* Once a planner period, after the pose and the error radius: keeps the estimate of this
- * period in the history. Interrupt-safe: no (the planner's context). */
+ * period in the history, and fuses a fix that waited for the radius's batch to end.
+ * Interrupt-safe: no (the planner's context). */
 #if CONFIG_FIX
-void fix_record(struct fix *f, const struct odometry_pose *pose, const struct uncertainty *u);
+void fix_record(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
+		struct uncertainty *u);
 #else
-static inline void fix_record(struct fix *f, const struct odometry_pose *pose,
-			      const struct uncertainty *u)
+static inline void fix_record(struct fix *f, struct odometry_position *pos,
+			      struct odometry_pose *pose, struct uncertainty *u)
 {
 	(void)f;
+	(void)pos;
 	(void)pose;
 	(void)u;
 }
@@ -86,7 +97,11 @@ void fix_forget(struct fix *f, const struct odometry_pose *pose, const struct un
 
 /* A fix: compared with the estimate of the moment it was measured, gated, fused, its correction
  * carried to now (pose and pos, the planner's, moved as one rigid motion with the history since
- * then). Returns the FIX_RESULT_* code, counted in f->info. Interrupt-safe: no. */
+ * then), at the first period the error radius is between two batches (within UNCERTAINTY_STAGES
+ * periods; one fix a period, in the order they came; FIX_QUEUE may wait, the oldest is dropped
+ * as TOO_OLD beyond). Returns FIX_RESULT_NONE: fix_record() fuses it and counts the result in
+ * f->info.
+ * Interrupt-safe: no. */
 uint8_t fix_apply(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
 		  struct uncertainty *u, const struct fix_meas *z);
 

@@ -61,7 +61,6 @@ int planner_init(struct planner *pl, const struct board_config *cfg, const struc
 						     cfg->faults.motor_um_per_count_q16);
 	pl->silent_turn_q16 = board_turn_q16(cfg, cfg->odometry.track_um);
 	fix_init(&pl->fix, slow_hz);
-	pl->keep = NULL;
 	pl->reset = (struct board_reset){0, RESET_CAUSE_POWER_ON, 0, 0, 0};
 	return 0;
 }
@@ -398,10 +397,7 @@ static void step_handover(struct planner *pl, struct mailbox *mb, uint8_t slow_s
 	const struct board_handover *now = &mb->down[mb->down_index];
 	struct board_handover *next = &mb->down[mb->down_index ^ 1u];
 
-	/* A stop for the master's silence braked and holds, as STOP: its PB_MOTEUR says abandoned,
-	 * not a motor problem. */
-	next->motors_off = (pl->status & STATUS_PB_GRAVE) ||
-			   ((pl->status & STATUS_PB_MOTEUR) && !pl->timed_out);
+	next->motors_off = (pl->status & (STATUS_PB_GRAVE | STATUS_PB_MOTEUR)) != 0;
 	if (next->motors_off) {
 		orders_abort(&pl->orders, &pl->m, pl->orders.end_reason);
 		next->jump = 1;
@@ -432,7 +428,7 @@ static void planner_steps(struct board *b)
 			   pl->m.pose.heading_turn32);
 	silent_wheels(pl, cfg, travel_q16, p->in.motor_count);
 	uncertainty_advance(&pl->uncertainty, b->servo.slow_mask); /* its stages as fast in time */
-	fix_record(&pl->fix, &pl->m.pose, &pl->uncertainty);       /* for the fixes to come */
+	fix_record(&pl->fix, &pl->position, &pl->m.pose, &pl->uncertainty); /* and a waiting fix */
 
 	/* 2. The switches; line crossings. */
 	pl->shocks = p->in.shocks;
@@ -468,8 +464,8 @@ void board_slow(struct board *b)
 
 	arch_barrier(); /* the snapshot after slow_due said it is there */
 	planner_steps(b);
-	if (b->planner.keep) /* 8. What a reset keeps (keep.h). */
-		board_keep_save(&b->planner);
+	if (b->planner.reset.tracked) /* 8. What a reset keeps (keep.h). */
+		board_keep_save(&b->planner, &b->keep);
 	/* 7. The reply snapshot, made public at the hand-over with the servo's new state. */
 	board_publish(&b->planner, &mb->up[mb->up_index ^ 1u], &b->proto);
 	mb->down[mb->down_index ^ 1u].publish = 1;

@@ -302,10 +302,18 @@ static uint64_t sigma_of_bound(const struct uncertainty *u, uint64_t bound)
 /* What the current residual bounds accumulated, made independent of them: the systematic
  * position terms into fixed errors per coordinate, the heading drift into the heading variance,
  * the integrals from zero. */
+static void fold_terms(struct uncertainty *u);
+
 static void fold_systematic(struct uncertainty *u)
 {
 	start_batch(u); /* the travel so far, propagated under the bounds that measured it */
 	run_stages(u, UINT8_MAX);
+	fold_terms(u);
+}
+
+/* The systematic integrals so far into fixed errors and the heading variance, from zero. */
+static void fold_terms(struct uncertainty *u)
+{
 	for (int i = 0; i < 2; i++) {
 		uint32_t e = mul_coef_up(mag48(&u->w1[i]), u->ratio_coef_q32);
 
@@ -871,7 +879,7 @@ struct cov3 {
  * fold_systematic()), then the fixed errors, each bound a sigma of bound / k. */
 static void fold_all(struct uncertainty *u, struct cov3 *m)
 {
-	fold_systematic(u);
+	fold_terms(u); /* the batches keep their travel: it is propagated after the fix */
 	if (!u->saturated) {
 		u->xx = var_plus_sigma(u, u->xx, sigma_of_bound(u, div_up(u->fixed_um[0], 4)),
 				       VAR_CAP);
@@ -906,6 +914,25 @@ static void carry_cov(struct cov3 *m, int32_t dx_um, int32_t dy_um, int sign)
 	m->p[1][2] = m->p[2][1] = yt + bt;
 }
 
+/* The correlations within what the variances allow (after the variances were lowered). */
+static void shrink_cov(struct cov3 *m)
+{
+	for (uint8_t j = 0; j < 3; j++)
+		for (uint8_t k = (uint8_t)(j + 1u); k < 3; k++) {
+			int64_t lim =
+				(int64_t)fx_isqrt32_up(
+					(uint32_t)(m->p[j][j] > 0 ? m->p[j][j] : 0)) *
+				(int64_t)fx_isqrt32_up((uint32_t)(m->p[k][k] > 0 ? m->p[k][k] : 0));
+
+			lim = lim * 15 / 16; /* strictly inside: the matrix stays positive */
+			if (m->p[j][k] > lim)
+				m->p[j][k] = lim;
+			if (m->p[j][k] < -lim)
+				m->p[j][k] = -lim;
+			m->p[k][j] = m->p[j][k];
+		}
+}
+
 /* round(a / b), b > 0. */
 static int64_t div_round_s64(int64_t a, int64_t b)
 {
@@ -928,8 +955,10 @@ static uint64_t fuse_one(struct cov3 *m, int64_t nu[3], int64_t delta[3], uint8_
 
 		delta[j] += d;
 		nu[j] -= d;
-		for (uint8_t k = 0; k < 3; k++)
+		for (uint8_t k = j; k < 3; k++) {
 			m->p[j][k] -= j == k ? (g[j] * g[k]) / s : div_round_s64(g[j] * g[k], s);
+			m->p[k][j] = m->p[j][k];
+		}
 	}
 	return d2;
 }
@@ -957,6 +986,26 @@ static int innovations(const struct uncertainty_fix *f, int64_t nu[3])
 	return nu[0] > (1 << 26) || nu[0] < -(1 << 26) || nu[1] > (1 << 26) || nu[1] < -(1 << 26);
 }
 
+/* Until the stages refresh it, the radius at least what the fused covariance gives: its largest
+ * eigenvalue is at most max(xx, yy) + |xy|. */
+static void cover_now(struct uncertainty *u)
+{
+	uint32_t v = (uint32_t)(u->xx > u->yy ? u->xx : u->yy) + fx_mag32(u->xy);
+	uint64_t r_um = ((uint64_t)fx_isqrt32_up(v) * UNCERTAINTY_POS_UM * u->cfg.k_q8 + 255u) >> 8;
+
+	if (r_um > u->radius_um)
+		u->radius_um = r_um > UINT32_MAX ? UINT32_MAX : (uint32_t)r_um;
+	if (r_um > (uint64_t)u->radius_mm * 1000u)
+		u->radius_mm = r_um > (uint64_t)UNCERTAINTY_RADIUS_MAX_MM * 1000u
+				       ? UNCERTAINTY_RADIUS_MAX_MM
+				       : (uint8_t)((r_um + 999u) / 1000u);
+}
+
+int uncertainty_fuse_ready(const struct uncertainty *u)
+{
+	return u->stage == STAGE_IDLE || u->stage == STAGE_EIGEN;
+}
+
 int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 		     struct uncertainty_correction *c)
 {
@@ -966,6 +1015,7 @@ int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 	int64_t rp = (int64_t)((f->sigma_um + UNCERTAINTY_POS_UM - 1) / UNCERTAINTY_POS_UM);
 	int64_t rt = (int64_t)heading_units(f->sigma_turn32);
 	uint64_t d2 = 0;
+	int64_t g = 0;
 	int far = innovations(f, nu);
 
 	c->d2_q8 = UINT32_MAX;
@@ -973,6 +1023,12 @@ int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 		return 1;
 	fold_all(&w, &m);
 	carry_cov(&m, f->since_dx_um, f->since_dy_um, -1);
+	if (f->growth_um) { /* the prior then: now's, less what grew since (added back below) */
+		g = (int64_t)sigma_of_bound(&w, div_up(f->growth_um, UNCERTAINTY_POS_UM));
+		m.p[0][0] = m.p[0][0] - g * g > m.p[0][0] / 4 ? m.p[0][0] - g * g : m.p[0][0] / 4;
+		m.p[1][1] = m.p[1][1] - g * g > m.p[1][1] / 4 ? m.p[1][1] - g * g : m.p[1][1] / 4;
+		shrink_cov(&m);
+	}
 	rp = rp * rp + 1;
 	rt = rt * rt + 1;
 	d2 += fuse_one(&m, nu, delta, 0, rp);
@@ -993,13 +1049,12 @@ int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 	/* The growth since the measured time, as an independent variance (sigma = growth / k): the
 	 * fixes in flight each add theirs, which a sum of sigmas would count over and over. */
 	if (f->growth_um) {
-		int64_t g = (int64_t)sigma_of_bound(&w, div_up(f->growth_um, UNCERTAINTY_POS_UM));
-
 		w.xx = var_back((int64_t)w.xx + g * g, VAR_CAP);
 		w.yy = var_back((int64_t)w.yy + g * g, VAR_CAP);
 	}
 	*u = w;
-	request_radius(u);
+	u->stage = STAGE_EIGEN; /* the radius from the fused covariance, over the next ticks */
+	cover_now(u);
 	c->dx_um = (int32_t)(delta[0] * UNCERTAINTY_POS_UM);
 	c->dy_um = (int32_t)(delta[1] * UNCERTAINTY_POS_UM);
 	c->dheading_turn32 = (int32_t)fx_shr_round64(delta[2] * TURN32_PER_RAD, 16);

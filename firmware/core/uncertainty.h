@@ -223,12 +223,20 @@ struct uncertainty_correction {
  * along the travel since (a heading error then moves the position now by the travel turned a
  * quarter), fused, and carried forward again. The systematic terms are folded in first, each bound
  * as a sigma of bound / k, so that the radius that follows is k sigma of the fused covariance. The
- * growth since the fix was measured is added back afterwards (as uncertainty_widen()): the fix says
- * nothing of what the odometry did since. A fix whose squared Mahalanobis distance passes gate_q8
- * changes nothing and returns 1 (an outlier); otherwise 0, c says how far to move the estimate at
- * the measured time, and the radius is refreshed at once. A saturated covariance takes any fix. In
- * 64 bits: it runs at a fix (10 Hz), not every tick. interrupt-safe: no. */
+ * growth of the radius since the fix was measured is added back afterwards as a variance (sigma =
+ * growth / k): the fix says nothing of what the odometry did since, and the fixes in flight each
+ * add theirs. A fix whose squared Mahalanobis distance passes gate_q8 changes nothing and returns
+ * 1 (an outlier); otherwise 0, c says how far to move the estimate at the measured time, and the
+ * radius follows within UNCERTAINTY_STAGES updates (until then it reads the larger one of
+ * before). A saturated covariance takes any fix. Only when uncertainty_fuse_ready(). In 64 bits:
+ * it runs at a fix (10 Hz), not every tick. interrupt-safe: no. */
 int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 		     struct uncertainty_correction *c);
+
+/* 1 when uncertainty_fuse() may run: no batch is being propagated and the radius's stages have
+ * not begun (they then start again from the fused covariance, over the next ticks). A fix
+ * waits for it (at most UNCERTAINTY_STAGES updates), so that a fusion never pays for a batch.
+ * Interrupt-safe: yes. */
+int uncertainty_fuse_ready(const struct uncertainty *u);
 
 #endif

@@ -518,10 +518,10 @@ static void test_timeout_stops_a_silent_master(void **state)
 	p1 = board_get_pose(&h.board);
 	print_message("timeout: stopped %d mm after the timeout\n", (p1.x_um - p0.x_um) / 1000);
 	assert_true(p1.x_um - p0.x_um > 480000 && p1.x_um - p0.x_um < 520000);
-	/* not busy, and not finished: abandoned; the motors hold where it stopped */
+	/* not busy, and not finished: abandoned; the motors off once at rest, until an order */
 	assert_int_equal(status(), STATUS_PB_MOTEUR);
 	assert_int_equal(debug_end_reason(), END_REASON_TIMEOUT);
-	assert_int_equal(h.board.mailbox.down[h.board.mailbox.down_index].motors_off, 0);
+	assert_int_equal(h.board.mailbox.down[h.board.mailbox.down_index].motors_off, 1);
 	goto_mm(1000, 0);                                         /* and carries on */
 	assert_int_equal(debug_end_reason(), END_REASON_TIMEOUT); /* not taken yet */
 	send((const uint8_t[]){PROTO_SET_TIMEOUT, 0, 0}, 3);      /* run_until_idle() only polls */

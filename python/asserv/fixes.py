@@ -74,7 +74,7 @@ class FixRecord:
     outlier: bool
     t_sent_s: float = math.nan
     age_ms: int = -1
-    result: int = -1  # FixResult, read from the board's counters 10 ms after the write
+    result: int = -1  # FixResult: the first change of the board's counters after the write
 
 
 @dataclass
@@ -153,10 +153,16 @@ def start(sim: Simulator, source: FixSource) -> FixFeed:
         s.write_now(frame)
         rec.t_sent_s = s.time_s
         rec.age_ms = age
-        s.at(s.time_s + 0.01, lambda s2: judge(s2, rec, before))
+        s.at(s.time_s + 0.001, lambda s2: judge(s2, rec, before, 50))
 
-    def judge(s: Simulator, rec: FixRecord, before: tuple[int, int, int, int]) -> None:
+    def judge(s: Simulator, rec: FixRecord, before: tuple[int, int, int, int], n: int) -> None:
+        # The board takes the fixes in the order they came: the first change of its counters
+        # after the write is this fix's (within 50 ms: it may wait for the radius's batch).
         after = s.fix_counts()
+        if after[:3] == before[:3]:
+            if n > 0:
+                s.at(s.time_s + 0.001, lambda s2: judge(s2, rec, before, n - 1))
+            return
         if after[0] != before[0]:
             rec.result = FixResult.FUSED
         elif after[1] != before[1]:

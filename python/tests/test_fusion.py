@@ -88,7 +88,7 @@ def test_a_precise_fix_pulls_hard_and_a_noisy_one_a_little() -> None:
         start = board.position()
         t = sim.true_pose()
         board.fix(t.x_mm + 20, t.y_mm, t.heading_deg, sigma, 1.0, 0)
-        sim.advance(0.01)
+        sim.advance(0.05)
         p = board.position()
         pulls.append(p.x_mm - start.x_mm)
         assert board.fix_info().last == FixResult.FUSED
@@ -101,7 +101,7 @@ def test_an_outlier_changes_nothing_and_is_counted() -> None:
     before = board.position()
     t = sim.true_pose()
     board.fix(t.x_mm + 400, t.y_mm - 300, t.heading_deg, 10, 1.0, 100)
-    sim.advance(0.01)
+    sim.advance(0.05)
     assert board.position() == before
     info = board.fix_info()
     assert (info.fused, info.outliers, info.last) == (0, 1, FixResult.OUTLIER)
@@ -115,7 +115,7 @@ def test_a_fix_older_than_the_last_set_pose_is_stale() -> None:
     sim.advance(0.05)
     before = board.position()
     board.fix(before.x_mm, before.y_mm, None, 10, None, 200)  # measured before SET_NEW_POS
-    sim.advance(0.01)
+    sim.advance(0.05)
     assert board.position() == before
     assert board.fix_info().last == FixResult.STALE
 
@@ -131,7 +131,7 @@ def test_a_fix_measured_while_driving_is_carried_to_now() -> None:
     tr = sim.trace
     then = tr[-301]  # 300 ms ago
     board.fix(then["x_mm"], then["y_mm"], then["heading_deg"], 2, 0.2, 300)
-    sim.advance(0.01)
+    sim.advance(0.05)
     p, t = board.position(), sim.true_pose()
     assert math.hypot(p.x_mm - t.x_mm, p.y_mm - t.y_mm) <= 3
     assert board.fix_info().last == FixResult.FUSED
@@ -155,3 +155,29 @@ def test_a_board_without_fixes_says_so() -> None:
     board._caps = board.version().capabilities & ~board.version().capabilities.FIX
     with pytest.raises(Unsupported, match="lacks FIX"):
         board.fix(0, 0, None, 10, None, 0)
+
+
+def test_the_lidar_scenario_corrects_a_misplaced_start() -> None:
+    """scenarios/lidar_fixes.txt: the robot 25 mm and 2 degrees from where the board believes;
+    the fixes bring the estimate within a few mm, and the radius with it."""
+    from pathlib import Path
+
+    from asserv import scenario
+
+    path = Path(__file__).resolve().parents[2] / "scenarios" / "lidar_fixes.txt"
+    res = scenario.play(scenario.load(path), out=lambda _: None)
+    assert res.ok
+    p, t = res.board.position(), res.sim.true_pose()
+    err = math.hypot(p.x_mm - t.x_mm, p.y_mm - t.y_mm)
+    assert err <= p.radius_mm <= 20, (err, p.radius_mm)
+    info = res.board.fix_info()
+    assert info.fused >= 50 and info.too_old == 0
+
+
+def test_a_scenario_fixes_line_is_checked() -> None:
+    from asserv import scenario
+
+    with pytest.raises(scenario.ScenarioError, match="fixes"):
+        scenario.parse("fixes 10 0 1 100\nposition\n", "x.txt", None)
+    with pytest.raises(scenario.ScenarioError, match="fixes"):
+        scenario.parse("fixes 10 10 1\nposition\n", "x.txt", None)

@@ -175,7 +175,7 @@ int host_init(struct host *h, const struct board_config *bc, const struct sim_co
 	read_sensors(h);
 	port_sample(&in);
 	port_sample_period(&in); /* the motor counts and currents to start from, as the AVR's */
-	err = board_restart(&h->board, bc, &in, &h->keep, RESET_CAUSE_POWER_ON, 0);
+	err = board_restart(&h->board, bc, &in, RESET_CAUSE_POWER_ON, 0);
 	if (err)
 		return err;
 	current = h;
@@ -209,7 +209,7 @@ static int restart(struct host *h, uint8_t cause, uint16_t down_ms)
 	read_sensors(h);
 	port_sample(&in);
 	port_sample_period(&in);
-	err = board_restart(&h->board, &cfg, &in, &h->keep, cause, down_ms);
+	err = board_restart(&h->board, &cfg, &in, cause, down_ms);
 	duty[HAL_LEFT] = duty[HAL_RIGHT] = 0;
 	sim_set_duty(&h->sim, 0, 0);
 	if (err)
@@ -229,9 +229,9 @@ int host_reset(struct host *h, uint8_t cause, int keep_ram, uint16_t down_ms)
 	if (cause == RESET_CAUSE_POWER_ON)
 		return host_power_cycle(h);
 	if (!keep_ram) { /* what a lost RAM holds: a pattern of the clock */
-		uint8_t *k = (uint8_t *)&h->keep;
+		uint8_t *k = (uint8_t *)&h->board.keep;
 
-		for (size_t i = 0; i < sizeof(h->keep); i++)
+		for (size_t i = 0; i < sizeof(h->board.keep); i++)
 			k[i] = (uint8_t)((h->now_ns >> (i % 8u)) * 131u + i * 29u);
 	}
 	return restart(h, cause, down_ms);

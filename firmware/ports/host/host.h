@@ -20,8 +20,6 @@ struct host {
 	uint64_t now_ns;  /* host_advance_ns()'s clock: control tick k runs at k * tick_ns */
 	uint8_t nvm[HOST_NVM_SIZE]; /* the board's storage: kept by host_power_cycle() */
 	struct port_nvm store;      /* the calibration's record in it (port_nvm.h) */
-	/* RAM the start-up does not clear (keep.h): what a reset other than a power-on keeps. */
-	struct board_keep keep;
 };
 
 /* The board configuration that matches a simulated robot: encoder wheels, tracks, motor
