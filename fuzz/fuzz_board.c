@@ -137,8 +137,8 @@ static void tick(void)
 	struct board_outputs oa, ob;
 
 	/* The master's activity is the same for both: every transaction A saw counts for B too,
-	 * as an address-only write, which is not a frame (SET_TIMEOUT takes any transaction for a
-	 * live master, a read or a rejected write as much as an accepted one). */
+	 * as an address-only write, which is not a frame (SET_TIMEOUT counts only accepted writes,
+	 * which B receives as A does; the transaction counters are kept equal all the same). */
 	while (b.proto.transactions != a.proto.transactions) {
 		proto_on_write_start(&b.proto);
 		proto_on_stop(&b.proto);

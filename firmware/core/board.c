@@ -49,13 +49,12 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 		return -1;
 	/* As a chip's start-up clears its RAM: a board initialised again in place (a power
 	 * cycle of the host port) starts from the same state as a fresh one. */
-	memset(b, 0, sizeof(*b));
+	memset(b, 0, offsetof(struct board, keep));
 	b->cfg = *cfg;
 	proto_init(&b->proto);
 	if (planner_init(&b->planner, cfg, in, 0) ||
 	    servo_init(&b->servo, cfg, in, &b->planner.orders))
 		return -1;
-	b->planner.transactions_seen = b->proto.transactions;
 	mailbox_init(b, in);
 	recal_sense_init(&b->servo.lines, &b->mailbox.up[0].edges,
 			 odometry_get_distance_um(&b->servo.counter));
@@ -65,6 +64,81 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 	board_publish(&b->planner, p, &b->proto);
 	proto_flip(&b->proto);
 	snapshot_clear(p); /* the servo's next period */
+	return 0;
+}
+
+void board_keep_save(const struct planner *pl, struct board_keep *k)
+{
+	k->x_um = pl->m.pose.x_um;
+	k->y_um = pl->m.pose.y_um;
+	k->heading_turn32 = pl->m.pose.heading_turn32;
+	k->radius_um = pl->uncertainty.saturated ? UINT32_MAX : pl->uncertainty.radius_um;
+	uncertainty_keep(&pl->uncertainty, &k->u);
+	k->speed_um_s = fx_mag32(pl->m.dist_speed_um_s);
+	k->turn_um_s = fx_mag32(pl->m.angle_speed_um_s);
+	/* an order running, or abandoned at a reset and not yet replaced: reported again */
+	k->busy =
+		(uint8_t)(orders_busy(&pl->orders) || ((pl->status & STATUS_PB_MOTEUR) &&
+						       pl->orders.end_reason == END_REASON_RESET));
+	k->resets = pl->reset.count;
+	k->pose_lost = pl->reset.pose_lost;
+	k->spare = 0;
+	keep_seal(k);
+}
+
+/* A kept record after a reset: the pose and radius it held, widened by the travel it may have
+ * missed (down_ms, and the planner period since it was written, at its speed). */
+static void resume(struct planner *pl, const struct board_config *cfg, const struct board_keep *k,
+		   uint16_t down_ms)
+{
+	const struct odometry_pose pose = {k->x_um, k->y_um, k->heading_turn32};
+	uint64_t ms = (uint64_t)down_ms + (1000u + pl->slow_hz - 1u) / pl->slow_hz;
+	/* the farthest point moves reach / (drive track / 2) times as fast as the angle axis */
+	uint64_t v = k->speed_um_s + ((uint64_t)k->turn_um_s * cfg->unseen.reach_um * 2u +
+				      cfg->orders.drive_track_um - 1u) /
+					     cfg->orders.drive_track_um;
+	uint64_t pos = (v * ms + 999u) / 1000u;
+	/* each wheel's arc on the angle axis, as one encoder wheel's travel (uncertainty_widen())
+	 */
+	uint64_t wheel =
+		((((uint64_t)k->turn_um_s * ms + 999u) / 1000u * 2u * pl->silent_turn_q16) +
+		 0xffffu) >>
+		16;
+
+	planner_set_pose(pl, &pose);
+	uncertainty_resume(&pl->uncertainty, k->radius_um, &k->u,
+			   pos > UINT32_MAX ? UINT32_MAX : (uint32_t)pos,
+			   wheel > UINT32_MAX ? UINT32_MAX : (uint32_t)wheel);
+	pl->reset.widened_mm = (uint8_t)(pos >= 255000u ? 255u : (pos + 999u) / 1000u);
+}
+
+int board_restart(struct board *b, const struct board_config *cfg, const struct board_inputs *in,
+		  uint8_t cause, uint16_t down_ms)
+{
+	const struct board_keep k = b->keep; /* before anything writes it */
+	struct planner *pl = &b->planner;
+	int valid = keep_valid(&k);
+
+	if (board_init(b, cfg, in))
+		return -1;
+	pl->reset.tracked = 1;
+	pl->reset.cause = cause;
+	if (cause != RESET_CAUSE_POWER_ON) {
+		pl->reset.count = valid ? (uint8_t)(k.resets < 255u ? k.resets + 1u : 255u) : 1u;
+		if (valid && !k.pose_lost) {
+			resume(pl, cfg, &k, down_ms);
+		} else { /* nothing kept: the estimate is the power-on one, the truth unknown */
+			uncertainty_reset(&pl->uncertainty, UINT32_MAX, (uint32_t)1 << 31);
+			pl->reset.pose_lost = 1;
+		}
+		if (!valid || k.busy) { /* abandoned, or may have been */
+			pl->status |= STATUS_PB_MOTEUR;
+			pl->orders.end_reason = END_REASON_RESET;
+		}
+	}
+	board_keep_save(pl, &b->keep);
+	board_publish(pl, &b->mailbox.up[1], &b->proto);
+	proto_flip(&b->proto);
 	return 0;
 }
 
@@ -97,6 +171,25 @@ static void set_new_pos(struct planner *pl, const struct proto_msg *msg)
 	/* Only the estimate moves, not the axes: the robot stays put, and a running GOTO re-aims
 	 * from the corrected estimate at its next update (a frozen one keeps its targets). */
 	planner_set_pose(pl, &p);
+	pl->reset.pose_lost = 0; /* the master set it: motion orders again (board_restart()) */
+}
+
+/* SET_FIX: the fix in the core's units, fused at the time it was measured (fix.c). */
+static void set_fix(struct planner *pl, const struct proto_msg *msg)
+{
+	const int32_t *a = msg->arg;
+	struct fix_meas z;
+
+	z.x_um = a[ARG_SET_FIX_X_MM] * UM_PER_MM;
+	z.y_um = a[ARG_SET_FIX_Y_MM] * UM_PER_MM;
+	/* 0.01 degree: 2^32 / 36000 turn32 each, in 64 bits */
+	z.heading_turn32 = (uint32_t)(((int64_t)a[ARG_SET_FIX_HEADING_CDEG] << 32) / 36000);
+	z.sigma_um = (uint32_t)a[ARG_SET_FIX_SIGMA_MM] * UM_PER_MM;
+	/* 0.1 degree: 2^32 / 3600 turn32 each, rounded up (the noise is never understated) */
+	z.sigma_turn32 =
+		(uint32_t)((((uint64_t)a[ARG_SET_FIX_SIGMA_HEADING_DDEG] << 32) + 3599u) / 3600u);
+	z.age_ms = (uint16_t)a[ARG_SET_FIX_AGE_MS];
+	(void)fix_apply(&pl->fix, &pl->position, &pl->m.pose, &pl->uncertainty, &z);
 }
 
 /* A nominal wheel factor times (1 + a / den) [um/count * 2^16], rounded. */
@@ -214,10 +307,16 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 	struct board_handover *draft = &mb->down[mb->down_index ^ 1u];
 	struct control_gains g;
 
+	pl->fed = 1; /* an accepted write: the master is alive (SET_TIMEOUT) */
 	if ((pl->status & STATUS_PB_GRAVE) &&
 	    proto_lookup(msg->designation)->kind == PROTO_KIND_ORDRE) {
 		motion_refused(pl, msg); /* raced the PB_GRAVE publication: refused like the */
 		return;                  /* protocol layer does */
+	}
+	if (pl->reset.pose_lost && proto_lookup(msg->designation)->kind == PROTO_KIND_ORDRE &&
+	    msg->designation != PROTO_STOP) {
+		motion_refused(pl, msg); /* the same for a lost pose (REFUSED_NO_POSE) */
+		return;
 	}
 	switch (msg->designation) {
 	case PROTO_GOTO:
@@ -260,6 +359,11 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 		/* Rounded up: the robot never stops before the time the master gave. */
 		pl->timeout_ticks =
 			((uint32_t)a[ARG_SET_TIMEOUT_TIMEOUT_MS] * pl->slow_hz + 999u) / 1000u;
+		break;
+	case PROTO_HEARTBEAT:
+		break; /* nothing but the master alive */
+	case PROTO_SET_FIX:
+		set_fix(pl, msg);
 		break;
 	case PROTO_SET_ODOMETRIE:
 		/* in range by the message table; see set_odometrie */
@@ -326,6 +430,16 @@ void board_publish(const struct planner *pl, const struct board_snapshot *p, str
 	s->debug.current_left_ma = p->in.current_ma[0];
 	s->debug.current_right_ma = p->in.current_ma[1];
 	s->debug.order_state = pl->orders.state;
+	s->reset.tracked = pl->reset.tracked;
+	s->reset.cause = pl->reset.cause;
+	s->reset.count = pl->reset.count;
+	s->reset.pose_lost = pl->reset.pose_lost;
+	s->reset.widened_mm = pl->reset.widened_mm;
+	s->fix.fused = pl->fix.info.fused;
+	s->fix.outliers = pl->fix.info.outliers;
+	s->fix.too_old = pl->fix.info.too_old;
+	s->fix.last = pl->fix.info.last;
+	s->fix.last_d2 = pl->fix.info.last_d2;
 	s->debug.end_reason = (pl->timed_out && !orders_busy(&pl->orders)) ? END_REASON_TIMEOUT
 									   : pl->orders.end_reason;
 }

@@ -19,6 +19,8 @@
 #include "control.h"
 #include "faults.h"
 #include "motion.h"
+#include "fix.h"
+#include "keep.h"
 #include "odometry.h"
 #include "orders.h"
 #include "protocol.h"
@@ -116,7 +118,6 @@ struct board_snapshot {
 	uint8_t wheels_replaced;
 	uint16_t wheel_k[2][2];
 	uint8_t msg_head; /* the messages queued until then; later ones wait a period */
-	uint8_t transactions;
 };
 
 /* What the planner hands the servo (the mailbox's down half), taken planner_ticks after the
@@ -187,11 +188,11 @@ struct planner {
 	uint16_t free_base[2];            /* the free wheels' counts at the last period's end */
 	uint8_t status;                   /* STATUS_* owned by the core */
 	uint32_t timeout_ticks;           /* SET_TIMEOUT [slow ticks], 0: off (power-on) */
-	uint32_t silent_ticks;     /* [slow ticks] since a transaction last addressed the board */
-	uint8_t transactions_seen; /* proto.transactions at the last slow tick */
-	uint8_t timed_out;         /* the last order was stopped by the timeout */
-	uint8_t calibrated;        /* a calibration is installed: calibration holds it */
-	uint8_t boot_request;      /* BOOTLOADER accepted: the port enters its bootloader */
+	uint32_t silent_ticks;            /* [slow ticks] since the master's last accepted write */
+	uint8_t fed;                      /* an accepted write this period (step_silence()) */
+	uint8_t timed_out;                /* the last order was stopped by the timeout */
+	uint8_t calibrated;               /* a calibration is installed: calibration holds it */
+	uint8_t boot_request;             /* BOOTLOADER accepted: the port enters its bootloader */
 	struct board_calibration calibration;
 	uint16_t motor_base[2]; /* the motors' counts at the last period's end */
 	/* Since each free wheel last counted: its motor's net travel, and how much of it has
@@ -201,6 +202,14 @@ struct planner {
 	uint32_t silent_min_counts; /* faults.lost_min_um in motor counts */
 	uint32_t silent_turn_q16;   /* max(1, encoder track / drive track) [2^-16] */
 	struct motion motion;       /* match play: the queue, the pause, the scale (motion.c) */
+	struct fix fix;             /* the pose history and the fixes (SET_FIX) */
+	struct board_reset {
+		uint8_t tracked;    /* the port reports its resets (board_restart()) */
+		uint8_t cause;      /* RESET_CAUSE_* of the last start */
+		uint8_t count;      /* resets since power-on, saturating */
+		uint8_t pose_lost;  /* motion orders refused until SET_NEW_POS */
+		uint8_t widened_mm; /* the radius's widening for the time the board was down */
+	} reset;
 };
 
 /* Between the two: each half a double buffer of one type. up[up_index] is the period the servo
@@ -222,6 +231,10 @@ struct board {
 	struct servo servo;
 	struct planner planner;
 	struct mailbox mailbox;
+	/* What survives a reset (keep.h): last, and left as it is by board_init(), so that a port
+	 * that keeps struct board in RAM its start-up does not clear finds it at board_restart().
+	 * Written at every planner period once board_restart() has run. */
+	struct board_keep keep;
 };
 
 /* Defaults for the reference robot (docs/control.md): 25 mm free wheels at 2000 counts/rev,
@@ -230,10 +243,21 @@ void board_default_config(struct board_config *cfg);
 
 /* Power-on: the pose at cfg->start, the specification's initial limits (10 cm/s, 40 cm/s^2),
  * FILTRE_STD, no order; in gives the encoder counts to start from (no jump at the first tick).
- * Every field of b is set, whatever b held: b is cleared first, as a chip's start-up clears its
- * RAM, so cfg must not point into b. Returns 0, or -1 when the configuration is out of range.
- * Interrupt-safe: no. */
+ * Every field of b but b->keep is set, whatever b held: b is cleared first, as a chip's start-up
+ * clears its RAM, so cfg must not point into b. Returns 0, or -1 when the configuration is out of
+ * range. Interrupt-safe: no. */
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
+
+/* A start that knows why (keep.h): board_init(), then after any reset but a power-on the pose
+ * and the radius that keep held resume, the radius widened by what the robot may have
+ * travelled in down_ms (the time the board was down, start-up included) at the speed it had;
+ * a running order is reported abandoned (PB_MOTEUR, DEBUG end_reason RESET). When keep does not
+ * hold a valid record, the pose is lost: the radius reads 255 and motion orders are refused
+ * (REFUSED_NO_POSE) until SET_NEW_POS. A power-on (cause RESET_CAUSE_POWER_ON) is board_init()
+ * exactly. From then on the planner writes b->keep at every period; the port keeps b in RAM its
+ * start-up does not clear. Returns board_init()'s result. Interrupt-safe: no. */
+int board_restart(struct board *b, const struct board_config *cfg, const struct board_inputs *in,
+		  uint8_t cause, uint16_t down_ms);
 
 /* Install an odometry calibration, as SET_ODOMETRIE does (a port calls it after board_init()
  * with the one it stored). The pose is kept; the error radius keeps what it has accumulated and

@@ -74,6 +74,9 @@ void motion_publish(const struct planner *pl, struct proto_snapshot *s);
 int board_calibrate(struct planner *pl, struct board_wheels *w, const struct board_config *cfg,
 		    const struct board_calibration *cal);
 
+/* The planner's pose, radius and order into its keep record, sealed (board.c). */
+void board_keep_save(const struct planner *pl, struct board_keep *k);
+
 /* The reply snapshot of the planner's last period p, drafted in proto (proto_draft()): the
  * caller flips it public. */
 void board_publish(const struct planner *pl, const struct board_snapshot *p, struct proto *proto);

@@ -41,6 +41,7 @@ int planner_init(struct planner *pl, const struct board_config *cfg, const struc
 	pl->status = 0;
 	pl->timeout_ticks = 0;
 	pl->silent_ticks = 0;
+	pl->fed = 0;
 	pl->timed_out = 0;
 	pl->calibrated = 0;
 	pl->calibration = (struct board_calibration){0, 0, 0};
@@ -60,6 +61,8 @@ int planner_init(struct planner *pl, const struct board_config *cfg, const struc
 						     cfg->faults.motor_um_per_count_q16);
 	pl->silent_turn_q16 = board_turn_q16(cfg, cfg->odometry.track_um);
 	motion_init(&pl->motion, cfg, &pl->orders, slow_hz);
+	fix_init(&pl->fix, slow_hz);
+	pl->reset = (struct board_reset){0, RESET_CAUSE_POWER_ON, 0, 0, 0};
 	return 0;
 }
 
@@ -94,6 +97,8 @@ void planner_update_status(struct planner *pl)
 		s |= STATUS_BUSY_TRAJET;
 		if (pl->orders.designation == PROTO_GOTO_PANIER)
 			s |= STATUS_BUSY_GOTO_PANIER;
+	} else if (pl->timed_out) {
+		s |= STATUS_PB_MOTEUR; /* abandoned for the master's silence, not finished */
 	}
 	pl->status = s;
 }
@@ -104,6 +109,7 @@ void planner_set_pose(struct planner *pl, const struct odometry_pose *pose)
 {
 	odometry_set_position(&pl->position, pose->x_um, pose->y_um);
 	pl->m.pose = *pose;
+	fix_forget(&pl->fix, pose, &pl->uncertainty); /* older fixes would undo it */
 }
 
 void planner_set_gains(struct planner *pl, struct board_handover *draft,
@@ -325,13 +331,15 @@ static void step_pose(struct planner *pl, const struct board_config *cfg,
 	planner_measure(pl, cfg, p, &pl->m);
 }
 
-/* Step 3b: the master's silence (SET_TIMEOUT): any transaction that addresses the board, even a
- * poll or a rejected write, shows the master alive. When it has been silent for the timeout,
- * the running order stops at the current limits, as by STOP. */
-static void step_silence(struct planner *pl, const struct board_snapshot *p)
+/* Step 3b: the master's silence (SET_TIMEOUT): only its accepted writes (orders, settings,
+ * HEARTBEAT) show it alive, as board_apply() counts them in fed; a poll does not, since a
+ * master's polling thread (or a viewer) can run on while its strategy has hung. When it has
+ * been silent for the timeout, the running order stops at the current limits, as by STOP, and
+ * ends abandoned (PB_MOTEUR, DEBUG TIMEOUT) rather than looking finished. */
+static void step_silence(struct planner *pl)
 {
-	if (p->transactions != pl->transactions_seen) {
-		pl->transactions_seen = p->transactions;
+	if (pl->fed) {
+		pl->fed = 0;
 		pl->silent_ticks = 0;
 	} else if (pl->silent_ticks < UINT32_MAX) {
 		pl->silent_ticks++;
@@ -421,6 +429,7 @@ static void planner_steps(struct board *b)
 			   pl->m.pose.heading_turn32);
 	silent_wheels(pl, cfg, travel_q16, p->in.motor_count);
 	uncertainty_advance(&pl->uncertainty, b->servo.slow_mask); /* its stages as fast in time */
+	fix_record(&pl->fix, &pl->position, &pl->m.pose, &pl->uncertainty); /* and a waiting fix */
 
 	/* 2. The switches; line crossings. */
 	pl->shocks = p->in.shocks;
@@ -430,7 +439,7 @@ static void planner_steps(struct board *b)
 	 * master's silence. */
 	while (b->proto.tail != p->msg_head && proto_poll(&b->proto, &msg))
 		board_apply(pl, mb, cfg, &msg);
-	step_silence(pl, p);
+	step_silence(pl);
 
 	/* 4. Stop conditions. */
 	step_stops(pl, draft, cfg, p, travel_q16);
@@ -459,6 +468,8 @@ void board_slow(struct board *b)
 
 	arch_barrier(); /* the snapshot after slow_due said it is there */
 	planner_steps(b);
+	if (b->planner.reset.tracked) /* 8. What a reset keeps (keep.h). */
+		board_keep_save(&b->planner, &b->keep);
 	/* 7. The reply snapshot, made public at the hand-over with the servo's new state. */
 	board_publish(&b->planner, &mb->up[mb->up_index ^ 1u], &b->proto);
 	mb->down[mb->down_index ^ 1u].publish = 1;

@@ -4,6 +4,8 @@
 #include <stddef.h>
 #include <string.h>
 
+#include "feature_set.h"
+
 #define ADDR_W ((uint8_t)(PROTO_ADDRESS << 1))
 #define ADDR_R ((uint8_t)((PROTO_ADDRESS << 1) | 1u))
 
@@ -100,8 +102,8 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 	case PROTO_VERSION:
 		out[n++] = PROTO_VERSION_MAJOR;
 		out[n++] = PROTO_VERSION_MINOR;
-		n += put_u16(&out[n],
-			     (uint16_t)(PROTO_CAPS | (s->calibrated ? CAP_CALIBRATED : 0u)));
+		n += put_u16(&out[n], (uint16_t)(CAP_BUILD | (s->calibrated ? CAP_CALIBRATED : 0u) |
+						 (s->reset.tracked ? CAP_RESET_INFO : 0u)));
 		break;
 	case PROTO_LAST_REJECT:
 		out[n++] = p->last_reject;
@@ -131,6 +133,19 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 		n += put_u16(&out[n], s->motion.braking_mm);
 		n += put_u16(&out[n], s->motion.braking_ms);
 		out[n++] = s->motion.scale_percent;
+		break;
+	case PROTO_RESET_INFO:
+		out[n++] = s->reset.cause;
+		out[n++] = s->reset.count;
+		out[n++] = s->reset.pose_lost;
+		out[n++] = s->reset.widened_mm;
+		break;
+	case PROTO_FIX_INFO:
+		n += put_u16(&out[n], s->fix.fused);
+		n += put_u16(&out[n], s->fix.outliers);
+		n += put_u16(&out[n], s->fix.too_old);
+		out[n++] = s->fix.last;
+		out[n++] = s->fix.last_d2;
 		break;
 	default:
 		break;
@@ -236,6 +251,24 @@ static void select_reply(struct proto *p, uint8_t designation)
 }
 
 /* A write frame is over: judge it whole, then apply it whole or not at all. */
+/* A well-formed write that the board's state refuses, or REJECT_NONE: an order under PB_GRAVE,
+ * BOOTLOADER while an order drives, a motion order while the pose is lost, a full queue. */
+static uint8_t admit(const struct proto *p, const struct proto_msg_desc *d)
+{
+	if (d->kind == PROTO_KIND_ORDRE && (published(p)->status & STATUS_PB_GRAVE))
+		return REJECT_REFUSED_PB_GRAVE;
+	/* Leaving for the bootloader stops the control: not while an order drives. */
+	if (d->designation == PROTO_BOOTLOADER &&
+	    ((published(p)->status & STATUS_BUSY_TRAJET) || p->orders_in != p->orders_published))
+		return REJECT_REFUSED_BUSY;
+	if (d->kind == PROTO_KIND_ORDRE && d->designation != PROTO_STOP &&
+	    published(p)->reset.pose_lost && !p->pose_declared)
+		return REJECT_REFUSED_NO_POSE;
+	if ((uint8_t)(p->head - p->tail) >= PROTO_QUEUE_DEPTH)
+		return REJECT_QUEUE_FULL;
+	return REJECT_NONE;
+}
+
 static void end_write(struct proto *p)
 {
 	const struct proto_msg_desc *d;
@@ -274,6 +307,8 @@ static void end_write(struct proto *p)
 	reason = decode_params(p, d, n_params, &m);
 	if (reason == REJECT_NONE)
 		reason = check_motion(p, &m);
+	if (reason == REJECT_NONE && !feature_set_has(d->designation))
+		reason = REJECT_UNSUPPORTED;
 	if (reason != REJECT_NONE) {
 		reject(p, reason);
 		return;
@@ -284,20 +319,13 @@ static void end_write(struct proto *p)
 		select_reply(p, d->designation);
 		return;
 	}
-	if (d->kind == PROTO_KIND_ORDRE && (published(p)->status & STATUS_PB_GRAVE)) {
-		reject(p, REJECT_REFUSED_PB_GRAVE);
+	reason = admit(p, d);
+	if (reason != REJECT_NONE) {
+		reject(p, reason);
 		return;
 	}
-	if (d->designation == PROTO_BOOTLOADER &&
-	    ((published(p)->status & STATUS_BUSY_TRAJET) || p->orders_in != p->orders_published)) {
-		/* Leaving for the bootloader stops the control: not while an order drives. */
-		reject(p, REJECT_REFUSED_BUSY);
-		return;
-	}
-	if ((uint8_t)(p->head - p->tail) >= PROTO_QUEUE_DEPTH) {
-		reject(p, REJECT_QUEUE_FULL);
-		return;
-	}
+	if (d->designation == PROTO_SET_NEW_POS)
+		p->pose_declared = 1;
 	p->queue[p->head % PROTO_QUEUE_DEPTH] = m;
 	p->head++;
 	p->rejected = 0;

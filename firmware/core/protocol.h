@@ -15,6 +15,7 @@
 
 #include <stdint.h>
 
+#include "feature_set.h"
 #include "protocol_defs.h"
 
 /* A validated write, as the core receives it. */
@@ -40,27 +41,6 @@ struct proto_debug {
 	uint8_t end_reason;
 };
 
-/* The extensions of issue 31 a build carries (docs/protocol.md, "Match play"): 1, or 0 to leave
- * one out (the AVR's budget); its capability bit is then clear in VERSION and its messages are
- * rejected UNSUPPORTED. */
-#ifndef CONFIG_MOTION_PAUSE
-#define CONFIG_MOTION_PAUSE 1 /* PAUSE, RESUME, MOTION */
-#endif
-#ifndef CONFIG_MOTION_SPEED_SCALE
-#define CONFIG_MOTION_SPEED_SCALE 1 /* SET_SPEED_SCALE */
-#endif
-#ifndef CONFIG_MOTION_QUEUE
-#define CONFIG_MOTION_QUEUE 1 /* APPEND */
-#endif
-#ifndef CONFIG_MOTION_CORNERS
-#define CONFIG_MOTION_CORNERS 1 /* PASS_THROUGH, SET_CORNER */
-#endif
-#define PROTO_CAPS                                                                                 \
-	(CAP_ALL &                                                                                 \
-	 ~((CONFIG_MOTION_PAUSE ? 0u : CAP_PAUSE) |                                                \
-	   (CONFIG_MOTION_SPEED_SCALE ? 0u : CAP_SPEED_SCALE) |                                    \
-	   (CONFIG_MOTION_QUEUE ? 0u : CAP_QUEUE) | (CONFIG_MOTION_CORNERS ? 0u : CAP_CORNERS)))
-
 /* The options of the motion orders (GOTO's bits 2 and 3; GOTO_REVERSE's and GOTO_PANIER's
  * bit 2). */
 #define PROTO_OPT_APPEND 0x04u
@@ -84,6 +64,23 @@ struct proto_motion {
 #define PROTO_MOTION_QUEUE_DEPTH 8 /* orders that can wait behind the running one */
 #define PROTO_MOTION_PAUSED 0x01u
 #define PROTO_MOTION_RUNNING 0x02u
+/* What FIX_INFO reads (protocol/messages.toml gives units). */
+struct proto_fix {
+	uint16_t fused;
+	uint16_t outliers;
+	uint16_t too_old;
+	uint8_t last;
+	uint8_t last_d2;
+};
+
+/* What RESET_INFO reads, and whether the port reports its resets (CAP_RESET_INFO). */
+struct proto_reset {
+	uint8_t tracked;
+	uint8_t cause;
+	uint8_t count;
+	uint8_t pose_lost;
+	uint8_t widened_mm;
+};
 
 /* Everything a reply can carry, all of one control tick. */
 struct proto_snapshot {
@@ -97,6 +94,8 @@ struct proto_snapshot {
 	uint8_t calibrated;
 	struct proto_debug debug;
 	struct proto_motion motion;
+	struct proto_fix fix;
+	struct proto_reset reset;
 };
 
 struct proto {
@@ -133,6 +132,9 @@ struct proto {
 	/* APPEND orders accepted, wrapping: with the snapshot's motion.appends_done, how full the
 	 * motion queue may be (an upper bound: the core may have started or dropped more). */
 	uint8_t appends_in;
+	/* A SET_NEW_POS accepted since power-on or a reset: the orders after it in the queue are
+	 * not refused for a lost pose (REFUSED_NO_POSE) that it will set. */
+	uint8_t pose_declared;
 
 	/* Queue: the interrupt advances head, the core advances tail (free-running counters). */
 	struct proto_msg queue[PROTO_QUEUE_DEPTH];

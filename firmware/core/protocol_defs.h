@@ -7,11 +7,11 @@
 #define PROTO_ADDRESS 2 /* 7-bit I2C address */
 #define PROTO_VERSION_MAJOR 1
 #define PROTO_VERSION_MINOR 0
-#define PROTO_MAX_WRITE 8 /* [bytes] designation + params + PEC */
+#define PROTO_MAX_WRITE 12 /* [bytes] designation + params + PEC */
 #define PROTO_QUEUE_DEPTH 8
-#define PROTO_MAX_PARAMS 3
+#define PROTO_MAX_PARAMS 6
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 23
+#define PROTO_N_MSGS 27
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -37,6 +37,10 @@
 #define PROTO_SET_SPEED_SCALE 19 /* extension */
 #define PROTO_MOTION 20 /* extension */
 #define PROTO_SET_CORNER 21 /* extension */
+#define PROTO_HEARTBEAT 22 /* extension */
+#define PROTO_SET_FIX 23 /* extension */
+#define PROTO_FIX_INFO 24 /* extension */
+#define PROTO_RESET_INFO 25 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -45,7 +49,7 @@
 #define STATUS_BUSY_GOTO_PANIER (1u << 2) /* a GOTO_PANIER is running */
 #define STATUS_CHOC_PANIER (1u << 3) /* the last trajectory ended on a basket contact or a basket-side shock sensor */
 #define STATUS_CHOC_BORD (1u << 4) /* the last trajectory ended on a border-side shock sensor */
-#define STATUS_PB_MOTEUR (1u << 5) /* the last trajectory was abandoned on a motor problem (following error, overcurrent, slip) */
+#define STATUS_PB_MOTEUR (1u << 5) /* the last trajectory was abandoned: a motor problem (following error, overcurrent, slip), the master's silence (SET_TIMEOUT) or a reset; DEBUG's end_reason says which */
 #define STATUS_COMMANDE_REJETEE (1u << 6) /* the last write was rejected (extension; cleared by the next accepted order or setting) */
 
 /* Bits of VERSION's capabilities. */
@@ -58,8 +62,11 @@
 #define CAP_SPEED_SCALE (1u << 7) /* the SET_SPEED_SCALE setting */
 #define CAP_QUEUE (1u << 8) /* the motion queue: the APPEND option of GOTO, GOTO_REVERSE and GOTO_PANIER */
 #define CAP_CORNERS (1u << 9) /* GOTO's PASS_THROUGH option and the SET_CORNER setting */
+#define CAP_HEARTBEAT (1u << 10) /* SET_TIMEOUT is fed by accepted writes only (orders, settings, HEARTBEAT), not by reads; a timed-out order ends PB_MOTEUR */
+#define CAP_FIX (1u << 11) /* SET_FIX and FIX_INFO: position fixes fused at their measured time, weighted by their noise */
+#define CAP_RESET_INFO (1u << 12) /* RESET_INFO: the reset cause and count; the pose kept across a reset, or orders refused until it is set */
 #define CAP_CALIBRATED (1u << 5) /* an odometry calibration is installed (SET_ODOMETRIE, or the one the board kept: docs/calibration.md) */
-#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS) /* the features; a state bit is set while it holds */
+#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS | CAP_HEARTBEAT | CAP_FIX) /* the features; a state bit is set while it holds */
 
 /* reject codes. */
 #define REJECT_NONE 0 /* no write rejected since reset */
@@ -75,6 +82,7 @@
 #define REJECT_BAD_OPTIONS 10 /* GOTO options that cannot combine: a recalibration with PASS_THROUGH (extension) */
 #define REJECT_UNSUPPORTED 11 /* a message of an extension this build leaves out (its capability bit is clear) */
 #define REJECT_REFUSED_BUSY 16 /* BOOTLOADER was sent while an order runs (the motors driving): stop the robot first */
+#define REJECT_REFUSED_NO_POSE 13 /* a motion order after a reset that lost the pose (RESET_INFO): refused until SET_NEW_POS sets it */
 
 /* filter codes. */
 #define FILTRE_STD 0 /* standard gains for trajectories */
@@ -102,6 +110,21 @@
 #define END_REASON_BORDER 7 /* GOTO with border recalibration touched the border, recalibrated and backed off (CHOC_BORD) */
 #define END_REASON_TIMEOUT 8 /* stopped because the master went silent (SET_TIMEOUT) */
 #define END_REASON_NO_BASKET 9 /* GOTO_PANIER drove its whole push without touching a basket (PB_MOTEUR) */
+#define END_REASON_RESET 12 /* the board was reset while the order ran (RESET_INFO says why); PB_MOTEUR */
+
+/* fix_result codes. */
+#define FIX_RESULT_NONE 0 /* no fix since power-on */
+#define FIX_RESULT_FUSED 1 /* fused: the pose and the error radius corrected */
+#define FIX_RESULT_OUTLIER 2 /* rejected: too far from the estimate for both uncertainties (squared Mahalanobis distance over the gate); the pose is left as it was */
+#define FIX_RESULT_TOO_OLD 3 /* rejected: measured before the oldest pose the board keeps */
+#define FIX_RESULT_STALE 4 /* rejected: measured before the last recalibration or SET_NEW_POS, which it would undo */
+
+/* reset_cause codes. */
+#define RESET_CAUSE_POWER_ON 0 /* power-on: the board starts as the 2002 specification says */
+#define RESET_CAUSE_BROWN_OUT 1 /* the supply dipped below the brown-out level (a motor's current spike) */
+#define RESET_CAUSE_WATCHDOG 2 /* the watchdog fired */
+#define RESET_CAUSE_PIN 3 /* the reset pin (a button, a programmer) */
+#define RESET_CAUSE_SOFTWARE 4 /* the firmware asked for it */
 
 /* Index of each parameter in struct proto_msg.arg[]. */
 #define ARG_GOTO_X_MM 0
@@ -129,6 +152,12 @@
 #define ARG_BOOTLOADER_KEY 0
 #define ARG_SET_SPEED_SCALE_PERCENT 0
 #define ARG_SET_CORNER_TOLERANCE_MM 0
+#define ARG_SET_FIX_X_MM 0
+#define ARG_SET_FIX_Y_MM 1
+#define ARG_SET_FIX_HEADING_CDEG 2
+#define ARG_SET_FIX_SIGMA_MM 3
+#define ARG_SET_FIX_SIGMA_HEADING_DDEG 4
+#define ARG_SET_FIX_AGE_MS 5
 
 /* Reply lengths [bytes], without PEC. */
 #define PROTO_CHECK_BUSY_REPLY_LEN 1
@@ -137,6 +166,8 @@
 #define PROTO_VERSION_REPLY_LEN 4
 #define PROTO_LAST_REJECT_REPLY_LEN 3
 #define PROTO_MOTION_REPLY_LEN 10
+#define PROTO_FIX_INFO_REPLY_LEN 8
+#define PROTO_RESET_INFO_REPLY_LEN 4
 #define PROTO_DEBUG_REPLY_LEN 22
 
 enum proto_type { PROTO_U8, PROTO_S8, PROTO_U16, PROTO_S16 };

@@ -29,6 +29,12 @@ const struct proto_param_desc proto_params[] = {
 	{45063, 45063, PROTO_U16, 0x00}, /* BOOTLOADER.key */
 	{0, 100, PROTO_U8, 0x00}, /* SET_SPEED_SCALE.percent */
 	{1, 255, PROTO_U8, 0x00}, /* SET_CORNER.tolerance_mm */
+	{-32000, 32000, PROTO_S16, 0x00}, /* SET_FIX.x_mm */
+	{-32000, 32000, PROTO_S16, 0x00}, /* SET_FIX.y_mm */
+	{-18000, 18000, PROTO_S16, 0x00}, /* SET_FIX.heading_cdeg */
+	{1, 255, PROTO_U8, 0x00}, /* SET_FIX.sigma_mm */
+	{0, 255, PROTO_U8, 0x00}, /* SET_FIX.sigma_heading_ddeg */
+	{0, 500, PROTO_U16, 0x00}, /* SET_FIX.age_ms */
 };
 
 const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
@@ -54,7 +60,11 @@ const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
 	{PROTO_SET_SPEED_SCALE, PROTO_KIND_SET, 1, 1, 2, 2, 0, 23},
 	{PROTO_MOTION, PROTO_KIND_ETAT, 0, 0, 1, 1, 10, 24},
 	{PROTO_SET_CORNER, PROTO_KIND_SET, 1, 1, 2, 2, 0, 24},
-	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 25},
+	{PROTO_HEARTBEAT, PROTO_KIND_SET, 0, 0, 1, 1, 0, 25},
+	{PROTO_SET_FIX, PROTO_KIND_SET, 6, 6, 11, 11, 0, 25},
+	{PROTO_FIX_INFO, PROTO_KIND_ETAT, 0, 0, 1, 1, 8, 31},
+	{PROTO_RESET_INFO, PROTO_KIND_ETAT, 0, 0, 1, 1, 4, 31},
+	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 31},
 };
 
 const struct proto_msg_desc *proto_lookup(uint8_t designation)
@@ -105,8 +115,16 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[20];
 	case 21:
 		return &proto_msgs[21];
-	case 200:
+	case 22:
 		return &proto_msgs[22];
+	case 23:
+		return &proto_msgs[23];
+	case 24:
+		return &proto_msgs[24];
+	case 25:
+		return &proto_msgs[25];
+	case 200:
+		return &proto_msgs[26];
 	default:
 		return NULL;
 	}

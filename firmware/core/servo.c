@@ -164,7 +164,6 @@ static void take_snapshot(const struct servo *s, struct mailbox *mb, const struc
 	p->sp_dist_um = s->sp_dist.pos_um;
 	p->sp_angle_um = s->sp_angle.pos_um;
 	p->msg_head = proto->head;
-	p->transactions = proto->transactions;
 	/* The next period was cleared by the planner, done with it (board_slow()). */
 	mb->up_index ^= 1u;
 	mb->up[mb->up_index].edges.on = p->edges.on;

@@ -302,10 +302,18 @@ static uint64_t sigma_of_bound(const struct uncertainty *u, uint64_t bound)
 /* What the current residual bounds accumulated, made independent of them: the systematic
  * position terms into fixed errors per coordinate, the heading drift into the heading variance,
  * the integrals from zero. */
+static void fold_terms(struct uncertainty *u);
+
 static void fold_systematic(struct uncertainty *u)
 {
 	start_batch(u); /* the travel so far, propagated under the bounds that measured it */
 	run_stages(u, UINT8_MAX);
+	fold_terms(u);
+}
+
+/* The systematic integrals so far into fixed errors and the heading variance, from zero. */
+static void fold_terms(struct uncertainty *u)
+{
 	for (int i = 0; i < 2; i++) {
 		uint32_t e = mul_coef_up(mag48(&u->w1[i]), u->ratio_coef_q32);
 
@@ -860,4 +868,217 @@ void uncertainty_advance(struct uncertainty *u, uint8_t n)
 uint8_t uncertainty_get_radius_mm(const struct uncertainty *u)
 {
 	return u->radius_mm;
+}
+
+/* The covariance as a 3 x 3 matrix (x, y in 4 um, the heading in 2^-16 rad), for a fusion. */
+struct cov3 {
+	int64_t p[3][3];
+};
+
+/* Everything the radius adds to the covariance, folded into it: the systematic terms (as
+ * fold_systematic()), then the fixed errors, each bound a sigma of bound / k. */
+static void fold_all(struct uncertainty *u, struct cov3 *m)
+{
+	fold_terms(u); /* the batches keep their travel: it is propagated after the fix */
+	if (!u->saturated) {
+		u->xx = var_plus_sigma(u, u->xx, sigma_of_bound(u, div_up(u->fixed_um[0], 4)),
+				       VAR_CAP);
+		u->yy = var_plus_sigma(u, u->yy, sigma_of_bound(u, div_up(u->fixed_um[1], 4)),
+				       VAR_CAP);
+	}
+	u->fixed_um[0] = 0;
+	u->fixed_um[1] = 0;
+	m->p[0][0] = u->xx;
+	m->p[0][1] = m->p[1][0] = u->xy;
+	m->p[1][1] = u->yy;
+	m->p[0][2] = m->p[2][0] = u->xt;
+	m->p[1][2] = m->p[2][1] = u->yt;
+	m->p[2][2] = u->tt;
+}
+
+/* The covariance carried along a travel (dx, dy) [um] with the heading error: F m F^T with
+ * F = [[1, 0, a], [0, 1, b], [0, 0, 1]], a = -dy, b = dx in [4 um per 2^-16 rad] (sign -1: back
+ * to the measured time). */
+static void carry_cov(struct cov3 *m, int32_t dx_um, int32_t dy_um, int sign)
+{
+	int64_t a = -(int64_t)dy_um / UNCERTAINTY_POS_UM * sign; /* [2^-16] */
+	int64_t b = (int64_t)dx_um / UNCERTAINTY_POS_UM * sign;
+	int64_t at = (a * m->p[2][2]) >> 16, bt = (b * m->p[2][2]) >> 16;
+	int64_t xt = m->p[0][2], yt = m->p[1][2];
+
+	m->p[0][0] += 2 * ((a * xt) >> 16) + ((a * at) >> 16);
+	m->p[1][1] += 2 * ((b * yt) >> 16) + ((b * bt) >> 16);
+	m->p[0][1] += ((a * yt) >> 16) + ((b * xt) >> 16) + ((a * bt) >> 16);
+	m->p[1][0] = m->p[0][1];
+	m->p[0][2] = m->p[2][0] = xt + at;
+	m->p[1][2] = m->p[2][1] = yt + bt;
+}
+
+/* The correlations within what the variances allow (after the variances were lowered). */
+static void shrink_cov(struct cov3 *m)
+{
+	for (uint8_t j = 0; j < 3; j++)
+		for (uint8_t k = (uint8_t)(j + 1u); k < 3; k++) {
+			int64_t lim =
+				(int64_t)fx_isqrt32_up(
+					(uint32_t)(m->p[j][j] > 0 ? m->p[j][j] : 0)) *
+				(int64_t)fx_isqrt32_up((uint32_t)(m->p[k][k] > 0 ? m->p[k][k] : 0));
+
+			lim = lim * 15 / 16; /* strictly inside: the matrix stays positive */
+			if (m->p[j][k] > lim)
+				m->p[j][k] = lim;
+			if (m->p[j][k] < -lim)
+				m->p[j][k] = -lim;
+			m->p[k][j] = m->p[j][k];
+		}
+}
+
+/* round(a / b), b > 0. */
+static int64_t div_round_s64(int64_t a, int64_t b)
+{
+	return a >= 0 ? (a + b / 2) / b : -((-a + b / 2) / b);
+}
+
+/* One coordinate i of the fix, of variance r and innovation nu[i]: the state moves by the gain
+ * times the innovation (delta[], and the later coordinates' innovations with it), the
+ * covariance loses the gain times its row i (the diagonal rounded up: it stays a bound).
+ * Returns nu[i]^2 / s [2^-8], saturating. */
+static uint64_t fuse_one(struct cov3 *m, int64_t nu[3], int64_t delta[3], uint8_t i, int64_t r)
+{
+	int64_t s = m->p[i][i] + r;
+	int64_t g[3] = {m->p[0][i], m->p[1][i], m->p[2][i]};
+	int64_t v = nu[i];
+	uint64_t d2 = ((uint64_t)(v * v) << 8) / (uint64_t)s;
+
+	for (uint8_t j = 0; j < 3; j++) {
+		int64_t d = div_round_s64(g[j] * v, s);
+
+		delta[j] += d;
+		nu[j] -= d;
+		for (uint8_t k = j; k < 3; k++) {
+			m->p[j][k] -= j == k ? (g[j] * g[k]) / s : div_round_s64(g[j] * g[k], s);
+			m->p[k][j] = m->p[j][k];
+		}
+	}
+	return d2;
+}
+
+/* A 64-bit variance back into the covariance's 32 bits, within 0..cap. */
+static int32_t var_back(int64_t v, int32_t cap)
+{
+	return v < 0 ? 0 : v > cap ? cap : (int32_t)v;
+}
+
+/* A covariance term back into 32 bits, within +-sqrt(a b) (a valid correlation). */
+static int32_t cov_back(int64_t v, int32_t a, int32_t b)
+{
+	int64_t lim = (int64_t)fx_isqrt32_up((uint32_t)a) * fx_isqrt32_up((uint32_t)b);
+
+	return (int32_t)(v > lim ? lim : v < -lim ? -lim : v);
+}
+
+/* The innovations in the covariance's units, rounded; 1 when one is beyond any use (264 m). */
+static int innovations(const struct uncertainty_fix *f, int64_t nu[3])
+{
+	nu[0] = div_round_s64(f->dx_um, UNCERTAINTY_POS_UM);
+	nu[1] = div_round_s64(f->dy_um, UNCERTAINTY_POS_UM);
+	nu[2] = fx_shr_round64((int64_t)f->dheading_turn32 * TWO_PI_Q16, 32);
+	return nu[0] > (1 << 26) || nu[0] < -(1 << 26) || nu[1] > (1 << 26) || nu[1] < -(1 << 26);
+}
+
+/* Until the stages refresh it, the radius at least what the fused covariance gives: its largest
+ * eigenvalue is at most max(xx, yy) + |xy|. */
+static void cover_now(struct uncertainty *u)
+{
+	uint32_t v = (uint32_t)(u->xx > u->yy ? u->xx : u->yy) + fx_mag32(u->xy);
+	uint64_t r_um = ((uint64_t)fx_isqrt32_up(v) * UNCERTAINTY_POS_UM * u->cfg.k_q8 + 255u) >> 8;
+
+	if (r_um > u->radius_um)
+		u->radius_um = r_um > UINT32_MAX ? UINT32_MAX : (uint32_t)r_um;
+	if (r_um > (uint64_t)u->radius_mm * 1000u)
+		u->radius_mm = r_um > (uint64_t)UNCERTAINTY_RADIUS_MAX_MM * 1000u
+				       ? UNCERTAINTY_RADIUS_MAX_MM
+				       : (uint8_t)((r_um + 999u) / 1000u);
+}
+
+int uncertainty_fuse_ready(const struct uncertainty *u)
+{
+	return u->stage == STAGE_IDLE || u->stage == STAGE_EIGEN;
+}
+
+int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
+		     struct uncertainty_correction *c)
+{
+	struct uncertainty w = *u;
+	struct cov3 m;
+	int64_t nu[3], delta[3] = {0, 0, 0};
+	int64_t rp = (int64_t)((f->sigma_um + UNCERTAINTY_POS_UM - 1) / UNCERTAINTY_POS_UM);
+	int64_t rt = (int64_t)heading_units(f->sigma_turn32);
+	uint64_t d2 = 0;
+	int64_t g = 0;
+	int far = innovations(f, nu);
+
+	c->d2_q8 = UINT32_MAX;
+	if (far) /* beyond the field: nothing to fuse */
+		return 1;
+	fold_all(&w, &m);
+	carry_cov(&m, f->since_dx_um, f->since_dy_um, -1);
+	if (f->growth_um) { /* the prior then: now's, less what grew since (added back below) */
+		g = (int64_t)sigma_of_bound(&w, div_up(f->growth_um, UNCERTAINTY_POS_UM));
+		m.p[0][0] = m.p[0][0] - g * g > m.p[0][0] / 4 ? m.p[0][0] - g * g : m.p[0][0] / 4;
+		m.p[1][1] = m.p[1][1] - g * g > m.p[1][1] / 4 ? m.p[1][1] - g * g : m.p[1][1] / 4;
+		shrink_cov(&m);
+	}
+	rp = rp * rp + 1;
+	rt = rt * rt + 1;
+	d2 += fuse_one(&m, nu, delta, 0, rp);
+	d2 += fuse_one(&m, nu, delta, 1, rp);
+	if (f->sigma_turn32)
+		d2 += fuse_one(&m, nu, delta, 2, rt);
+	c->d2_q8 = d2 > UINT32_MAX ? UINT32_MAX : (uint32_t)d2;
+	if (!w.saturated && f->gate_q8 && d2 > f->gate_q8)
+		return 1;
+	carry_cov(&m, f->since_dx_um, f->since_dy_um, 1);
+	w.saturated = 0;
+	w.xx = var_back(m.p[0][0], VAR_CAP);
+	w.yy = var_back(m.p[1][1], VAR_CAP);
+	w.tt = var_back(m.p[2][2], TT_CAP);
+	w.xy = cov_back(m.p[0][1], w.xx, w.yy);
+	w.xt = cov_back(m.p[0][2], w.xx, w.tt);
+	w.yt = cov_back(m.p[1][2], w.yy, w.tt);
+	/* The growth since the measured time, as an independent variance (sigma = growth / k): the
+	 * fixes in flight each add theirs, which a sum of sigmas would count over and over. */
+	if (f->growth_um) {
+		w.xx = var_back((int64_t)w.xx + g * g, VAR_CAP);
+		w.yy = var_back((int64_t)w.yy + g * g, VAR_CAP);
+	}
+	*u = w;
+	u->stage = STAGE_EIGEN; /* the radius from the fused covariance, over the next ticks */
+	cover_now(u);
+	c->dx_um = (int32_t)(delta[0] * UNCERTAINTY_POS_UM);
+	c->dy_um = (int32_t)(delta[1] * UNCERTAINTY_POS_UM);
+	c->dheading_turn32 = (int32_t)fx_shr_round64(delta[2] * TURN32_PER_RAD, 16);
+	return 0;
+}
+
+void uncertainty_keep(const struct uncertainty *u, struct uncertainty_kept *k)
+{
+	k->tt = u->saturated ? TT_CAP : u->tt;
+	k->travel2_um = u->travel2_um;
+	k->turn_um = u->turn_um;
+}
+
+void uncertainty_resume(struct uncertainty *u, uint32_t radius_um, const struct uncertainty_kept *k,
+			uint32_t position_um, uint32_t wheel_um)
+{
+	uncertainty_reset(u, radius_um, 0);
+	u->tt = k->tt < 0 ? TT_CAP : k->tt > TT_CAP ? TT_CAP : k->tt;
+	u->travel2_um = k->travel2_um;
+	u->turn_um = k->turn_um;
+	if (!u->saturated)
+		u->tt = var_plus_sigma(u, u->tt, sigma_of_bound(u, sys_heading_units(u)), TT_CAP);
+	u->travel2_um = 0;
+	u->turn_um = 0;
+	uncertainty_widen(u, position_um, wheel_um);
+	request_radius(u);
 }

@@ -182,4 +182,61 @@ uint32_t uncertainty_get_heading_bound_turn32(const struct uncertainty *u);
  * interrupt-safe: no (between two ticks). */
 int uncertainty_cap_along(struct uncertainty *u, uint32_t direction_turn32, uint32_t bound_um);
 
+/* What a reset keeps of the covariance to resume from (keep.h): the heading's variance and the
+ * systematic heading drift's integrals. Interrupt-safe: no. */
+struct uncertainty_kept {
+	int32_t tt;
+	int32_t travel2_um;
+	int32_t turn_um;
+};
+void uncertainty_keep(const struct uncertainty *u, struct uncertainty_kept *k);
+
+/* Resume after a reset from a radius [um] and what uncertainty_keep() kept: each coordinate a
+ * sigma of radius / k, uncorrelated (conservative: the radius bounds the systematic part too),
+ * the heading's variance with its systematic drift folded in (under the model in effect, the
+ * uncalibrated one at a restart: its bounds are the wider), then widened as uncertainty_widen()
+ * by what the robot may have travelled unseen; the radius refreshed at once. Interrupt-safe: no. */
+void uncertainty_resume(struct uncertainty *u, uint32_t radius_um, const struct uncertainty_kept *k,
+			uint32_t position_um, uint32_t wheel_um);
+
+/* A position fix against the estimate at the time it was measured (uncertainty_fuse()). */
+struct uncertainty_fix {
+	int32_t dx_um, dy_um;    /* fix - estimate [um] */
+	int32_t dheading_turn32; /* fix - estimate, wrapped [turn * 2^32] */
+	uint32_t sigma_um;       /* standard deviation of x and of y [um] */
+	uint32_t sigma_turn32;   /* of the heading [turn * 2^32]; 0: the fix has no heading */
+	uint32_t growth_um;      /* how much the radius grew since it was measured [um] */
+	uint32_t gate_q8;        /* largest squared Mahalanobis distance accepted [2^-8]; 0: any */
+	int32_t since_dx_um;     /* the estimate's travel from the measured time to now [um] */
+	int32_t since_dy_um;
+};
+
+/* What a fix moved the estimate by, at the time it was measured. */
+struct uncertainty_correction {
+	int32_t dx_um, dy_um;
+	int32_t dheading_turn32;
+	uint32_t d2_q8; /* the fix's squared Mahalanobis distance to the estimate [2^-8] */
+};
+
+/* Fuse a position fix with the covariance (a Kalman update, one coordinate at a time: the fix's
+ * noise is diagonal), at the time the fix was measured: the covariance is carried back there
+ * along the travel since (a heading error then moves the position now by the travel turned a
+ * quarter), fused, and carried forward again. The systematic terms are folded in first, each bound
+ * as a sigma of bound / k, so that the radius that follows is k sigma of the fused covariance. The
+ * growth of the radius since the fix was measured is added back afterwards as a variance (sigma =
+ * growth / k): the fix says nothing of what the odometry did since, and the fixes in flight each
+ * add theirs. A fix whose squared Mahalanobis distance passes gate_q8 changes nothing and returns
+ * 1 (an outlier); otherwise 0, c says how far to move the estimate at the measured time, and the
+ * radius follows within UNCERTAINTY_STAGES updates (until then it reads the larger one of
+ * before). A saturated covariance takes any fix. Only when uncertainty_fuse_ready(). In 64 bits:
+ * it runs at a fix (10 Hz), not every tick. interrupt-safe: no. */
+int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
+		     struct uncertainty_correction *c);
+
+/* 1 when uncertainty_fuse() may run: no batch is being propagated and the radius's stages have
+ * not begun (they then start again from the fused covariance, over the next ticks). A fix
+ * waits for it (at most UNCERTAINTY_STAGES updates), so that a fusion never pays for a batch.
+ * Interrupt-safe: yes. */
+int uncertainty_fuse_ready(const struct uncertainty *u);
+
 #endif

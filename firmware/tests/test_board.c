@@ -503,13 +503,14 @@ static void test_timeout_stops_a_silent_master(void **state)
 	goto_mm(1000, 0);
 	for (int i = 0; i < 12; i++) {
 		silence(100);
-		(void)status(); /* the last transaction: 1.2 s after the GOTO, at 1 m/s */
+		/* the last write: 1.2 s after the GOTO, at 1 m/s */
+		send((const uint8_t[]){PROTO_HEARTBEAT}, 1);
 	}
 	do {
 		host_tick(&h);
 		n++;
 	} while (h.board.planner.orders.state == ORDER_STATE_TRANSLATE && n < 1000);
-	/* The first tick sees the poll; 200 more see none. */
+	/* The first tick sees the heartbeat; 200 more see none. */
 	assert_int_equal(n, 201);
 	assert_int_equal(h.board.planner.orders.state, ORDER_STATE_STOPPING);
 	p0 = board_get_pose(&h.board);
@@ -517,16 +518,19 @@ static void test_timeout_stops_a_silent_master(void **state)
 	p1 = board_get_pose(&h.board);
 	print_message("timeout: stopped %d mm after the timeout\n", (p1.x_um - p0.x_um) / 1000);
 	assert_true(p1.x_um - p0.x_um > 480000 && p1.x_um - p0.x_um < 520000);
-	assert_int_equal(status(), 0); /* not busy: the master comes back to a stopped robot */
+	/* not busy, and not finished: abandoned; the motors off once at rest, until an order */
+	assert_int_equal(status(), STATUS_PB_MOTEUR);
 	assert_int_equal(debug_end_reason(), END_REASON_TIMEOUT);
+	assert_int_equal(h.board.mailbox.down[h.board.mailbox.down_index].motors_off, 1);
 	goto_mm(1000, 0);                                         /* and carries on */
 	assert_int_equal(debug_end_reason(), END_REASON_TIMEOUT); /* not taken yet */
+	send((const uint8_t[]){PROTO_SET_TIMEOUT, 0, 0}, 3);      /* run_until_idle() only polls */
 	run_until_idle(10000);
 	assert_int_equal(debug_end_reason(), END_REASON_DONE);
 }
 
-/* Any transaction keeps it alive, a status poll as much as an order; 0 turns it off. */
-static void test_timeout_polls_keep_it_going(void **state)
+/* Writes keep it alive, a HEARTBEAT as much as an order; 0 turns it off. */
+static void test_timeout_writes_keep_it_going(void **state)
 {
 	struct sim_field f;
 	uint8_t s = STATUS_BUSY_TRAJET;
@@ -539,6 +543,7 @@ static void test_timeout_polls_keep_it_going(void **state)
 	goto_mm(-300, 0);
 	for (int i = 0; i < 200 && (s & STATUS_BUSY_TRAJET); i++) {
 		silence(45);
+		send((const uint8_t[]){PROTO_HEARTBEAT}, 1);
 		s = status();
 	}
 	assert_int_equal(s, 0);
@@ -548,6 +553,34 @@ static void test_timeout_polls_keep_it_going(void **state)
 	goto_mm(-1000, 0);
 	silence(5000);
 	assert_int_equal(debug_end_reason(), END_REASON_DONE);
+}
+
+/* A master whose polling thread lives on while its order thread hangs: polls every 10 ms, no
+ * write after the GOTO. The reads do not feed the timeout: the order stops and ends abandoned
+ * (PB_MOTEUR), never read as done. */
+static void test_timeout_polls_do_not_feed_it(void **state)
+{
+	struct sim_field f;
+	uint8_t s = STATUS_BUSY_TRAJET;
+	int i;
+
+	(void)state;
+	setup_field(&f);
+	start(&f);
+	send((const uint8_t[]){PROTO_SET_VITESSE_TRAJ, 100, 100}, 3);
+	send((const uint8_t[]){PROTO_SET_TIMEOUT, 0, 200}, 3);
+	goto_mm(1500, 0);
+	for (i = 0; i < 1000 && (s & STATUS_BUSY_TRAJET); i++) {
+		silence(10);
+		s = status();
+		(void)debug_end_reason(); /* a viewer's DEBUG reads too */
+	}
+	assert_int_equal(s, STATUS_PB_MOTEUR);
+	assert_int_equal(debug_end_reason(), END_REASON_TIMEOUT);
+	/* stopped well short of 1500 mm: braking from the timeout at 1.2 s, not the target */
+	assert_true(board_get_pose(&h.board).x_um < 1000000);
+	goto_mm(1500, 0); /* the next order clears it and runs */
+	assert_int_equal(status() & STATUS_PB_MOTEUR, 0);
 }
 
 /* GOTO_PANIER +90 (180 degrees) from heading 0: a heading error of exactly half a turn, whose
@@ -779,7 +812,8 @@ int main(void)
 		cmocka_unit_test(test_encoder_cut_is_grave),
 		cmocka_unit_test(test_timeout_off_by_default),
 		cmocka_unit_test(test_timeout_stops_a_silent_master),
-		cmocka_unit_test(test_timeout_polls_keep_it_going),
+		cmocka_unit_test(test_timeout_writes_keep_it_going),
+		cmocka_unit_test(test_timeout_polls_do_not_feed_it),
 		cmocka_unit_test(test_half_turn),
 		cmocka_unit_test(test_set_new_pos),
 		cmocka_unit_test(test_set_new_pos_stays_in_range),

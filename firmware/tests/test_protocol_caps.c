@@ -39,7 +39,8 @@ static void test_version_says_what_is_left_out(void **state)
 	proto_master_read(&p, v, 4);
 	caps = (uint16_t)((v[2] << 8) | v[3]);
 	assert_int_equal(caps & (CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS), 0);
-	assert_int_equal(caps, CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT);
+	assert_int_equal(caps, CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT |
+				       CAP_HEARTBEAT | CAP_FIX);
 }
 
 static void test_the_frames_left_out_are_unsupported(void **state)

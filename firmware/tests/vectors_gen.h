@@ -41,6 +41,13 @@ static const struct vec_write vec_writes[] = {
 	{"LAST_REJECT (extension)", {0x0e}, 1, PROTO_LAST_REJECT, 0, {0}, REJECT_NONE},
 	{"DEBUG", {0xc8}, 1, PROTO_DEBUG, 0, {0}, REJECT_NONE},
 	{"SET_TIMEOUT 500 ms (extension)", {0x0f, 0x01, 0xf4}, 3, PROTO_SET_TIMEOUT, 1, {500}, REJECT_NONE},
+	{"HEARTBEAT (extension)", {0x16}, 1, PROTO_HEARTBEAT, 0, {0}, REJECT_NONE},
+	{"HEARTBEAT with two extra bytes", {0x16, 0x00, 0x00}, 3, -1, 0, {0}, REJECT_BAD_LENGTH},
+	{"SET_FIX (1000, -500) mm, 90.00 degrees, 10 mm, 1.0 degree, 120 ms ago (extension)", {0x17, 0x03, 0xe8, 0xfe, 0x0c, 0x23, 0x28, 0x0a, 0x0a, 0x00, 0x78}, 11, PROTO_SET_FIX, 6, {1000, -500, 9000, 10, 10, 120}, REJECT_NONE},
+	{"SET_FIX without a heading", {0x17, 0x03, 0xe8, 0xfe, 0x0c, 0x00, 0x00, 0x0a, 0x00, 0x00, 0x78}, 11, PROTO_SET_FIX, 6, {1000, -500, 0, 10, 0, 120}, REJECT_NONE},
+	{"SET_FIX 501 ms old", {0x17, 0x03, 0xe8, 0xfe, 0x0c, 0x00, 0x00, 0x0a, 0x00, 0x01, 0xf5}, 11, -1, 0, {0}, REJECT_OUT_OF_RANGE},
+	{"SET_FIX with a noise of 0 mm", {0x17, 0x03, 0xe8, 0xfe, 0x0c, 0x00, 0x00, 0x00, 0x00, 0x00, 0x78}, 11, -1, 0, {0}, REJECT_OUT_OF_RANGE},
+	{"FIX_INFO (extension)", {0x18}, 1, PROTO_FIX_INFO, 0, {0}, REJECT_NONE},
 	{"SET_TIMEOUT 0: off", {0x0f, 0x00, 0x00}, 3, PROTO_SET_TIMEOUT, 1, {0}, REJECT_NONE},
 	{"SET_TIMEOUT at its limit, with PEC", {0x0f, 0xff, 0xff, 0x3b}, 4, PROTO_SET_TIMEOUT, 1, {65535}, REJECT_NONE},
 	{"GOTO 200,100 with PEC", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x00, 0xce}, 7, PROTO_GOTO, 3, {200, 100, 0}, REJECT_NONE},
@@ -178,7 +185,7 @@ static const struct vec_step vec_steps_14[] = {
 	{'r', 0, 0, {0}, 1, {0x00}, 0},
 };
 static const struct vec_step vec_steps_15[] = {
-	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x03, 0xdf}, 0},
+	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x0f, 0xdf}, 0},
 };
 static const struct vec_step vec_steps_16[] = {
 	{'w', 0, 6, {0x00, 0x00, 0xc8, 0x00, 0x64, 0x10}, 0, {0}, 0},

@@ -83,6 +83,22 @@ struct proto_motion {
     uint8_t appends_done;
 };
 
+struct proto_fix {
+    uint16_t fused;
+    uint16_t outliers;
+    uint16_t too_old;
+    uint8_t last;
+    uint8_t last_d2;
+};
+
+struct proto_reset {
+    uint8_t tracked;
+    uint8_t cause;
+    uint8_t count;
+    uint8_t pose_lost;
+    uint8_t widened_mm;
+};
+
 struct proto_snapshot {
     int16_t x_mm;
     int16_t y_mm;
@@ -93,6 +109,8 @@ struct proto_snapshot {
     uint8_t calibrated;
     struct proto_debug debug;
     struct proto_motion motion;
+    struct proto_fix fix;
+    struct proto_reset reset;
 };
 
 struct proto { ...; };
@@ -362,7 +380,16 @@ struct servo {
     uint16_t slow_overruns;
     ...;
 };
+struct fix_info {
+    uint16_t fused;
+    uint16_t outliers;
+    uint16_t too_old;
+    uint8_t last;
+    uint8_t last_d2;
+};
+struct fix { struct fix_info info; ...; };
 struct planner {
+    struct fix fix;
     struct uncertainty uncertainty;
     struct orders orders;
     struct faults faults;
@@ -403,6 +430,7 @@ int host_init(struct host *h, const struct board_config *bc, const struct sim_co
               const struct sim_field *f);
 int host_nvm_set(struct host *h, const uint8_t *data, uint16_t n);
 int host_power_cycle(struct host *h);
+int host_reset(struct host *h, uint8_t cause, int keep_ram, uint16_t down_ms);
 uint64_t host_advance_ns(struct host *h, uint64_t duration_ns, struct host_sample *buf,
                          uint32_t cap, uint32_t *n_out);
 

@@ -7,14 +7,26 @@
 from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _version
 
-from ._protocol import ADDRESS, Capability, EndReason, Filtre, OrderState, Reject, Status
+from ._protocol import (
+    ADDRESS,
+    Capability,
+    EndReason,
+    Filtre,
+    FixResult,
+    OrderState,
+    Reject,
+    ResetCause,
+    Status,
+)
 from .bus import Clock, I2CDevice, ProtocolDevice, VirtualBus
 from .codec import (
     Debug,
+    FixInfo,
     FrameError,
     LastReject,
     PecError,
     Pose,
+    ResetInfo,
     Version,
     crc8,
     decode_reply,
@@ -30,6 +42,7 @@ from .driver import (
     NoAcknowledge,
     OrderRejected,
     PecMismatch,
+    Unsupported,
 )
 
 try:
@@ -48,6 +61,8 @@ __all__ = [
     "Debug",
     "EndReason",
     "Filtre",
+    "FixInfo",
+    "FixResult",
     "FrameError",
     "GotoOption",
     "I2CDevice",
@@ -60,7 +75,10 @@ __all__ = [
     "Pose",
     "ProtocolDevice",
     "Reject",
+    "ResetCause",
+    "ResetInfo",
     "Status",
+    "Unsupported",
     "Version",
     "VirtualBus",
     "__version__",

@@ -8,7 +8,7 @@ from typing import Literal
 
 ADDRESS = 2
 VERSION = (1, 0)
-MAX_WRITE = 8
+MAX_WRITE = 12
 QUEUE_DEPTH = 8
 
 FieldType = Literal["u8", "s8", "u16", "s16"]
@@ -201,7 +201,7 @@ MESSAGES: tuple[Message, ...] = (
         (),
         (),
         True,
-        'stop the running order when no transaction has addressed the board for this long (0: never, the power-on value)',
+        'stop the running order when the master has written nothing accepted for this long (0: never, the power-on value); reads do not count',
     ),
     Message(
         'SET_ODOMETRIE',
@@ -281,6 +281,50 @@ MESSAGES: tuple[Message, ...] = (
         "how far a PASS_THROUGH corner's path may pass from its point (power-on: 30 mm)",
     ),
     Message(
+        'HEARTBEAT',
+        22,
+        'SET',
+        (),
+        0,
+        (),
+        (),
+        True,
+        "the master's strategy is alive: feeds SET_TIMEOUT and changes nothing else",
+    ),
+    Message(
+        'SET_FIX',
+        23,
+        'SET',
+        (Field('x_mm', 's16', -32000, 32000), Field('y_mm', 's16', -32000, 32000), Field('heading_cdeg', 's16', -18000, 18000), Field('sigma_mm', 'u8', 1, 255), Field('sigma_heading_ddeg', 'u8', 0, 255), Field('age_ms', 'u16', 0, 500), ),
+        6,
+        (),
+        (),
+        True,
+        'a position fix (lidar, camera) with its noise and age: fused with the odometry at the time it was measured, or rejected as an outlier (FIX_INFO says which)',
+    ),
+    Message(
+        'FIX_INFO',
+        24,
+        'ETAT',
+        (),
+        0,
+        (Field('fused', 'u16', 0, 65535), Field('outliers', 'u16', 0, 65535), Field('too_old', 'u16', 0, 65535), Field('last', 'u8', 0, 255), Field('last_d2', 'u8', 0, 255), ),
+        (),
+        True,
+        "what became of the fixes: counts since power-on (wrapping) and the last one's result",
+    ),
+    Message(
+        'RESET_INFO',
+        25,
+        'ETAT',
+        (),
+        0,
+        (Field('cause', 'u8', 0, 255), Field('count', 'u8', 0, 255), Field('pose_lost', 'u8', 0, 255), Field('widened_mm', 'u8', 0, 255), ),
+        (),
+        True,
+        "the last reset's cause, the resets since power-on, and whether the pose survived it",
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
@@ -318,6 +362,9 @@ class Capability(enum.IntFlag):
     SPEED_SCALE = 128
     QUEUE = 256
     CORNERS = 512
+    HEARTBEAT = 1024
+    FIX = 2048
+    RESET_INFO = 4096
     CALIBRATED = 32
 
 
@@ -337,6 +384,7 @@ class Reject(enum.IntEnum):
     BAD_OPTIONS = 10
     UNSUPPORTED = 11
     REFUSED_BUSY = 16
+    REFUSED_NO_POSE = 13
 
 
 class Filtre(enum.IntEnum):
@@ -373,3 +421,24 @@ class EndReason(enum.IntEnum):
     BORDER = 7
     TIMEOUT = 8
     NO_BASKET = 9
+    RESET = 12
+
+
+class FixResult(enum.IntEnum):
+    """What became of a position fix (FIX_INFO)."""
+
+    NONE = 0
+    FUSED = 1
+    OUTLIER = 2
+    TOO_OLD = 3
+    STALE = 4
+
+
+class ResetCause(enum.IntEnum):
+    """Why the board last started (RESET_INFO)."""
+
+    POWER_ON = 0
+    BROWN_OUT = 1
+    WATCHDOG = 2
+    PIN = 3
+    SOFTWARE = 4

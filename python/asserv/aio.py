@@ -21,7 +21,7 @@ from typing import Any, TypeVar
 
 from ._protocol import Filtre, Status
 from .bus import SystemClock
-from .codec import Debug, LastReject, Pose, Version
+from .codec import Debug, FixInfo, LastReject, Pose, ResetInfo, Version
 from .driver import Board, GotoOption, Outcome
 
 __all__ = ["AsyncBoard"]
@@ -101,11 +101,25 @@ class AsyncBoard:
     async def set_timeout(self, timeout_ms: int) -> None:
         await self._call(self.board.set_timeout, timeout_ms)
 
+    async def heartbeat(self) -> None:
+        await self._call(self.board.heartbeat)
+
     async def set_new_pos(self, err_x_mm: int, err_y_mm: int, err_angle_deg: int) -> None:
         await self._call(self.board.set_new_pos, err_x_mm, err_y_mm, err_angle_deg)
 
     async def declare_pose(self, x_mm: int, y_mm: int, angle_deg: int) -> None:
         await self._call(self.board.declare_pose, x_mm, y_mm, angle_deg)
+
+    async def fix(
+        self,
+        x_mm: float,
+        y_mm: float,
+        heading_deg: float | None,
+        sigma_mm: float,
+        sigma_deg: float | None,
+        age_ms: float,
+    ) -> None:
+        await self._call(self.board.fix, x_mm, y_mm, heading_deg, sigma_mm, sigma_deg, age_ms)
 
     # Queries.
     async def check_busy(self) -> Status:
@@ -125,3 +139,9 @@ class AsyncBoard:
 
     async def debug(self) -> Debug:
         return await self._call(self.board.debug)
+
+    async def fix_info(self) -> FixInfo:
+        return await self._call(self.board.fix_info)
+
+    async def reset_info(self) -> ResetInfo:
+        return await self._call(self.board.reset_info)

@@ -19,9 +19,11 @@ from ._protocol import (
     Capability,
     EndReason,
     Field,
+    FixResult,
     Message,
     OrderState,
     Reject,
+    ResetCause,
     Status,
 )
 
@@ -333,7 +335,31 @@ class Motion:
         return bool(self.flags & 2)
 
 
-Reply = Status | Pose | int | Version | LastReject | Debug | Motion
+@dataclass(frozen=True)
+class FixInfo:
+    """FIX_INFO (extension): the fixes' counts since power-on (wrapping at 65536) and the last
+    one's result."""
+
+    fused: int
+    outliers: int
+    too_old: int
+    last: FixResult
+    last_d2: int
+
+
+@dataclass(frozen=True)
+class ResetInfo:
+    """RESET_INFO (extension): why the board last started, the resets since power-on, whether
+    the pose survived (pose_lost: motion orders refused until SET_NEW_POS) and what the radius
+    was widened by for the time the board was down."""
+
+    cause: ResetCause
+    count: int
+    pose_lost: bool
+    widened_mm: int
+
+
+Reply = Status | Pose | int | Version | LastReject | Debug | Motion | FixInfo | ResetInfo
 
 
 class PecError(ValueError):
@@ -409,11 +435,15 @@ def decode_reply(
             braking_ms=m["braking_ms"],
             scale_percent=m["scale_percent"],
         )
+    if msg.name == "RESET_INFO":
+        return ResetInfo(ResetCause(values[0]), values[1], bool(values[2]), values[3])
+    if msg.name == "FIX_INFO":
+        return FixInfo(values[0], values[1], values[2], FixResult(values[3]), values[4])
     raise AssertionError(f"no decoder for {msg.name}")  # the table check keeps this unreachable
 
 
 def reply_fields(reply: Reply) -> dict[str, int]:
     """The reply's values by table field name, for printing and for comparing with the table."""
-    if isinstance(reply, Pose | Version | LastReject | Debug | Motion):
+    if isinstance(reply, Pose | Version | LastReject | Debug | Motion | FixInfo | ResetInfo):
         return {f.name: int(getattr(reply, f.name)) for f in fields(reply)}
     return {"value": int(reply)}

@@ -33,9 +33,9 @@ from typing import Any, Protocol, SupportsIndex, TypeVar
 from smbus2 import i2c_msg
 
 from . import codec
-from ._protocol import ADDRESS, EndReason, Filtre, Reject, Status
+from ._protocol import ADDRESS, Capability, EndReason, Filtre, Reject, Status
 from .bus import Clock, clock_of
-from .codec import Debug, LastReject, Pose, Version
+from .codec import Debug, FixInfo, LastReject, Pose, ResetInfo, Version
 
 __all__ = [
     "AsservError",
@@ -48,6 +48,7 @@ __all__ = [
     "OrderRejected",
     "Outcome",
     "PecMismatch",
+    "Unsupported",
     "bus_lock",
 ]
 
@@ -162,6 +163,11 @@ class OrderRejected(AsservError):  # noqa: N818 (names of the driver's API)
         self.count = count
 
 
+class Unsupported(AsservError):  # noqa: N818 (names of the driver's API)
+    """The board was built without the feature a call needs (its VERSION capability bit reads
+    0), or rejected the message as UNSUPPORTED."""
+
+
 class BoardTimeout(AsservError):  # noqa: N818 (names of the driver's API)
     """``wait_idle`` gave up: the board was still busy. ``status`` is the last status read."""
 
@@ -265,6 +271,7 @@ class Board:
         # under the bus lock.
         self._drives = bool(getattr(self.clock, "drives_simulation", False))
         self._lock = bus_lock(bus)
+        self._caps: Capability | None = None  # VERSION's, read by the first call that needs it
         #: The end of the match on ``clock`` (``asserv.match.MatchTimer``), or None. Once
         #: passed, the next transaction or sleep sends STOP and raises MatchOver.
         self.deadline: float | None = None
@@ -379,11 +386,87 @@ class Board:
         self._command("SET_FILTRE_RAW", _integer("p", p), _integer("i", i), _integer("d", d))
 
     def set_timeout(self, timeout_ms: int) -> None:
-        """SET_TIMEOUT (extension): stop the running order when no transaction has addressed the
-        board for ``timeout_ms`` (1..65535 ms); 0, the power-on value, turns it off. Every call
-        of this driver is a transaction, ``check_busy()`` included, so a master that polls more
-        often than the timeout keeps the robot going (docs/failure-model.md)."""
+        """SET_TIMEOUT (extension): stop the running order when the master has written nothing
+        accepted for ``timeout_ms`` (1..65535 ms); 0, the power-on value, turns it off. Only
+        writes feed it (orders, settings, ``heartbeat()``): a polling thread that lives on while
+        the strategy has hung does not, so such a master is stopped; the order then ends
+        PB_MOTEUR with DEBUG end_reason TIMEOUT (docs/failure-model.md, section 5)."""
         self._command("SET_TIMEOUT", _integer("timeout_ms", timeout_ms))
+
+    def heartbeat(self) -> None:
+        """HEARTBEAT (extension): the strategy is alive; feeds SET_TIMEOUT, changes nothing
+        else. Call it from the thread that decides, not from a polling thread."""
+        self._command("HEARTBEAT")
+
+    def fix(
+        self,
+        x_mm: float,
+        y_mm: float,
+        heading_deg: float | None,
+        sigma_mm: float,
+        sigma_deg: float | None,
+        age_ms: float,
+    ) -> None:
+        """SET_FIX (extension): a position fix from a lidar or a camera, with its noise and how
+        long before this call it was measured. The board compares it with its estimate of that
+        moment, fuses it weighted by both uncertainties (a precise fix pulls hard, a noisy one a
+        little), carries the correction to now and shrinks the error radius; a fix too far from
+        the estimate is rejected as an outlier and changes nothing (``fix_info()`` counts them).
+
+        ``heading_deg`` None (or ``sigma_deg`` None or 0): the fix has no heading. Ranges:
+        x, y -32000..32000 mm, heading -180..180 degrees (0.01), sigma_mm 1..255 (rounded up),
+        sigma_deg 0.1..25.5 (rounded up: the noise is never understated), age_ms 0..500.
+        Raises Unsupported on a board built without fixes (VERSION's FIX bit 0: the AVR)."""
+        for name, v in (("x_mm", x_mm), ("y_mm", y_mm), ("sigma_mm", sigma_mm), ("age_ms", age_ms)):
+            if not math.isfinite(v):
+                raise ValueError(f"fix: {name}={v} must be finite")
+        no_heading = heading_deg is None or sigma_deg is None or sigma_deg == 0
+        if not no_heading:
+            assert heading_deg is not None and sigma_deg is not None
+            if not (math.isfinite(heading_deg) and math.isfinite(sigma_deg)):
+                raise ValueError("fix: heading_deg and sigma_deg must be finite")
+            if not -180 <= heading_deg <= 180 or not 0 < sigma_deg <= 25.5:
+                raise ValueError(
+                    f"fix: heading_deg={heading_deg} must be -180..180 and sigma_deg={sigma_deg}"
+                    " 0..25.5"
+                )
+        if not 0 < sigma_mm <= 255 or not 0 <= age_ms <= 500:
+            raise ValueError(f"fix: sigma_mm={sigma_mm} must be 0..255, age_ms={age_ms} 0..500")
+        self._require(Capability.FIX, "SET_FIX")
+        self._command(
+            "SET_FIX",
+            round(x_mm),
+            round(y_mm),
+            0 if no_heading else round(heading_deg * 100),  # type: ignore[operator]
+            math.ceil(sigma_mm),
+            0 if no_heading else math.ceil(sigma_deg * 10 - 1e-9),  # type: ignore[operator]
+            round(age_ms),
+        )
+
+    def fix_info(self) -> FixInfo:
+        """FIX_INFO (extension): fixes fused, rejected as outliers, rejected as too old or
+        stale, since power-on (each wrapping at 65536), and the last one's result."""
+        self._require(Capability.FIX, "FIX_INFO")
+        return self._query("FIX_INFO", FixInfo)
+
+    def reset_info(self) -> ResetInfo:
+        """RESET_INFO (extension): the last reset's cause, the resets since power-on, whether
+        the pose survived it (``pose_lost``: motion orders are refused, REFUSED_NO_POSE, until
+        ``set_new_pos()`` or ``declare_pose()``) and the radius's widening for the time the
+        board was down. Read it when the status shows PB_MOTEUR with DEBUG end_reason RESET."""
+        self._require(Capability.RESET_INFO, "RESET_INFO")
+        return self._query("RESET_INFO", ResetInfo)
+
+    def _require(self, cap: Capability, what: str) -> None:
+        """Raise Unsupported when the board's VERSION lacks cap (read once, then cached)."""
+        if self._caps is None:
+            self._caps = self.version().capabilities
+        if cap not in self._caps:
+            raise Unsupported(
+                f"{what}: the board at 0x{self.address:02x} lacks {cap.name} (capabilities"
+                f" 0x{int(self._caps):04x}): it was built without it (docs/avr.md says what the"
+                " AVR leaves out)"
+            )
 
     def set_new_pos(self, err_x_mm: int, err_y_mm: int, err_angle_deg: int) -> None:
         """SET_NEW_POS: the error of the board's estimate (estimate minus truth), which the

@@ -55,6 +55,7 @@ from . import field as fieldmod
 from ._protocol import EndReason, Filtre, Status
 from .codec import Pose
 from .driver import AsservError, Board, GotoOption, Outcome, outcome_of
+from .fixes import FixSource
 
 if TYPE_CHECKING:  # the simulator (asserv[sim]) is imported where a scenario is checked or
     # played, so that asserv[view] without it imports this module (asserv --bus 1 view)
@@ -114,6 +115,8 @@ BUS_COMMANDS: dict[str, tuple[str, list[Parser], list[Parser], str]] = {
     "version": ("version", [], [], "version"),
     "last_reject": ("last_reject", [], [], "last_reject"),
     "debug": ("debug", [], [], "debug"),
+    "heartbeat": ("heartbeat", [], [], "heartbeat"),
+    "fix_info": ("fix_info", [], [], "fix_info"),
     "wait": ("", [], [_num], "wait [TIMEOUT_S]"),
     "sleep": ("", [_num], [], "sleep SECONDS"),
 }
@@ -153,6 +156,7 @@ SETUP = (
     "pec",
     "opponent",
     "robot",
+    "fixes",
 )
 
 
@@ -219,6 +223,7 @@ class Scenario:
     robot: Path | None = None
     opponents: list[Opponent] = dataclasses.field(default_factory=list)
     events: list[Event] = dataclasses.field(default_factory=list)
+    fixes: FixSource | None = None  # a simulated localisation feeding SET_FIX (asserv.fixes)
 
     def simulator(self, record: bool = True) -> Simulator:
         from .sim import Simulator
@@ -240,7 +245,10 @@ class Scenario:
         )
 
     def prepare(self, sim: Simulator, out: Callable[[str], None] = print) -> None:
-        """Put the opponents on ``sim``'s field and schedule the timed events."""
+        """Put the opponents on ``sim``'s field, start the fix source and schedule the timed
+        events."""
+        if self.fixes is not None:
+            sim.add_fix_source(self.fixes)
         for o in self.opponents:
             sim.add_opponent(o.x_mm, o.y_mm, o.radius_mm, o.path, o.speed_mm_s, o.loop)
         for ev in self.events:
@@ -426,6 +434,25 @@ def parse(
                     # checks the name and the value
                     Simulator(board_config={rest[0]: _int(rest[1])}, record=False)
                     scn.board[rest[0]] = _int(rest[1])
+                elif cmd == "fixes":
+                    usage = (
+                        "fixes RATE_HZ SIGMA_MM SIGMA_DEG|none LATENCY_MS [JITTER_MS"
+                        " [OUTLIER_RATE]]"
+                    )
+                    if not 4 <= len(rest) <= 6:
+                        raise fail(f"fixes takes {usage}")
+                    nums = [_num(w) for w in rest[:2]]
+                    deg = None if rest[2].lower() == "none" else _num(rest[2])
+                    more = [_num(w) for w in rest[3:]]
+                    scn.fixes = FixSource(
+                        rate_hz=nums[0],
+                        sigma_mm=nums[1],
+                        sigma_deg=deg,
+                        latency_ms=more[0],
+                        latency_jitter_ms=more[1] if len(more) > 1 else 0.0,
+                        outlier_rate=more[2] if len(more) > 2 else 0.0,
+                        seed=scn.seed,
+                    )
                 elif cmd == "bus_hz":
                     if len(rest) != 1 or not 1000 <= _int(rest[0]) <= 1_000_000:
                         raise fail("bus_hz takes one integer 1000..1000000")

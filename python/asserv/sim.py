@@ -22,14 +22,18 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
 from . import field as fieldmod
 from ._columns import TRACE_FIELDS
 from ._core import ffi, lib
+from ._protocol import ResetCause
 from .bus import VirtualBus
+
+if TYPE_CHECKING:
+    from .fixes import FixFeed, FixSource
 
 #: The columns of ``Simulator.trace``, in the order of ``struct host_sample`` (host.h).
 TRACE_DTYPE = np.dtype([(name, "<f8") for name in TRACE_FIELDS])
@@ -301,6 +305,7 @@ class Simulator:
         self._event_seq = itertools.count()
         self.bus = VirtualBus({address: self}, clock=self)
         self._proto = ffi.addressof(self._h.board, "proto")
+        self._tx_open = False  # between bus_start() and bus_stop()/bus_abort()
 
     # ---- time -------------------------------------------------------------------------------
     #: Sleeping on this clock runs the simulation (asserv.bus.clock_of, Board.sleep).
@@ -365,6 +370,23 @@ class Simulator:
         the first tick after SET_ODOMETRIE's slow steps on the simulator) is lost."""
         lib.host_power_cycle(self._h)
 
+    def reset(
+        self, cause: ResetCause | int | str, keep_ram: bool = True, down_ms: int = 30
+    ) -> None:
+        """A reset of the board between two ticks, to rehearse one mid-match: ``cause`` a
+        ResetCause (or its name: "BROWN_OUT", "WATCHDOG", "PIN", "SOFTWARE"; "POWER_ON" is
+        ``power_cycle()``). The motors are off for ``down_ms`` (0..1000: the start-up; the
+        robot coasts, the physics runs), then the board starts again with that cause: from the
+        RAM it kept (``keep_ram``: its pose and radius resume, widened), or from RAM the reset
+        scrambled (the pose is lost: motion orders refused until SET_NEW_POS). A running order
+        reads PB_MOTEUR, DEBUG end_reason RESET; ``Board.reset_info()`` says the rest."""
+        c = ResetCause[cause] if isinstance(cause, str) else ResetCause(cause)
+        if not 0 <= down_ms <= 1000:
+            raise ValueError(f"reset: down_ms must be 0..1000, not {down_ms}")
+        if lib.host_reset(self._h, int(c), 1 if keep_ram else 0, down_ms):
+            raise RuntimeError("reset: the board refused its configuration")
+        self._tx_open = False
+
     @property
     def nvm(self) -> bytes:
         """The board's storage (``NVM_SIZE`` bytes, 0xFF where erased): give it to a new
@@ -396,6 +418,7 @@ class Simulator:
                 self.bus_write_byte(b)
             if stop:
                 self.bus_stop()
+        self._tx_open = not stop  # a read by repeated start follows
         self._log(Frame(self.time_s, "W", data, stop))
 
     def i2c_read(self, n: int) -> bytes:
@@ -408,6 +431,7 @@ class Simulator:
             self.bus_start(read=True)
             out = bytes(self.bus_read_byte() for _ in range(n))
             self.bus_stop()
+        self._tx_open = False
         frame = Frame(self.time_s, "R", out, True)
         self._log(frame)
         return frame.data
@@ -430,9 +454,40 @@ class Simulator:
             self._chunks.append(np.frombuffer(raw, dtype=TRACE_DTYPE).copy())
 
     # ---- raw bus events, as the board's I2C interrupt sees them (for tests of any sequence) --
+    @property
+    def bus_busy(self) -> bool:
+        """A transaction is in progress byte by byte (a timed event falls within it)."""
+        return self._tx_open
+
+    def write_now(self, data: bytes) -> None:
+        """A whole write at once, between two ticks and outside any transaction: a second
+        master's frame (the simulated fix source's, ``add_fix_source``)."""
+        if self._tx_open:
+            raise RuntimeError("write_now: a transaction is in progress")
+        lib.proto_on_write_start(self._proto)
+        for b in bytes(data):
+            lib.proto_on_byte(self._proto, b)
+        lib.proto_on_stop(self._proto)
+        self._log(Frame(self.time_s, "W", bytes(data), True))
+
+    def add_fix_source(self, source: FixSource | None = None) -> FixFeed:
+        """Start a simulated localisation (asserv.fixes.FixSource: rate, noise, latency,
+        outliers) writing SET_FIX to the board from now on; the returned feed logs every fix
+        with the truth at the time it was measured, and ``feed.stop()`` ends it."""
+        from . import fixes
+
+        return fixes.start(self, source or fixes.FixSource())
+
+    def fix_counts(self) -> tuple[int, int, int, int]:
+        """The board's own fix counters as of its last planner period, read from its memory
+        (not over the bus): fused, outliers, too old or stale, the last result (FixResult)."""
+        i = self._h.board.planner.fix.info
+        return int(i.fused), int(i.outliers), int(i.too_old), int(i.last)
+
     def bus_start(self, read: bool) -> None:
         """A START or a repeated START, then the board's address with the read or write bit:
         one byte time, then proto_on_read_start() or proto_on_write_start()."""
+        self._tx_open = True
         self._advance_ns(self._byte_ns)
         if read:
             lib.proto_on_read_start(self._proto)
@@ -452,6 +507,7 @@ class Simulator:
 
     def bus_stop(self) -> None:
         """A STOP: proto_on_stop()."""
+        self._tx_open = False
         lib.proto_on_stop(self._proto)
 
     def bus_restart(self) -> None:
@@ -463,6 +519,7 @@ class Simulator:
     def bus_abort(self) -> None:
         """A bus error in the middle of a transaction (lost arbitration, a misplaced START or
         STOP): proto_on_abort()."""
+        self._tx_open = False
         lib.proto_on_abort(self._proto)
 
     def _log(self, frame: Frame) -> None:

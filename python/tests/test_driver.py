@@ -72,6 +72,7 @@ CALLS: list[tuple[str, Callable[[Board], None], str, tuple[int, ...]]] = [
     ),
     ("set_new_pos", lambda b: b.set_new_pos(-5, 3, -180), "SET_NEW_POS", (-5, 3, -180)),
     ("set_timeout", lambda b: b.set_timeout(65535), "SET_TIMEOUT", (65535,)),
+    ("heartbeat", lambda b: b.heartbeat(), "HEARTBEAT", ()),
 ]
 
 
@@ -181,7 +182,7 @@ def test_version_last_reject_and_debug(pec: bool) -> None:
     v = board.version()
     assert (v.major, v.minor) == (1, 0)
     assert v.capabilities == Capability.PEC | Capability.STOP | Capability.LAST_REJECT | (
-        Capability.DEBUG | Capability.TIMEOUT
+        Capability.DEBUG | Capability.TIMEOUT | Capability.HEARTBEAT | Capability.FIX
     ) | (Capability.PAUSE | Capability.SPEED_SCALE | Capability.QUEUE | Capability.CORNERS)
     assert board.last_reject().reason == Reject.NONE
     fields: dict[str, Any] = {

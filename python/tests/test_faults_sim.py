@@ -307,17 +307,42 @@ def test_a_silent_master_stops_the_robot_with_a_timeout() -> None:
     # Braking from 1 m/s at 1 m/s^2: 0.5 m, then at rest short of the target.
     assert np.abs(tr["v_mm_s"][tr["t_s"] > stopping + 1.05]).max() < 5  # holding, at rest
     assert sim.true_pose().x_mm < TARGET[0] - 500
-    assert board.check_busy() == 0
+    assert board.check_busy() == Status.PB_MOTEUR  # abandoned, not finished
     assert board.debug().end_reason == EndReason.TIMEOUT
 
 
-def test_a_master_that_polls_keeps_the_robot_going() -> None:
+def test_a_master_whose_strategy_hangs_is_stopped_though_it_polls() -> None:
+    """The polling thread lives on (CHECK_BUSY and DEBUG every 10 ms, as `asserv view`) while
+    the order thread hangs after its GOTO: reads do not feed the timeout."""
+    sim = lane()
+    board = Board(sim.bus)
+    board.set_timeout(300)
+    board.set_vitesse_traj(100, 100)
+    board.goto(*TARGET)
+    last = sim.time_s  # the last write
+    status = board.check_busy()
+    while status & Status.BUSY_TRAJET:
+        board.debug()
+        sim.advance(0.01)
+        status = board.check_busy()
+    tr = sim.trace
+    stopping = tr["t_s"][np.nonzero(tr["order_state"] == OrderState.STOPPING)[0][0]]
+    assert 300 <= (stopping - last) * 1000 <= 320
+    assert status == Status.PB_MOTEUR
+    assert board.debug().end_reason == EndReason.TIMEOUT
+    assert sim.true_pose().x_mm < TARGET[0] - 500
+
+
+def test_a_master_that_writes_keeps_the_robot_going() -> None:
     sim = lane()
     board = Board(sim.bus)
     board.set_timeout(50)
     board.set_vitesse_traj(100, 100)
     board.goto(*TARGET)
-    assert board.wait_idle(10, poll_s=0.04) == 0  # a CHECK_BUSY every 40 ms
+    while board.check_busy() & Status.BUSY_TRAJET:
+        board.heartbeat()  # every 40 ms
+        sim.advance(0.04)
+    assert board.check_busy() == 0
     assert board.debug().end_reason == EndReason.DONE
     x, y, _ = sim.true_pose()
     assert abs(x - TARGET[0]) < 1 and abs(y - TARGET[1]) < 1

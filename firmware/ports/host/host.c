@@ -175,7 +175,7 @@ int host_init(struct host *h, const struct board_config *bc, const struct sim_co
 	read_sensors(h);
 	port_sample(&in);
 	port_sample_period(&in); /* the motor counts and currents to start from, as the AVR's */
-	err = board_init(&h->board, bc, &in);
+	err = board_restart(&h->board, bc, &in, RESET_CAUSE_POWER_ON, 0);
 	if (err)
 		return err;
 	current = h;
@@ -193,16 +193,23 @@ int host_nvm_set(struct host *h, const uint8_t *data, uint16_t n)
 	return 0;
 }
 
-int host_power_cycle(struct host *h)
+/* The board starts again with a cause, after down_ms of the robot coasting. */
+static int restart(struct host *h, uint8_t cause, uint16_t down_ms)
 {
 	struct board_config cfg = h->board.cfg;
 	struct board_inputs in;
 	int err;
+	uint64_t skipped = (uint64_t)down_ms * 1000000u / h->tick_ns; /* ticks the board misses */
 
+	duty[HAL_LEFT] = duty[HAL_RIGHT] = 0;
+	sim_set_duty(&h->sim, 0, 0);
+	sim_advance_ns(&h->sim, skipped * h->tick_ns);
+	h->now_ns += skipped * h->tick_ns;
+	h->ticks += skipped;
 	read_sensors(h);
 	port_sample(&in);
 	port_sample_period(&in);
-	err = board_init(&h->board, &cfg, &in);
+	err = board_restart(&h->board, &cfg, &in, cause, down_ms);
 	duty[HAL_LEFT] = duty[HAL_RIGHT] = 0;
 	sim_set_duty(&h->sim, 0, 0);
 	if (err)
@@ -210,6 +217,24 @@ int host_power_cycle(struct host *h)
 	current = h;
 	port_nvm_load(&h->store, &h->board);
 	return 0;
+}
+
+int host_power_cycle(struct host *h)
+{
+	return restart(h, RESET_CAUSE_POWER_ON, 0);
+}
+
+int host_reset(struct host *h, uint8_t cause, int keep_ram, uint16_t down_ms)
+{
+	if (cause == RESET_CAUSE_POWER_ON)
+		return host_power_cycle(h);
+	if (!keep_ram) { /* what a lost RAM holds: a pattern of the clock */
+		uint8_t *k = (uint8_t *)&h->board.keep;
+
+		for (size_t i = 0; i < sizeof(h->board.keep); i++)
+			k[i] = (uint8_t)((h->now_ns >> (i % 8u)) * 131u + i * 29u);
+	}
+	return restart(h, cause, down_ms);
 }
 
 /* The control tick at the current instant: sensors, board_tick(), the new duties held by the

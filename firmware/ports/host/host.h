@@ -46,6 +46,13 @@ int host_nvm_set(struct host *h, const uint8_t *data, uint16_t n);
  * where it is, the clock and the storage go on. Returns host_init()'s board result: 0 or -1. */
 int host_power_cycle(struct host *h);
 
+/* A reset between two ticks, of a cause (RESET_CAUSE_*): the motors off for down_ms (the robot
+ * coasts, the physics runs, the board does not), then the board starts again with that cause
+ * (board_restart()) from the RAM it kept (keep_ram 1) or from RAM scrambled by the reset
+ * (keep_ram 0: a brown-out deep enough to lose it), then the calibration its storage holds.
+ * RESET_CAUSE_POWER_ON is host_power_cycle(). Returns 0 or -1. */
+int host_reset(struct host *h, uint8_t cause, int keep_ram, uint16_t down_ms);
+
 /* One control period: the board's tick on the current sensors, then the physics over the
  * period with the new duties. */
 void host_tick(struct host *h);

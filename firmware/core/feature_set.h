@@ -1,0 +1,43 @@
+/* The core's build options: each CONFIG_ feature is on unless the port's build turns it off (the
+ * AVR's, where its CPU budget has no room: firmware/ports/avr/CMakeLists.txt). A feature that is
+ * off reads 0 in VERSION's capabilities, and its messages are rejected as UNSUPPORTED. */
+#ifndef ASSERV_FEATURE_SET_H
+#define ASSERV_FEATURE_SET_H
+
+#include "protocol_defs.h"
+
+/* Position fixes, SET_FIX and FIX_INFO (fix.h). */
+#ifndef CONFIG_FIX
+#define CONFIG_FIX 1
+#endif
+
+/* The extensions of issue 31 a build carries (docs/protocol.md, "Match play"): 1, or 0 to leave
+ * one out (the AVR's budget); its capability bit is then clear in VERSION and its messages are
+ * rejected UNSUPPORTED. */
+#ifndef CONFIG_MOTION_PAUSE
+#define CONFIG_MOTION_PAUSE 1 /* PAUSE, RESUME, MOTION */
+#endif
+#ifndef CONFIG_MOTION_SPEED_SCALE
+#define CONFIG_MOTION_SPEED_SCALE 1 /* SET_SPEED_SCALE */
+#endif
+#ifndef CONFIG_MOTION_QUEUE
+#define CONFIG_MOTION_QUEUE 1 /* APPEND */
+#endif
+#ifndef CONFIG_MOTION_CORNERS
+#define CONFIG_MOTION_CORNERS 1 /* PASS_THROUGH, SET_CORNER */
+#endif
+
+/* The capabilities of this build. */
+#define CAP_BUILD                                                                                  \
+	(CAP_ALL &                                                                                 \
+	 ~((CONFIG_FIX ? 0u : CAP_FIX) | (CONFIG_MOTION_PAUSE ? 0u : CAP_PAUSE) |                  \
+	   (CONFIG_MOTION_SPEED_SCALE ? 0u : CAP_SPEED_SCALE) |                                    \
+	   (CONFIG_MOTION_QUEUE ? 0u : CAP_QUEUE) | (CONFIG_MOTION_CORNERS ? 0u : CAP_CORNERS)))
+
+/* 1 when this build has the message's feature. */
+static inline int feature_set_has(uint8_t designation)
+{
+	return CONFIG_FIX || (designation != PROTO_SET_FIX && designation != PROTO_FIX_INFO);
+}
+
+#endif
