@@ -435,11 +435,13 @@ void board_publish(const struct planner *pl, const struct board_snapshot *p, str
 	s->reset.count = pl->reset.count;
 	s->reset.pose_lost = pl->reset.pose_lost;
 	s->reset.widened_mm = pl->reset.widened_mm;
-	s->fix.fused = pl->fix.info.fused;
-	s->fix.outliers = pl->fix.info.outliers;
-	s->fix.too_old = pl->fix.info.too_old;
-	s->fix.last = pl->fix.info.last;
-	s->fix.last_d2 = pl->fix.info.last_d2;
+	if (CONFIG_FIX) { /* FIX_INFO: a build without fixes has none to count */
+		s->fix.fused = pl->fix.info.fused;
+		s->fix.outliers = pl->fix.info.outliers;
+		s->fix.too_old = pl->fix.info.too_old;
+		s->fix.last = pl->fix.info.last;
+		s->fix.last_d2 = pl->fix.info.last_d2;
+	}
 	s->debug.end_reason = (pl->timed_out && !orders_busy(&pl->orders)) ? END_REASON_TIMEOUT
 									   : pl->orders.end_reason;
 }

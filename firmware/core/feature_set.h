@@ -27,6 +27,11 @@
 #define CONFIG_MOTION_CORNERS 1 /* PASS_THROUGH, SET_CORNER */
 #endif
 
+/* Any of match play: without one, the motion module has nothing to follow or report. */
+#define CONFIG_MOTION_ANY                                                                          \
+	(CONFIG_MOTION_PAUSE || CONFIG_MOTION_SPEED_SCALE || CONFIG_MOTION_QUEUE ||                \
+	 CONFIG_MOTION_CORNERS)
+
 /* The capabilities of this build. */
 #define CAP_BUILD                                                                                  \
 	(CAP_ALL &                                                                                 \

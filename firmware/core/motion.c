@@ -182,7 +182,7 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 	struct orders *o = &pl->orders;
 	int32_t e;
 
-	if (!mo->through)
+	if (!CONFIG_MOTION_CORNERS || !mo->through)
 		return;
 	if (!mo->running || mo->count == 0 || mo->paused || o->designation != PROTO_GOTO ||
 	    o->state != ORDER_STATE_TRANSLATE) {
@@ -236,8 +236,11 @@ static void order_ended(struct planner *pl)
 
 void motion_after(struct planner *pl)
 {
+	if (!CONFIG_MOTION_ANY)
+		return;
 	order_ended(pl);
-	update_braking(&pl->motion, &pl->orders);
+	if (CONFIG_MOTION_PAUSE) /* MOTION's braking figures: none to report without it */
+		update_braking(&pl->motion, &pl->orders);
 }
 
 /* Braking from v_um_s at PAUSE's deceleration on profile p of n_filt ticks' smoothing, with
@@ -274,6 +277,9 @@ void motion_publish(const struct planner *pl, struct proto_snapshot *s)
 	const struct motion *mo = &pl->motion;
 	const struct orders *o = &pl->orders;
 	struct proto_motion *out = &s->motion;
+
+	if (!CONFIG_MOTION_ANY)
+		return;
 	out->running_seq = mo->running ? mo->running_seq : mo->seq;
 	out->pending = mo->count;
 	out->flags = (uint8_t)((mo->paused ? PROTO_MOTION_PAUSED : 0u) |

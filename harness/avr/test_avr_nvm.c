@@ -19,8 +19,8 @@
 #include "protocol.h"
 #include "robot.h"
 
-/* The AVR's capabilities: position fixes are compiled out (CONFIG_FIX 0, docs/avr.md). */
-#define AVR_CAPS (CAP_ALL & ~CAP_FIX)
+/* The AVR's capabilities: position fixes and match play are compiled out (docs/avr.md). */
+#define AVR_CAPS (CAP_ALL & ~(CAP_FIX | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS))
 
 static const char *elf_path;
 
