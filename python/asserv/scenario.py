@@ -24,6 +24,7 @@ number), ``set_filtre_raw``, ``set_new_pos``, ``declare_pose``, ``check_busy``, 
 Opponents and timed events (docs/simulator.md, "Scenario files")::
 
     opponent -400 500 150 300 -400 -300     # X Y RADIUS_MM SPEED_MM_S, then its path [loop]
+    crossing_opponent 150 random 0 -850 600 -600 900 300   # a random path across that route
     at 2.5 press 1                          # at T (simulated s): press MASK, release,
                                             # cut_encoder L|R, restore_encoder L|R,
                                             # stick_motor L|R, free_motor L|R, battery VOLTS,
@@ -159,6 +160,7 @@ SETUP = (
     "bus_hz",
     "pec",
     "opponent",
+    "crossing_opponent",
     "robot",
 )
 
@@ -189,6 +191,8 @@ class Opponent:
     speed_mm_s: float
     path: list[tuple[float, float]]
     loop: bool
+    #: For a crossing_opponent: the route its random path crosses (x, y, path and loop unused).
+    route: list[tuple[float, float]] | None = None
 
 
 @dataclass
@@ -247,7 +251,11 @@ class Scenario:
     def prepare(self, sim: Simulator, out: Callable[[str], None] = print) -> None:
         """Put the opponents on ``sim``'s field and schedule the timed events."""
         for o in self.opponents:
-            sim.add_opponent(o.x_mm, o.y_mm, o.radius_mm, o.path, o.speed_mm_s, o.loop)
+            if o.route is not None:
+                speed = o.speed_mm_s if o.speed_mm_s > 0 else None
+                sim.add_crossing_opponent(o.route, radius_mm=o.radius_mm, speed_mm_s=speed)
+            else:
+                sim.add_opponent(o.x_mm, o.y_mm, o.radius_mm, o.path, o.speed_mm_s, o.loop)
         for ev in self.events:
             sim.at(ev.t_s, _event_action(ev, out))
 
@@ -407,6 +415,28 @@ def parse(
                         if where_ and where_.startswith("off"):
                             raise fail(f"opponent: ({px:g}, {py:g}) is {where_}")
                     scn.opponents.append(Opponent(n, x, y, r, v, path, loop))
+                elif cmd == "crossing_opponent":
+                    usage = "crossing_opponent RADIUS_MM SPEED_MM_S|random X_MM Y_MM X_MM Y_MM..."
+                    if len(rest) < 6:
+                        raise fail(f"crossing_opponent takes {usage} (the route it crosses)")
+                    r = _num(rest[0])
+                    v = 0.0 if rest[1].lower() == "random" else _num(rest[1])
+                    if not (0 < r < 1000 and (v > 0 or rest[1].lower() == "random")):
+                        raise fail(
+                            f"crossing_opponent: the radius and the speed must be > 0 ({usage})"
+                        )
+                    route, loop = _path(rest[2:])
+                    if loop:
+                        raise fail(f"crossing_opponent: its path loops already ({usage})")
+                    for px, py in route:
+                        where_ = _inside(scn.field, px, py) if scn.field.borders else None
+                        if where_ and where_.startswith("off"):
+                            raise fail(f"crossing_opponent: ({px:g}, {py:g}) is {where_}")
+                    if len(route) < 2 or len(set(route)) < 2:
+                        raise fail(
+                            f"crossing_opponent: the route needs two distinct points ({usage})"
+                        )
+                    scn.opponents.append(Opponent(n, 0.0, 0.0, r, v, [], True, route))
                 elif cmd == "start_uncertainty":
                     if len(rest) != 2:
                         raise fail(

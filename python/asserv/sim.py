@@ -29,6 +29,7 @@ import numpy as np
 from . import field as fieldmod
 from ._core import ffi, lib
 from .bus import VirtualBus
+from .lidar import LIDAR, LidarScan, Target, crossing_path, scan_targets
 
 #: The columns of ``Simulator.trace``, in the order of ``struct host_sample`` (host.h).
 TRACE_FIELDS = (
@@ -322,6 +323,11 @@ class Simulator:
         self._event_seq = itertools.count()
         self.bus = VirtualBus({address: self}, clock=self)
         self._proto = ffi.addressof(self._h.board, "proto")
+        self.seed = seed
+        #: The obstacles the lidar sees (the opponents, the other robots of an Arena).
+        self.lidar_targets: set[int] = set()
+        self._scan: LidarScan | None = None
+        self._crossings = 0
 
     # ---- time -------------------------------------------------------------------------------
     #: Sleeping on this clock runs the simulation (asserv.bus.clock_of, Board.sleep).
@@ -651,6 +657,78 @@ class Simulator:
         self.set_opponent_path(i, path, speed_mm_s, loop)
         return i
 
+    def add_crossing_opponent(
+        self,
+        route: Sequence[tuple[float, float]],
+        *,
+        radius_mm: float = 150.0,
+        speed_mm_s: float | None = None,
+        crossings: int = 4,
+        keep_clear: Sequence[tuple[float, float, float]] = (),
+        seed: int | None = None,
+    ) -> int:
+        """An opponent on a random looping path that crosses ``route`` (our robot's, a
+        polyline) ``crossings`` times, at 45 to 135 degrees (``asserv.lidar.crossing_path``),
+        at ``speed_mm_s`` (default: drawn within 200..400 mm/s). It starts at its path's first
+        point. The draw comes from ``seed`` (default: the simulator's seed and the number of
+        crossing opponents added before): the same call on the same simulator gives the same
+        opponent. ``keep_clear``: points (x, y, r) its runs stay r away from (a start area).
+        Returns its obstacle index."""
+        if speed_mm_s is not None and not 0 < speed_mm_s < 1e6:
+            raise ValueError(f"add_crossing_opponent: speed_mm_s must be > 0, not {speed_mm_s}")
+        if not 0 < radius_mm < 1000:
+            raise ValueError(f"add_crossing_opponent: radius_mm must be 0..1000, not {radius_mm}")
+        rng = np.random.default_rng([self.seed if seed is None else seed, 0xC2055, self._crossings])
+        fl = self.field
+        path = crossing_path(
+            route,
+            rng,
+            length_mm=fl.length_mm,
+            width_mm=fl.width_mm,
+            radius_mm=radius_mm,
+            crossings=crossings,
+            keep_clear=keep_clear,
+        )
+        speed = float(rng.uniform(200, 400)) if speed_mm_s is None else speed_mm_s
+        self._crossings += 1
+        return self.add_opponent(*path[0], radius_mm, path[1:] + path[:1], speed, loop=True)
+
+    # ---- the lidar (asserv.lidar) ---------------------------------------------------------------
+    def lidar(self) -> LidarScan:
+        """What the robot's lidar (``asserv.lidar.LIDAR``) saw of the opponents in its last full
+        scan. The first call switches it on: a scan is taken then, and every 1 / scan_hz s of
+        simulated time after (timed events, as ``at``). Between two scans the same scan is
+        returned; its ``t_s`` says when it was taken."""
+        if self._scan is None:
+            self._take_scan(0, self.time_s)
+        assert self._scan is not None
+        return self._scan
+
+    def lidar_view(self) -> list[Target]:
+        """What the lidar can see now, where it truly is (for tests and views)."""
+        f = self._h.sim.field
+        out = []
+        for i in sorted(self.lidar_targets):
+            o = f.obstacles[i]
+            out.append(
+                Target(
+                    o.x_mm,
+                    o.y_mm,
+                    o.radius_mm if o.shape == lib.SIM_SHAPE_CIRCLE else 0.0,
+                    o.half_x_mm if o.shape == lib.SIM_SHAPE_BOX else 0.0,
+                    o.half_y_mm if o.shape == lib.SIM_SHAPE_BOX else 0.0,
+                    math.degrees(o.heading_rad),
+                )
+            )
+        return out
+
+    def _take_scan(self, index: int, t0_s: float) -> None:
+        x, y, h = self.true_pose()
+        rng = np.random.default_rng([self.seed, 0x11DA2, index])
+        self._scan = LidarScan(self.time_s, index, scan_targets(x, y, h, self.lidar_view(), rng))
+        nxt = t0_s + (index + 1) / LIDAR.scan_hz
+        self.at(nxt, lambda s: s._take_scan(index + 1, t0_s))
+
     def set_opponent_path(
         self,
         i: int,
@@ -671,6 +749,7 @@ class Simulator:
                 f"set_opponent_path: speed {speed_mm_s} must be > 0 and the points finite"
                 f" (and at most {lib.SIM_MAX_OPPONENTS} opponents)"
             )
+        self.lidar_targets.add(i)
 
     def _obstacle_index(self, i: int) -> None:
         n = int(self._h.sim.field.obstacle_count)
