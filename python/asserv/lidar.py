@@ -226,3 +226,74 @@ def _line_clear(
     vx, vy = bx - ax, by - ay
     t = max(0.0, min(1.0, ((x - ax) * vx + (y - ay) * vy) / (vx * vx + vy * vy)))
     return math.hypot(ax + t * vx - x, ay + t * vy - y) > r
+
+
+def outline_gap(
+    cx: float, cy: float, r: float, x: float, y: float, heading_deg: float, hl: float, hw: float
+) -> tuple[float, float, float]:
+    """The gap (mm) between the disc (cx, cy, r) and a box of half length hl and half width hw
+    centred at (x, y) turned by heading_deg, and the box's point nearest the disc's centre."""
+    c, s = math.cos(math.radians(heading_deg)), math.sin(math.radians(heading_deg))
+    lx, ly = (cx - x) * c + (cy - y) * s, -(cx - x) * s + (cy - y) * c
+    nx, ny = max(-hl, min(hl, lx)), max(-hw, min(hw, ly))
+    gap = math.hypot(lx - nx, ly - ny) - r
+    return gap, x + nx * c - ny * s, y + nx * s + ny * c
+
+
+class Yielding:
+    """An opponent that, as every Eurobot robot must, stops for what is ahead of it: while our
+    robot's outline is within ``gap_mm`` of its disc, less than 90 degrees off its direction of
+    travel, it stands; it goes on along its loop once the gap is ``gap_mm`` + 50 mm or our robot
+    is no longer ahead. It does not stop for a robot that comes at its side or its back.
+    ``Simulator.add_crossing_opponent`` runs it every 10 ms of simulated time."""
+
+    PERIOD_S = 0.01
+
+    def __init__(
+        self, index: int, path: list[tuple[float, float]], speed_mm_s: float, gap_mm: float
+    ) -> None:
+        self.index, self.path, self.speed_mm_s, self.gap_mm = index, path, speed_mm_s, gap_mm
+        self.next = 0  # the point of path it heads for
+        self.standing = False
+        self.stops = 0  # how many times it stood for our robot
+
+    def _track(self, ox: float, oy: float) -> None:
+        """Follow which point it heads for: it is on the run from the previous point to it."""
+        n = len(self.path)
+        for _ in range(n):
+            (ax, ay), (bx, by) = self.path[self.next - 1], self.path[self.next]
+            vx, vy = bx - ax, by - ay
+            t = ((ox - ax) * vx + (oy - ay) * vy) / max(vx * vx + vy * vy, 1e-12)
+            on = math.hypot(ax + t * vx - ox, ay + t * vy - oy) < 1.0
+            if on and -1e-6 <= t < 1 - 1e-9:
+                return
+            self.next = (self.next + 1) % n
+
+    def step(self, sim: object) -> None:
+        from .sim import Simulator
+
+        assert isinstance(sim, Simulator)
+        ox, oy = sim.obstacles()[self.index]
+        if not self.standing:
+            self._track(ox, oy)
+        bx, by = self.path[self.next]
+        heading = math.atan2(by - oy, bx - ox)
+        cfg = sim.config
+        x, y, h = sim.drive_pose()
+        c, s = math.cos(math.radians(h)), math.sin(math.radians(h))
+        x += cfg.outline_offset_x_mm * c - cfg.outline_offset_y_mm * s
+        y += cfg.outline_offset_x_mm * s + cfg.outline_offset_y_mm * c
+        r = sim.opponent_radius(self.index)
+        gap, px, py = outline_gap(
+            ox, oy, r, x, y, h, cfg.outline_length_mm / 2, cfg.outline_width_mm / 2
+        )
+        ahead = (px - ox) * math.cos(heading) + (py - oy) * math.sin(heading) > 0
+        if not self.standing and ahead and gap < self.gap_mm:
+            self.standing = True
+            self.stops += 1
+            sim.set_opponent_path(self.index, [], self.speed_mm_s)
+        elif self.standing and (gap > self.gap_mm + 50 or not ahead):
+            self.standing = False
+            rest = self.path[self.next :] + self.path[: self.next]
+            sim.set_opponent_path(self.index, rest, self.speed_mm_s, loop=True)
+        sim.at(sim.time_s + self.PERIOD_S, self.step)

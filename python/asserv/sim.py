@@ -29,7 +29,7 @@ import numpy as np
 from . import field as fieldmod
 from ._core import ffi, lib
 from .bus import VirtualBus
-from .lidar import LIDAR, LidarScan, Target, crossing_path, scan_targets
+from .lidar import LIDAR, LidarScan, Target, Yielding, crossing_path, scan_targets
 
 #: The columns of ``Simulator.trace``, in the order of ``struct host_sample`` (host.h).
 TRACE_FIELDS = (
@@ -328,6 +328,8 @@ class Simulator:
         self.lidar_targets: set[int] = set()
         self._scan: LidarScan | None = None
         self._crossings = 0
+        #: The crossing opponents that stop for our robot, by obstacle index.
+        self.yielding: dict[int, Yielding] = {}
 
     # ---- time -------------------------------------------------------------------------------
     #: Sleeping on this clock runs the simulation (asserv.bus.clock_of, Board.sleep).
@@ -666,6 +668,7 @@ class Simulator:
         crossings: int = 4,
         keep_clear: Sequence[tuple[float, float, float]] = (),
         seed: int | None = None,
+        yield_mm: float | None = 100.0,
     ) -> int:
         """An opponent on a random looping path that crosses ``route`` (our robot's, a
         polyline) ``crossings`` times, at 45 to 135 degrees (``asserv.lidar.crossing_path``),
@@ -673,7 +676,11 @@ class Simulator:
         point. The draw comes from ``seed`` (default: the simulator's seed and the number of
         crossing opponents added before): the same call on the same simulator gives the same
         opponent. ``keep_clear``: points (x, y, r) its runs stay r away from (a start area).
-        Returns its obstacle index."""
+        ``yield_mm``: it stops while our robot is that close ahead of it, as a real opponent
+        with its own lidar would (``asserv.lidar.Yielding``; None: it never stops). Returns its
+        obstacle index."""
+        if yield_mm is not None and not 0 <= yield_mm < 1000:
+            raise ValueError(f"add_crossing_opponent: yield_mm must be 0..1000, not {yield_mm}")
         if speed_mm_s is not None and not 0 < speed_mm_s < 1e6:
             raise ValueError(f"add_crossing_opponent: speed_mm_s must be > 0, not {speed_mm_s}")
         if not 0 < radius_mm < 1000:
@@ -691,7 +698,18 @@ class Simulator:
         )
         speed = float(rng.uniform(200, 400)) if speed_mm_s is None else speed_mm_s
         self._crossings += 1
-        return self.add_opponent(*path[0], radius_mm, path[1:] + path[:1], speed, loop=True)
+        loop = path[1:] + path[:1]
+        i = self.add_opponent(*path[0], radius_mm, loop, speed, loop=True)
+        if yield_mm is not None:
+            y = Yielding(i, loop, speed, yield_mm)
+            self.yielding[i] = y
+            self.at(self.time_s, y.step)
+        return i
+
+    def opponent_radius(self, i: int) -> float:
+        """The radius of obstacle ``i`` (a disc), mm."""
+        self._obstacle_index(i)
+        return float(self._h.sim.field.obstacles[i].radius_mm)
 
     # ---- the lidar (asserv.lidar) ---------------------------------------------------------------
     def lidar(self) -> LidarScan:

@@ -256,3 +256,61 @@ def test_the_scenario_command() -> None:
     ):
         with pytest.raises(ScenarioError, match=r"<scenario>:1:"):
             parse(bad + "goto 600 -600\n")
+
+
+def _gap(sim: Simulator, i: int) -> float:
+    """The gap between opponent i's disc and our robot's outline, from the truth."""
+    ox, oy = sim.obstacles()[i]
+    x, y, h = sim.drive_pose()
+    c, s = math.cos(math.radians(h)), math.sin(math.radians(h))
+    lx, ly = (ox - x) * c + (oy - y) * s, -(ox - x) * s + (oy - y) * c
+    cfg = sim.config
+    dx = max(abs(lx - cfg.outline_offset_x_mm) - cfg.outline_length_mm / 2, 0.0)
+    dy = max(abs(ly - cfg.outline_offset_y_mm) - cfg.outline_width_mm / 2, 0.0)
+    return math.hypot(dx, dy) - sim.opponent_radius(i)
+
+
+ROUTE = [(-900, -400), (-300, 300), (400, -200), (900, 400)]
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**32), where=st.floats(0, 1), heading=st.floats(-180, 180))
+def test_yielding_property_a_crossing_opponent_stops_for_a_standing_robot(
+    seed: int, where: float, heading: float
+) -> None:
+    """Our robot stands on the route the opponent crosses: the opponent never touches it (it
+    stops about yield_mm away, to within its travel in 10 ms)."""
+    sim = Simulator(seed=seed, record=False)
+    k = min(int(where * 3), 2)
+    f = where * 3 - k
+    (ax, ay), (bx, by) = ROUTE[k], ROUTE[k + 1]
+    sim.place(ax + f * (bx - ax), ay + f * (by - ay), heading)
+    i = sim.add_crossing_opponent(ROUTE, crossings=8)
+    gaps: list[float] = []
+
+    def watch(s: Simulator) -> None:
+        gaps.append(_gap(s, i))
+        s.at(s.time_s + 0.005, watch)
+
+    sim.at(0.0, watch)
+    sim.advance(40.0)
+    assert min(gaps) > 100 - 0.4 * 10 - 1e-6  # 400 mm/s at most, checked every 10 ms
+
+
+def test_a_blind_crossing_opponent_may_touch_a_standing_robot() -> None:
+    """Without yielding the same opponents do touch (the test above can fail)."""
+    touched = 0
+    for seed in range(6):
+        sim = Simulator(seed=seed, record=False)
+        sim.place(-300, 300, 45)
+        i = sim.add_crossing_opponent(ROUTE, crossings=8, yield_mm=None)
+        gaps: list[float] = []
+
+        def watch(s: Simulator, i: int = i, gaps: list[float] = gaps) -> None:
+            gaps.append(_gap(s, i))
+            s.at(s.time_s + 0.01, watch)
+
+        sim.at(0.0, watch)
+        sim.advance(40.0)
+        touched += min(gaps) < 1
+    assert touched >= 1
