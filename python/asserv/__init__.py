@@ -13,6 +13,7 @@ from .codec import (
     Debug,
     FrameError,
     LastReject,
+    Motion,
     PecError,
     Pose,
     Version,
@@ -30,6 +31,7 @@ from .driver import (
     NoAcknowledge,
     OrderRejected,
     PecMismatch,
+    Unsupported,
 )
 
 try:
@@ -52,6 +54,7 @@ __all__ = [
     "GotoOption",
     "I2CDevice",
     "LastReject",
+    "Motion",
     "NoAcknowledge",
     "OrderRejected",
     "OrderState",
@@ -61,6 +64,7 @@ __all__ = [
     "ProtocolDevice",
     "Reject",
     "Status",
+    "Unsupported",
     "Version",
     "VirtualBus",
     "__version__",

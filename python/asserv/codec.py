@@ -10,7 +10,7 @@ from __future__ import annotations
 import difflib
 import math
 from dataclasses import dataclass, fields
-from typing import Final
+from typing import Final, NamedTuple
 
 from ._protocol import (
     ADDRESS,
@@ -295,7 +295,30 @@ class Debug:
     end_reason: EndReason
 
 
-Reply = Status | Pose | int | Version | LastReject | Debug
+class Motion(NamedTuple):
+    """MOTION (extension, docs/protocol.md): the queue, the pause and the braking distance, in
+    one reply a master can read every cycle."""
+
+    running_seq: int  # sequence number of the running order (8 bits, wrapping)
+    pending: int  # orders waiting behind it
+    flags: int  # bit 0 paused, bit 1 an order runs
+    last_seq: int  # sequence number of the order that ended last
+    last_end: EndReason  # how it ended
+    braking_mm: int  # distance to rest at the present speed and limits
+    braking_ms: int  # time to rest
+    scale_percent: int  # the speed scale (SET_SPEED_SCALE)
+
+    @property
+    def paused(self) -> bool:
+        return bool(self.flags & 1)
+
+    @property
+    def running(self) -> bool:
+        """An order runs (paused or not)."""
+        return bool(self.flags & 2)
+
+
+Reply = Status | Pose | int | Version | LastReject | Debug | Motion
 
 
 class PecError(ValueError):
@@ -359,6 +382,18 @@ def decode_reply(
             order_state=OrderState(v["order_state"]),
             end_reason=EndReason(v["end_reason"]),
         )
+    if msg.name == "MOTION":
+        v = dict(zip((f.name for f in msg.reply), values, strict=True))
+        return Motion(
+            running_seq=v["running_seq"],
+            pending=v["pending"],
+            flags=v["flags"],
+            last_seq=v["last_seq"],
+            last_end=EndReason(v["last_end"]),
+            braking_mm=v["braking_mm"],
+            braking_ms=v["braking_ms"],
+            scale_percent=v["scale_percent"],
+        )
     raise AssertionError(f"no decoder for {msg.name}")  # the table check keeps this unreachable
 
 
@@ -366,4 +401,6 @@ def reply_fields(reply: Reply) -> dict[str, int]:
     """The reply's values by table field name, for printing and for comparing with the table."""
     if isinstance(reply, Pose | Version | LastReject | Debug):
         return {f.name: int(getattr(reply, f.name)) for f in fields(reply)}
+    if isinstance(reply, Motion):
+        return {k: int(v) for k, v in reply._asdict().items()}
     return {"value": int(reply)}

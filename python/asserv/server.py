@@ -9,6 +9,7 @@ line per request and one per reply (docs/simulator.md, "The simulator server"):
     sleep S                        ok T                     (after S simulated seconds)
     truth                          ok T X Y HEADING         (the true pose, for a live view)
     obstacles                      ok X,Y X,Y ...           (baskets, obstacles, opponents)
+    lidar                          ok T N B,R B,R ...       (the last lidar scan: asserv.lidar)
     rdwr w02:0400c80064 r02:1      ok 05                    (one I2C_RDWR transaction)
     (anything wrong)               err ERRNO TEXT
 
@@ -46,6 +47,7 @@ from .bus import I2C_M_RD, I2C_RDWR_MAX_MSGS
 from .driver import bus_lock
 
 if TYPE_CHECKING:
+    from .lidar import LidarScan
     from .sim import Simulator
 
 __all__ = ["PROTOCOL_VERSION", "RemoteBus", "RemoteClock", "SimServer", "parse_address"]
@@ -253,6 +255,11 @@ class SimServer:
                 with self.lock:
                     where = self.sim.obstacles()
                 return "ok" + "".join(f" {x:.3f},{y:.3f}" for x, y in where)
+            if cmd == "lidar":
+                with self.lock:
+                    scan = self.sim.lidar()
+                hits = "".join(f" {h.bearing_deg:g},{h.range_mm:.1f}" for h in scan.hits)
+                return f"ok {scan.t_s:.9f} {scan.number}{hits}"
             if cmd == "rdwr":
                 ops = decode_rdwr(words[1:])
                 with self.lock:
@@ -262,7 +269,7 @@ class SimServer:
                         return f"err {e.errno or errno.EIO} {e.strerror or e}"
                 return "ok" + "".join(" " + (r.hex() or "-") for r in reads)
             raise ProtocolError(
-                f"unknown request {words[0]!r} (hello, time, sleep, truth, obstacles, rdwr)"
+                f"unknown request {words[0]!r} (hello, time, sleep, truth, obstacles, lidar, rdwr)"
             )
         except ProtocolError as e:
             return f"err {errno.EINVAL} {e}"
@@ -354,6 +361,17 @@ class RemoteBus:
             x, _, y = w.partition(",")
             out.append((float(x), float(y)))
         return out
+
+    def lidar(self) -> LidarScan:
+        """The simulated robot's last lidar scan (``Simulator.lidar``)."""
+        from .lidar import LidarHit, LidarScan
+
+        words = self.request("lidar").split()
+        hits = []
+        for w in words[2:]:
+            b, _, r = w.partition(",")
+            hits.append(LidarHit(float(b), float(r)))
+        return LidarScan(float(words[0]), int(words[1]), tuple(hits))
 
     def close(self) -> None:
         if self.closed:

@@ -314,3 +314,18 @@ def test_a_blind_crossing_opponent_may_touch_a_standing_robot() -> None:
         sim.advance(40.0)
         touched += min(gaps) < 1
     assert touched >= 1
+
+
+def test_the_server_gives_the_same_scan() -> None:
+    from asserv.server import RemoteBus, SimServer
+
+    sim = Simulator(seed=2, record=False)
+    sim.add_crossing_opponent(ROUTE)
+    with SimServer(sim, "127.0.0.1", 0, speed=0) as server, RemoteBus(*server.address) as bus:
+        bus.clock.sleep(0.35)
+        remote, local = bus.lidar(), sim.lidar()
+    assert (remote.t_s, remote.number) == (pytest.approx(local.t_s, abs=1e-9), local.number)
+    assert len(remote.hits) == len(local.hits) > 0
+    for r, h in zip(remote.hits, local.hits, strict=True):
+        assert r.bearing_deg == h.bearing_deg
+        assert r.range_mm == pytest.approx(h.range_mm, abs=0.05)
