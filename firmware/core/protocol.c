@@ -35,6 +35,14 @@ uint8_t proto_crc8(uint8_t crc, const uint8_t *data, uint8_t n)
 	return crc;
 }
 
+/* An order that replaces or ends the running one: until the core publishes it, the status shows
+ * it (pending_status). PAUSE and RESUME keep the running order and its status. */
+static int replaces(const struct proto_msg_desc *d)
+{
+	return d->kind == PROTO_KIND_ORDRE && d->designation != PROTO_PAUSE &&
+	       d->designation != PROTO_RESUME;
+}
+
 static uint8_t crc_of_byte(uint8_t b)
 {
 	return crc8_byte(0, b);
@@ -92,7 +100,8 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 	case PROTO_VERSION:
 		out[n++] = PROTO_VERSION_MAJOR;
 		out[n++] = PROTO_VERSION_MINOR;
-		n += put_u16(&out[n], (uint16_t)(CAP_ALL | (s->calibrated ? CAP_CALIBRATED : 0u)));
+		n += put_u16(&out[n],
+			     (uint16_t)(PROTO_CAPS | (s->calibrated ? CAP_CALIBRATED : 0u)));
 		break;
 	case PROTO_LAST_REJECT:
 		out[n++] = p->last_reject;
@@ -112,6 +121,16 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 		n += put_u16(&out[n], (uint16_t)d->current_right_ma);
 		out[n++] = d->order_state;
 		out[n++] = d->end_reason;
+		break;
+	case PROTO_MOTION:
+		out[n++] = s->motion.running_seq;
+		out[n++] = s->motion.pending;
+		out[n++] = s->motion.flags;
+		out[n++] = s->motion.last_seq;
+		out[n++] = s->motion.last_end;
+		n += put_u16(&out[n], s->motion.braking_mm);
+		n += put_u16(&out[n], s->motion.braking_ms);
+		out[n++] = s->motion.scale_percent;
 		break;
 	default:
 		break;
@@ -171,6 +190,44 @@ static uint8_t decode_params(const struct proto *p, const struct proto_msg_desc 
 	return REJECT_NONE;
 }
 
+/* The options byte of a motion order, 0 when it has none. */
+static uint8_t options_of(const struct proto_msg *m)
+{
+	switch (m->designation) {
+	case PROTO_GOTO:
+		return (uint8_t)m->arg[ARG_GOTO_OPTIONS];
+	case PROTO_GOTO_REVERSE:
+		return (uint8_t)m->arg[ARG_GOTO_REVERSE_OPTIONS];
+	case PROTO_GOTO_PANIER:
+		return (uint8_t)m->arg[ARG_GOTO_PANIER_OPTIONS];
+	default:
+		return 0;
+	}
+}
+
+/* The checks of issue 31's extensions (docs/protocol.md, "Match play"), after the table's:
+ * what this build leaves out, options that cannot combine, an APPEND the motion queue has no
+ * room for. Returns 0 or a REJECT_ code. */
+static uint8_t check_motion(const struct proto *p, const struct proto_msg *m)
+{
+	uint8_t opt = options_of(m);
+	uint8_t d = m->designation;
+
+	if ((!CONFIG_MOTION_PAUSE &&
+	     (d == PROTO_PAUSE || d == PROTO_RESUME || d == PROTO_MOTION)) ||
+	    (!CONFIG_MOTION_SPEED_SCALE && d == PROTO_SET_SPEED_SCALE) ||
+	    (!CONFIG_MOTION_QUEUE && (opt & PROTO_OPT_APPEND)) ||
+	    (!CONFIG_MOTION_CORNERS && (d == PROTO_SET_CORNER || (opt & PROTO_OPT_PASS_THROUGH))))
+		return REJECT_UNSUPPORTED;
+	if ((opt & PROTO_OPT_PASS_THROUGH) && (opt & PROTO_OPT_RECAL))
+		return REJECT_BAD_OPTIONS;
+	if ((opt & PROTO_OPT_APPEND) &&
+	    (uint8_t)(p->appends_in - published(p)->motion.appends_done) >=
+		    PROTO_MOTION_QUEUE_DEPTH)
+		return REJECT_MOTION_QUEUE_FULL;
+	return REJECT_NONE;
+}
+
 static void select_reply(struct proto *p, uint8_t designation)
 {
 	p->selected = designation;
@@ -215,6 +272,8 @@ static void end_write(struct proto *p)
 		return;
 	}
 	reason = decode_params(p, d, n_params, &m);
+	if (reason == REJECT_NONE)
+		reason = check_motion(p, &m);
 	if (reason != REJECT_NONE) {
 		reject(p, reason);
 		return;
@@ -236,11 +295,13 @@ static void end_write(struct proto *p)
 	p->queue[p->head % PROTO_QUEUE_DEPTH] = m;
 	p->head++;
 	p->rejected = 0;
-	if (d->kind == PROTO_KIND_ORDRE) {
+	if (replaces(d)) {
 		p->pending_status = STATUS_BUSY_TRAJET;
 		if (d->designation == PROTO_GOTO_PANIER)
 			p->pending_status |= STATUS_BUSY_GOTO_PANIER;
 		p->orders_in++;
+		if (options_of(&m) & PROTO_OPT_APPEND)
+			p->appends_in++;
 	}
 }
 
@@ -361,7 +422,7 @@ int proto_poll(struct proto *p, struct proto_msg *out)
 		return 0;
 	*out = p->queue[t % PROTO_QUEUE_DEPTH];
 	p->tail = (uint8_t)(t + 1u);
-	if (proto_lookup(out->designation)->kind == PROTO_KIND_ORDRE)
+	if (replaces(proto_lookup(out->designation)))
 		p->orders_taken++;
 	return 1;
 }

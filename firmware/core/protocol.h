@@ -40,6 +40,51 @@ struct proto_debug {
 	uint8_t end_reason;
 };
 
+/* The extensions of issue 31 a build carries (docs/protocol.md, "Match play"): 1, or 0 to leave
+ * one out (the AVR's budget); its capability bit is then clear in VERSION and its messages are
+ * rejected UNSUPPORTED. */
+#ifndef CONFIG_MOTION_PAUSE
+#define CONFIG_MOTION_PAUSE 1 /* PAUSE, RESUME, MOTION */
+#endif
+#ifndef CONFIG_MOTION_SPEED_SCALE
+#define CONFIG_MOTION_SPEED_SCALE 1 /* SET_SPEED_SCALE */
+#endif
+#ifndef CONFIG_MOTION_QUEUE
+#define CONFIG_MOTION_QUEUE 1 /* APPEND */
+#endif
+#ifndef CONFIG_MOTION_CORNERS
+#define CONFIG_MOTION_CORNERS 1 /* PASS_THROUGH, SET_CORNER */
+#endif
+#define PROTO_CAPS                                                                                 \
+	(CAP_ALL &                                                                                 \
+	 ~((CONFIG_MOTION_PAUSE ? 0u : CAP_PAUSE) |                                                \
+	   (CONFIG_MOTION_SPEED_SCALE ? 0u : CAP_SPEED_SCALE) |                                    \
+	   (CONFIG_MOTION_QUEUE ? 0u : CAP_QUEUE) | (CONFIG_MOTION_CORNERS ? 0u : CAP_CORNERS)))
+
+/* The options of the motion orders (GOTO's bits 2 and 3; GOTO_REVERSE's and GOTO_PANIER's
+ * bit 2). */
+#define PROTO_OPT_APPEND 0x04u
+#define PROTO_OPT_PASS_THROUGH 0x08u
+#define PROTO_OPT_RECAL 0x03u /* GOTO's recalibrations: never with PASS_THROUGH */
+
+/* What MOTION reads (protocol/messages.toml gives units), and what the interrupt needs of the
+ * motion queue to refuse an APPEND that would not fit. */
+struct proto_motion {
+	uint8_t running_seq;
+	uint8_t pending;
+	uint8_t flags; /* PROTO_MOTION_* */
+	uint8_t last_seq;
+	uint8_t last_end;
+	uint16_t braking_mm;
+	uint16_t braking_ms;
+	uint8_t scale_percent;
+	uint8_t appends_done; /* APPEND orders that left the queue (started or dropped), wrapping */
+};
+
+#define PROTO_MOTION_QUEUE_DEPTH 8 /* orders that can wait behind the running one */
+#define PROTO_MOTION_PAUSED 0x01u
+#define PROTO_MOTION_RUNNING 0x02u
+
 /* Everything a reply can carry, all of one control tick. */
 struct proto_snapshot {
 	int16_t x_mm;
@@ -51,6 +96,7 @@ struct proto_snapshot {
 	/* An odometry calibration is installed: VERSION's CAP_CALIBRATED. */
 	uint8_t calibrated;
 	struct proto_debug debug;
+	struct proto_motion motion;
 };
 
 struct proto {
@@ -84,6 +130,9 @@ struct proto {
 	uint8_t orders_taken;              /* core side */
 	volatile uint8_t orders_published; /* core side, read by the interrupt */
 	uint8_t pending_status;            /* busy bits of the last accepted order */
+	/* APPEND orders accepted, wrapping: with the snapshot's motion.appends_done, how full the
+	 * motion queue may be (an upper bound: the core may have started or dropped more). */
+	uint8_t appends_in;
 
 	/* Queue: the interrupt advances head, the core advances tail (free-running counters). */
 	struct proto_msg queue[PROTO_QUEUE_DEPTH];

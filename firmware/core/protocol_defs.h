@@ -11,7 +11,7 @@
 #define PROTO_QUEUE_DEPTH 8
 #define PROTO_MAX_PARAMS 3
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 17
+#define PROTO_N_MSGS 22
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -31,6 +31,11 @@
 #define PROTO_LAST_REJECT 14 /* extension */
 #define PROTO_SET_TIMEOUT 15 /* extension */
 #define PROTO_SET_ODOMETRIE 16 /* extension */
+#define PROTO_PAUSE 17 /* extension */
+#define PROTO_RESUME 18 /* extension */
+#define PROTO_SET_SPEED_SCALE 19 /* extension */
+#define PROTO_MOTION 20 /* extension */
+#define PROTO_SET_CORNER 21 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -48,8 +53,12 @@
 #define CAP_LAST_REJECT (1u << 2) /* the LAST_REJECT reply */
 #define CAP_DEBUG (1u << 3) /* the DEBUG telemetry frame */
 #define CAP_TIMEOUT (1u << 4) /* the SET_TIMEOUT setting: the robot stops when the master goes silent */
+#define CAP_PAUSE (1u << 6) /* PAUSE, RESUME and the MOTION reply, with sequence numbers */
+#define CAP_SPEED_SCALE (1u << 7) /* the SET_SPEED_SCALE setting */
+#define CAP_QUEUE (1u << 8) /* the motion queue: the APPEND option of GOTO, GOTO_REVERSE and GOTO_PANIER */
+#define CAP_CORNERS (1u << 9) /* GOTO's PASS_THROUGH option and the SET_CORNER setting */
 #define CAP_CALIBRATED (1u << 5) /* an odometry calibration is installed (SET_ODOMETRIE, or the one the board kept: docs/calibration.md) */
-#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT) /* the features; a state bit is set while it holds */
+#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS) /* the features; a state bit is set while it holds */
 
 /* reject codes. */
 #define REJECT_NONE 0 /* no write rejected since reset */
@@ -61,6 +70,9 @@
 #define REJECT_REFUSED_PB_GRAVE 6 /* an order was sent while PB_GRAVE is set */
 #define REJECT_QUEUE_FULL 7 /* more writes than the board can take before its next control tick */
 #define REJECT_ABORTED 8 /* the write was cut short by a bus error */
+#define REJECT_MOTION_QUEUE_FULL 9 /* an APPEND order found the motion queue full: nothing queued is lost (extension) */
+#define REJECT_BAD_OPTIONS 10 /* GOTO options that cannot combine: a recalibration with PASS_THROUGH (extension) */
+#define REJECT_UNSUPPORTED 11 /* a message of an extension this build leaves out (its capability bit is clear) */
 
 /* filter codes. */
 #define FILTRE_STD 0 /* standard gains for trajectories */
@@ -94,7 +106,9 @@
 #define ARG_GOTO_Y_MM 1
 #define ARG_GOTO_OPTIONS 2
 #define ARG_GOTO_REVERSE_DISTANCE_MM 0
+#define ARG_GOTO_REVERSE_OPTIONS 1
 #define ARG_GOTO_PANIER_ANGLE_2DEG 0
+#define ARG_GOTO_PANIER_OPTIONS 1
 #define ARG_SET_VITESSE_TRAJ_SPEED_CM_S 0
 #define ARG_SET_VITESSE_TRAJ_ACCEL_CM_S2 1
 #define ARG_SET_VITESSE_ROT_SPEED_CM_S 0
@@ -110,6 +124,8 @@
 #define ARG_SET_ODOMETRIE_RATIO_PPM 0
 #define ARG_SET_ODOMETRIE_TRACK_10UM 1
 #define ARG_SET_ODOMETRIE_SCALE_PPM 2
+#define ARG_SET_SPEED_SCALE_PERCENT 0
+#define ARG_SET_CORNER_TOLERANCE_MM 0
 
 /* Reply lengths [bytes], without PEC. */
 #define PROTO_CHECK_BUSY_REPLY_LEN 1
@@ -117,6 +133,7 @@
 #define PROTO_INFO_CHOC_REPLY_LEN 1
 #define PROTO_VERSION_REPLY_LEN 4
 #define PROTO_LAST_REJECT_REPLY_LEN 3
+#define PROTO_MOTION_REPLY_LEN 10
 #define PROTO_DEBUG_REPLY_LEN 22
 
 enum proto_type { PROTO_U8, PROTO_S8, PROTO_U16, PROTO_S16 };

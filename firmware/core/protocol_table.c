@@ -6,9 +6,11 @@
 const struct proto_param_desc proto_params[] = {
 	{-32000, 32000, PROTO_S16, 0x00}, /* GOTO.x_mm */
 	{-32000, 32000, PROTO_S16, 0x00}, /* GOTO.y_mm */
-	{0, 255, PROTO_U8, 0x03}, /* GOTO.options */
+	{0, 255, PROTO_U8, 0x0f}, /* GOTO.options */
 	{0, 255, PROTO_U8, 0x00}, /* GOTO_REVERSE.distance_mm */
+	{0, 255, PROTO_U8, 0x04}, /* GOTO_REVERSE.options */
 	{-90, 90, PROTO_S8, 0x00}, /* GOTO_PANIER.angle_2deg */
+	{0, 255, PROTO_U8, 0x04}, /* GOTO_PANIER.options */
 	{1, 255, PROTO_U8, 0x00}, /* SET_VITESSE_TRAJ.speed_cm_s */
 	{1, 255, PROTO_U8, 0x00}, /* SET_VITESSE_TRAJ.accel_cm_s2 */
 	{1, 255, PROTO_U8, 0x00}, /* SET_VITESSE_ROT.speed_cm_s */
@@ -24,26 +26,33 @@ const struct proto_param_desc proto_params[] = {
 	{-30000, 30000, PROTO_S16, 0x00}, /* SET_ODOMETRIE.ratio_ppm */
 	{1639, 65535, PROTO_U16, 0x00}, /* SET_ODOMETRIE.track_10um */
 	{-30000, 30000, PROTO_S16, 0x00}, /* SET_ODOMETRIE.scale_ppm */
+	{0, 100, PROTO_U8, 0x00}, /* SET_SPEED_SCALE.percent */
+	{1, 255, PROTO_U8, 0x00}, /* SET_CORNER.tolerance_mm */
 };
 
 const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
 	{PROTO_GOTO, PROTO_KIND_ORDRE, 3, 3, 6, 6, 0, 0},
-	{PROTO_GOTO_REVERSE, PROTO_KIND_ORDRE, 1, 1, 2, 2, 0, 3},
-	{PROTO_GOTO_PANIER, PROTO_KIND_ORDRE, 1, 1, 2, 2, 0, 4},
-	{PROTO_CHECK_BUSY, PROTO_KIND_ETAT, 0, 0, 1, 1, 1, 5},
-	{PROTO_POSITION, PROTO_KIND_ETAT, 0, 0, 1, 1, 6, 5},
-	{PROTO_INFO_CHOC, PROTO_KIND_ETAT, 0, 0, 1, 1, 1, 5},
-	{PROTO_SET_VITESSE_TRAJ, PROTO_KIND_SET, 2, 1, 3, 2, 0, 5},
-	{PROTO_SET_VITESSE_ROT, PROTO_KIND_SET, 2, 1, 3, 2, 0, 7},
-	{PROTO_SET_FILTRE, PROTO_KIND_SET, 1, 1, 2, 2, 0, 9},
-	{PROTO_SET_FILTRE_RAW, PROTO_KIND_SET, 3, 3, 7, 7, 0, 10},
-	{PROTO_SET_NEW_POS, PROTO_KIND_SET, 3, 3, 7, 7, 0, 13},
-	{PROTO_STOP, PROTO_KIND_ORDRE, 0, 0, 1, 1, 0, 16},
-	{PROTO_VERSION, PROTO_KIND_ETAT, 0, 0, 1, 1, 4, 16},
-	{PROTO_LAST_REJECT, PROTO_KIND_ETAT, 0, 0, 1, 1, 3, 16},
-	{PROTO_SET_TIMEOUT, PROTO_KIND_SET, 1, 1, 3, 3, 0, 16},
-	{PROTO_SET_ODOMETRIE, PROTO_KIND_SET, 3, 3, 7, 7, 0, 17},
-	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 20},
+	{PROTO_GOTO_REVERSE, PROTO_KIND_ORDRE, 2, 1, 3, 2, 0, 3},
+	{PROTO_GOTO_PANIER, PROTO_KIND_ORDRE, 2, 1, 3, 2, 0, 5},
+	{PROTO_CHECK_BUSY, PROTO_KIND_ETAT, 0, 0, 1, 1, 1, 7},
+	{PROTO_POSITION, PROTO_KIND_ETAT, 0, 0, 1, 1, 6, 7},
+	{PROTO_INFO_CHOC, PROTO_KIND_ETAT, 0, 0, 1, 1, 1, 7},
+	{PROTO_SET_VITESSE_TRAJ, PROTO_KIND_SET, 2, 1, 3, 2, 0, 7},
+	{PROTO_SET_VITESSE_ROT, PROTO_KIND_SET, 2, 1, 3, 2, 0, 9},
+	{PROTO_SET_FILTRE, PROTO_KIND_SET, 1, 1, 2, 2, 0, 11},
+	{PROTO_SET_FILTRE_RAW, PROTO_KIND_SET, 3, 3, 7, 7, 0, 12},
+	{PROTO_SET_NEW_POS, PROTO_KIND_SET, 3, 3, 7, 7, 0, 15},
+	{PROTO_STOP, PROTO_KIND_ORDRE, 0, 0, 1, 1, 0, 18},
+	{PROTO_VERSION, PROTO_KIND_ETAT, 0, 0, 1, 1, 4, 18},
+	{PROTO_LAST_REJECT, PROTO_KIND_ETAT, 0, 0, 1, 1, 3, 18},
+	{PROTO_SET_TIMEOUT, PROTO_KIND_SET, 1, 1, 3, 3, 0, 18},
+	{PROTO_SET_ODOMETRIE, PROTO_KIND_SET, 3, 3, 7, 7, 0, 19},
+	{PROTO_PAUSE, PROTO_KIND_ORDRE, 0, 0, 1, 1, 0, 22},
+	{PROTO_RESUME, PROTO_KIND_ORDRE, 0, 0, 1, 1, 0, 22},
+	{PROTO_SET_SPEED_SCALE, PROTO_KIND_SET, 1, 1, 2, 2, 0, 22},
+	{PROTO_MOTION, PROTO_KIND_ETAT, 0, 0, 1, 1, 10, 23},
+	{PROTO_SET_CORNER, PROTO_KIND_SET, 1, 1, 2, 2, 0, 23},
+	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 24},
 };
 
 const struct proto_msg_desc *proto_lookup(uint8_t designation)
@@ -82,8 +91,18 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[14];
 	case 16:
 		return &proto_msgs[15];
-	case 200:
+	case 17:
 		return &proto_msgs[16];
+	case 18:
+		return &proto_msgs[17];
+	case 19:
+		return &proto_msgs[18];
+	case 20:
+		return &proto_msgs[19];
+	case 21:
+		return &proto_msgs[20];
+	case 200:
+		return &proto_msgs[21];
 	default:
 		return NULL;
 	}

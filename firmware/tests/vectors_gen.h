@@ -63,7 +63,14 @@ static const struct vec_write vec_writes[] = {
 	{"GOTO_PANIER -91", {0x02, 0xa5}, 2, -1, 0, {0}, REJECT_OUT_OF_RANGE},
 	{"GOTO x 32001", {0x00, 0x7d, 0x01, 0x00, 0x00, 0x00}, 6, -1, 0, {0}, REJECT_OUT_OF_RANGE},
 	{"GOTO y -32768", {0x00, 0x00, 0x00, 0x80, 0x00, 0x00}, 6, -1, 0, {0}, REJECT_OUT_OF_RANGE},
-	{"GOTO reserved option bit 2", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x04}, 6, -1, 0, {0}, REJECT_RESERVED_BIT},
+	{"GOTO reserved option bit 4", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x10}, 6, -1, 0, {0}, REJECT_RESERVED_BIT},
+	{"GOTO with PASS_THROUGH and a recalibration (issue 31)", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x09}, 6, -1, 0, {0}, REJECT_BAD_OPTIONS},
+	{"GOTO_REVERSE with APPEND (issue 31)", {0x01, 0x64, 0x04}, 3, PROTO_GOTO_REVERSE, 2, {100, 4}, REJECT_NONE},
+	{"GOTO_PANIER with a reserved option bit (issue 31)", {0x02, 0x0a, 0x08}, 3, -1, 0, {0}, REJECT_RESERVED_BIT},
+	{"SET_SPEED_SCALE above 100 (issue 31)", {0x13, 0x65}, 2, -1, 0, {0}, REJECT_OUT_OF_RANGE},
+	{"SET_CORNER 0 (issue 31)", {0x15, 0x00}, 2, -1, 0, {0}, REJECT_OUT_OF_RANGE},
+	{"PAUSE (issue 31)", {0x11}, 1, PROTO_PAUSE, 0, {0}, REJECT_NONE},
+	{"MOTION (issue 31)", {0x14}, 1, PROTO_MOTION, 0, {0}, REJECT_NONE},
 	{"GOTO reserved option bit 7", {0x00, 0x00, 0xc8, 0x00, 0x64, 0x81}, 6, -1, 0, {0}, REJECT_RESERVED_BIT},
 	{"SET_FILTRE unknown preset", {0x08, 0x03}, 2, -1, 0, {0}, REJECT_OUT_OF_RANGE},
 	{"SET_TIMEOUT with one byte of its two", {0x0f, 0x01}, 2, -1, 0, {0}, REJECT_BAD_LENGTH},
@@ -121,7 +128,7 @@ static const struct vec_step vec_steps_7[] = {
 	{'r', 0, 0, {0}, 2, {0x02, 0x4f}, 0},
 };
 static const struct vec_step vec_steps_8[] = {
-	{'w', 0, 6, {0x00, 0x00, 0xc8, 0x00, 0x64, 0x04}, 0, {0}, 0},
+	{'w', 0, 6, {0x00, 0x00, 0xc8, 0x00, 0x64, 0x10}, 0, {0}, 0},
 	{'r', 0, 0, {0}, 1, {0x40}, 0},
 	{'W', 0, 1, {0x03}, 1, {0x40}, 0},
 	{'W', 0, 1, {0x0e}, 3, {0x04, 0x00, 0x01}, 0},
@@ -171,10 +178,10 @@ static const struct vec_step vec_steps_14[] = {
 	{'r', 0, 0, {0}, 1, {0x00}, 0},
 };
 static const struct vec_step vec_steps_15[] = {
-	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x00, 0x1f}, 0},
+	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x03, 0xdf}, 0},
 };
 static const struct vec_step vec_steps_16[] = {
-	{'w', 0, 6, {0x00, 0x00, 0xc8, 0x00, 0x64, 0x04}, 0, {0}, 0},
+	{'w', 0, 6, {0x00, 0x00, 0xc8, 0x00, 0x64, 0x10}, 0, {0}, 0},
 	{'w', 0, 0, {0}, 0, {0}, 0},
 	{'r', 0, 0, {0}, 1, {0x42}, 0},
 };

@@ -71,6 +71,18 @@ struct proto_debug {
     uint8_t end_reason;
 };
 
+struct proto_motion {
+    uint8_t running_seq;
+    uint8_t pending;
+    uint8_t flags;
+    uint8_t last_seq;
+    uint8_t last_end;
+    uint16_t braking_mm;
+    uint16_t braking_ms;
+    uint8_t scale_percent;
+    uint8_t appends_done;
+};
+
 struct proto_snapshot {
     int16_t x_mm;
     int16_t y_mm;
@@ -80,6 +92,7 @@ struct proto_snapshot {
     uint8_t sensors;
     uint8_t calibrated;
     struct proto_debug debug;
+    struct proto_motion motion;
 };
 
 struct proto { ...; };

@@ -42,7 +42,7 @@ MESSAGES: tuple[Message, ...] = (
         'GOTO',
         0,
         'ORDRE',
-        (Field('x_mm', 's16', -32000, 32000), Field('y_mm', 's16', -32000, 32000), Field('options', 'u8', 0, 255, 3), ),
+        (Field('x_mm', 's16', -32000, 32000), Field('y_mm', 's16', -32000, 32000), Field('options', 'u8', 0, 255, 15), ),
         3,
         (),
         (),
@@ -53,7 +53,7 @@ MESSAGES: tuple[Message, ...] = (
         'GOTO_REVERSE',
         1,
         'ORDRE',
-        (Field('distance_mm', 'u8', 0, 255), ),
+        (Field('distance_mm', 'u8', 0, 255), Field('options', 'u8', 0, 255, 4), ),
         1,
         (),
         (),
@@ -64,7 +64,7 @@ MESSAGES: tuple[Message, ...] = (
         'GOTO_PANIER',
         2,
         'ORDRE',
-        (Field('angle_2deg', 's8', -90, 90), ),
+        (Field('angle_2deg', 's8', -90, 90), Field('options', 'u8', 0, 255, 4), ),
         1,
         (),
         (),
@@ -215,6 +215,61 @@ MESSAGES: tuple[Message, ...] = (
         'odometry calibration: right/left wheel-factor ratio, encoder track and common wheel scale (docs/calibration.md)',
     ),
     Message(
+        'PAUSE',
+        17,
+        'ORDRE',
+        (),
+        0,
+        (),
+        (),
+        True,
+        'brake along the path within the grip and hold; the running order and the queue are kept',
+    ),
+    Message(
+        'RESUME',
+        18,
+        'ORDRE',
+        (),
+        0,
+        (),
+        (),
+        True,
+        'continue the paused order to the same target from where the robot stands',
+    ),
+    Message(
+        'SET_SPEED_SCALE',
+        19,
+        'SET',
+        (Field('percent', 'u8', 0, 100), ),
+        1,
+        (),
+        (),
+        True,
+        'scale the speed limits of the running order and of those that follow (100: the limits as set, the power-on value)',
+    ),
+    Message(
+        'MOTION',
+        20,
+        'ETAT',
+        (),
+        0,
+        (Field('running_seq', 'u8', 0, 255), Field('pending', 'u8', 0, 255), Field('flags', 'u8', 0, 255), Field('last_seq', 'u8', 0, 255), Field('last_end', 'u8', 0, 255), Field('braking_mm', 'u16', 0, 65535), Field('braking_ms', 'u16', 0, 65535), Field('scale_percent', 'u8', 0, 255), ),
+        (),
+        True,
+        'the motion queue, the pause, the braking distance and the speed scale',
+    ),
+    Message(
+        'SET_CORNER',
+        21,
+        'SET',
+        (Field('tolerance_mm', 'u8', 1, 255), ),
+        1,
+        (),
+        (),
+        True,
+        "how far a PASS_THROUGH corner's path may pass from its point (power-on: 30 mm)",
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
@@ -248,6 +303,10 @@ class Capability(enum.IntFlag):
     LAST_REJECT = 4
     DEBUG = 8
     TIMEOUT = 16
+    PAUSE = 64
+    SPEED_SCALE = 128
+    QUEUE = 256
+    CORNERS = 512
     CALIBRATED = 32
 
 
@@ -263,6 +322,9 @@ class Reject(enum.IntEnum):
     REFUSED_PB_GRAVE = 6
     QUEUE_FULL = 7
     ABORTED = 8
+    MOTION_QUEUE_FULL = 9
+    BAD_OPTIONS = 10
+    UNSUPPORTED = 11
 
 
 class Filtre(enum.IntEnum):

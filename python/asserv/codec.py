@@ -173,6 +173,7 @@ def encode(name: str, *args: int, pec: bool = False, address: int = ADDRESS) -> 
     for f, value in zip(msg.params, args, strict=False):
         _check(msg, f, value)
         out += _pack(f, value)
+    _check_options(msg, list(args))
     if pec:
         out.append(crc8(bytes([write_address(address)]) + out))
     return bytes(out)
@@ -235,7 +236,22 @@ def decode_write(frame: bytes | bytearray | list[int], address: int = ADDRESS) -
         _check(msg, f, value)
         args.append(value)
         pos += size
+    _check_options(msg, args)
     return Write(msg, tuple(args), pec)
+
+
+#: GOTO's recalibration bits, which PASS_THROUGH cannot combine with (issue 31).
+_RECAL_BITS = 0x03
+_PASS_THROUGH = 0x08
+
+
+def _check_options(msg: Message, args: list[int]) -> None:
+    # The board's check after the table's (firmware/core/protocol.c, check_motion()): the
+    # queue's room is the board's state, not the frame's, so MOTION_QUEUE_FULL is not judged here.
+    if msg.name == "GOTO" and len(args) == 3 and args[2] & _PASS_THROUGH and args[2] & _RECAL_BITS:
+        raise FrameError(
+            Reject.BAD_OPTIONS, "GOTO: PASS_THROUGH cannot combine with a recalibration option"
+        )
 
 
 @dataclass(frozen=True, repr=False)

@@ -485,9 +485,9 @@ class Board:
         return self._query("VERSION", Version)
 
     def motion(self) -> Motion:
-        """MOTION (with any of the capabilities PAUSE, SPEED_SCALE, QUEUE, CORNERS): the running
-        order's sequence number, the orders pending, paused or not, the last ending, the
-        braking distance and time at the present speed, the speed scale."""
+        """MOTION (capability PAUSE): the running order's sequence number (of the last accepted
+        one when idle), the orders pending, paused or not, the last ending, the braking distance
+        and time if paused now, the speed scale."""
         self._require(_MOTION_CAPS, "MOTION")
         return self._query("MOTION", Motion)
 
@@ -717,7 +717,7 @@ def _integer(name: str, value: object) -> int:
     return operator.index(value)
 
 
-_MOTION_CAPS = ("PAUSE", "SPEED_SCALE", "QUEUE", "CORNERS")
+_MOTION_CAPS = ("PAUSE",)  # messages.toml: PAUSE covers PAUSE, RESUME and MOTION
 
 
 def _flag(name: str, value: object) -> bool:

@@ -29,8 +29,8 @@ def test_encode_and_decode(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_bad_arguments_say_what_is_wrong(capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["encode", "GOTO", "200", "100", "8"]) == 2
-    assert "RESERVED_BIT: GOTO.options=0x08" in capsys.readouterr().err
+    assert main(["encode", "GOTO", "200", "100", "16"]) == 2
+    assert "RESERVED_BIT: GOTO.options=0x10" in capsys.readouterr().err
     assert main(["encode", "GOTO", "1", "x", "0"]) == 2
     assert "asserv encode: param 2 ('x') is not an integer" in capsys.readouterr().err
     assert main(["decode", "00", "zz"]) == 2

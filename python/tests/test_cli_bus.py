@@ -129,7 +129,8 @@ def test_queries_print_what_the_board_says(capsys: pytest.CaptureFixture[str]) -
     assert out["status"] == "status 0x08: CHOC_PANIER\n"
     assert out["info-choc"] == "sensors 0x81: CAPTEUR_0 CAPTEUR_7\n"
     assert out["version"] == (
-        "protocol 1.0, capabilities 0x001f: PEC STOP LAST_REJECT DEBUG TIMEOUT\n"
+        "protocol 1.0, capabilities 0x03df: PEC STOP LAST_REJECT DEBUG TIMEOUT PAUSE"
+        " SPEED_SCALE QUEUE CORNERS\n"
     )
     assert out["last-reject"] == "no write rejected since reset\n"
     lines = out["debug"].splitlines()
@@ -176,7 +177,7 @@ def test_a_bus_that_cannot_be_opened_exits_1(capsys: pytest.CaptureFixture[str])
     [
         (["goto", "40000", "0"], "OUT_OF_RANGE: GOTO.x_mm=40000 is outside -32000..32000"),
         (["goto", "x", "0"], "X ('x') is not an integer"),
-        (["goto", "1", "2", "--options", "4"], "RESERVED_BIT"),
+        (["goto", "1", "2", "--options", "16"], "RESERVED_BIT"),
         (["goto-reverse", "256"], "OUT_OF_RANGE"),
         (["goto-panier", "200"], "OUT_OF_RANGE"),
         (["goto-panier", "nan"], "is not a finite number"),

@@ -80,7 +80,8 @@ def test_queue_only_receives_frames_the_codec_accepts(frames: list[bytes]) -> No
 def test_encode_rejects_out_of_range_with_the_board_reason() -> None:
     for name, args, reason in [
         ("GOTO", (32001, 0, 0), Reject.OUT_OF_RANGE),
-        ("GOTO", (0, 0, 4), Reject.RESERVED_BIT),
+        ("GOTO", (0, 0, 0x10), Reject.RESERVED_BIT),
+        ("GOTO", (0, 0, 0x09), Reject.BAD_OPTIONS),
         ("SET_VITESSE_TRAJ", (0,), Reject.OUT_OF_RANGE),
         ("SET_VITESSE_TRAJ", (), Reject.BAD_LENGTH),
         ("GOTO_PANIER", (91,), Reject.OUT_OF_RANGE),

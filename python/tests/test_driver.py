@@ -83,6 +83,8 @@ def test_each_order_and_setting_reaches_the_core(
     dev, rec, board = make(pec)
     _, method, name, args = call
     method(board)
+    if pec and name in ("GOTO_REVERSE", "GOTO_PANIER"):
+        args = (*args, 0)  # with PEC the full form: issue 31's options byte, 0
     assert taken(dev) == [(codec.message(name).designation, args)]
     # One transaction: the frame, then the status by a repeated start (check=True).
     frame = codec.encode(name, *args, pec=pec)
@@ -180,7 +182,7 @@ def test_version_last_reject_and_debug(pec: bool) -> None:
     assert (v.major, v.minor) == (1, 0)
     assert v.capabilities == Capability.PEC | Capability.STOP | Capability.LAST_REJECT | (
         Capability.DEBUG | Capability.TIMEOUT
-    )
+    ) | (Capability.PAUSE | Capability.SPEED_SCALE | Capability.QUEUE | Capability.CORNERS)
     assert board.last_reject().reason == Reject.NONE
     fields: dict[str, Any] = {
         "tick": 65535,
@@ -367,7 +369,7 @@ def test_other_bus_errors() -> None:
 BAD: list[tuple[str, Callable[[Board], None], type[Exception]]] = [
     ("x>32000", lambda b: b.goto(32001, 0), ValueError),
     ("y<-32000", lambda b: b.goto(0, -32001), ValueError),
-    ("option bit 2", lambda b: b.goto(0, 0, 4), ValueError),
+    ("option bit 4", lambda b: b.goto(0, 0, 0x10), ValueError),
     ("x float", lambda b: b.goto(1.5, 0), TypeError),  # type: ignore[arg-type]
     ("reverse 256", lambda b: b.goto_reverse(256), ValueError),
     ("reverse -1", lambda b: b.goto_reverse(-1), ValueError),
