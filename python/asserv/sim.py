@@ -327,6 +327,7 @@ class Simulator:
         #: The obstacles the lidar sees (the opponents, the other robots of an Arena).
         self.lidar_targets: set[int] = set()
         self._scan: LidarScan | None = None
+        self._scan_pose = (0.0, 0.0, 0.0)
         self._crossings = 0
         #: The crossing opponents that stop for our robot, by obstacle index.
         self.yielding: dict[int, Yielding] = {}
@@ -740,8 +741,16 @@ class Simulator:
             )
         return out
 
+    def lidar_points(self) -> list[tuple[float, float]]:
+        """The last scan's hits on the field, from the true pose the robot had at the scan
+        (for a view); empty while the lidar is off."""
+        if self._scan is None:
+            return []
+        return self._scan.points(*self._scan_pose)
+
     def _take_scan(self, index: int, t0_s: float) -> None:
         x, y, h = self.true_pose()
+        self._scan_pose = (x, y, h)
         rng = np.random.default_rng([self.seed, 0x11DA2, index])
         self._scan = LidarScan(self.time_s, index, scan_targets(x, y, h, self.lidar_view(), rng))
         nxt = t0_s + (index + 1) / LIDAR.scan_hz
