@@ -181,8 +181,8 @@ static void master_gains(struct planner *pl, struct board_handover *draft,
 		planner_set_gains(pl, draft, g);
 }
 
-/* The orders: each starts from the planner's measure. */
-static void apply_order(struct planner *pl, const struct proto_msg *msg)
+/* The orders: each starts from the planner's measure (motion.c numbers and queues them). */
+void board_start_order(struct planner *pl, const struct proto_msg *msg)
 {
 	const int32_t *a = msg->arg;
 
@@ -190,7 +190,8 @@ static void apply_order(struct planner *pl, const struct proto_msg *msg)
 	switch (msg->designation) {
 	case PROTO_GOTO:
 		orders_goto(&pl->orders, &pl->m, a[ARG_GOTO_X_MM] * UM_PER_MM,
-			    a[ARG_GOTO_Y_MM] * UM_PER_MM, (uint8_t)a[ARG_GOTO_OPTIONS]);
+			    a[ARG_GOTO_Y_MM] * UM_PER_MM,
+			    (uint8_t)a[ARG_GOTO_OPTIONS] & (ORDERS_OPT_LINE | ORDERS_OPT_BORDER));
 		break;
 	case PROTO_GOTO_REVERSE:
 		orders_goto_reverse(&pl->orders, &pl->m,
@@ -214,14 +215,22 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 	struct control_gains g;
 
 	if ((pl->status & STATUS_PB_GRAVE) &&
-	    proto_lookup(msg->designation)->kind == PROTO_KIND_ORDRE)
-		return; /* raced the PB_GRAVE publication: refused like the protocol layer does */
+	    proto_lookup(msg->designation)->kind == PROTO_KIND_ORDRE) {
+		motion_refused(pl, msg); /* raced the PB_GRAVE publication: refused like the */
+		return;                  /* protocol layer does */
+	}
 	switch (msg->designation) {
 	case PROTO_GOTO:
 	case PROTO_GOTO_REVERSE:
 	case PROTO_GOTO_PANIER:
 	case PROTO_STOP:
-		apply_order(pl, msg);
+	case PROTO_PAUSE:
+	case PROTO_RESUME:
+		motion_order(pl, msg);
+		break;
+	case PROTO_SET_SPEED_SCALE:
+	case PROTO_SET_CORNER:
+		motion_setting(pl, msg);
 		break;
 	case PROTO_SET_VITESSE_TRAJ:
 		orders_set_traj_limits(
@@ -296,6 +305,7 @@ void board_publish(const struct planner *pl, const struct board_snapshot *p, str
 	s->angle_2deg = angle_2deg_of(m->pose.heading_turn32); /* -90..90 */
 	s->radius_mm = uncertainty_get_radius_mm(&pl->uncertainty);
 	s->status = pl->status;
+	motion_publish(pl, s);
 	s->sensors = p->in.shocks;
 	s->calibrated = pl->calibrated;
 	s->debug.tick = p->tick;

@@ -18,6 +18,7 @@
 
 #include "control.h"
 #include "faults.h"
+#include "motion.h"
 #include "odometry.h"
 #include "orders.h"
 #include "protocol.h"
@@ -198,6 +199,7 @@ struct planner {
 	uint32_t silent_widened[2];
 	uint32_t silent_min_counts; /* faults.lost_min_um in motor counts */
 	uint32_t silent_turn_q16;   /* max(1, encoder track / drive track) [2^-16] */
+	struct motion motion;       /* match play: the queue, the pause, the scale (motion.c) */
 };
 
 /* Between the two: each half a double buffer of one type. up[up_index] is the period the servo

@@ -51,6 +51,24 @@ void planner_set_gains(struct planner *pl, struct board_handover *draft,
 void board_apply(struct planner *pl, struct mailbox *mb, const struct board_config *cfg,
 		 const struct proto_msg *msg);
 
+/* Start an order now (board.c): the end bits cleared, the orders' state machine on it. */
+void board_start_order(struct planner *pl, const struct proto_msg *msg);
+
+/* Match play (motion.c), at the planner's steps: */
+void motion_init(struct motion *mo, const struct board_config *cfg);
+/* step 3: an order (GOTO, GOTO_REVERSE, GOTO_PANIER, STOP, PAUSE, RESUME): numbered, queued
+ * with APPEND, or run at once; one refused for PB_GRAVE ends FAULT; SET_SPEED_SCALE and
+ * SET_CORNER. */
+void motion_order(struct planner *pl, const struct proto_msg *msg);
+void motion_refused(struct planner *pl, const struct proto_msg *msg);
+void motion_setting(struct planner *pl, const struct proto_msg *msg);
+/* step 5, before the orders: a pass-through corner's extension, and its switch to the next
+ * order at the corner; after them: an order that ended runs the next one, or drops the queue. */
+void motion_before(struct planner *pl, const struct board_config *cfg);
+void motion_after(struct planner *pl);
+/* step 7: MOTION's reply, and CHECK_BUSY's end bits of a queued order's predecessor. */
+void motion_publish(const struct planner *pl, struct proto_snapshot *s);
+
 /* SET_ODOMETRIE's calibration, checked, its wheels derived for the servo (board.c). */
 int board_calibrate(struct planner *pl, struct board_wheels *w, const struct board_config *cfg,
 		    const struct board_calibration *cal);

@@ -40,20 +40,25 @@ static int32_t div_q8(int32_t a, uint16_t k_q8)
  * the angle axis what the distance axis leaves, so that a turn that still brakes while the line
  * starts, or a re-aim while accelerating, never asks the wheels for more than the grip gives.
  * Kept in o->grip_a_um_s2 at each SET_VITESSE_*: the states apply them without a division. */
-static void grip_share(struct orders *o)
+static void grip_split(const struct orders *o, int32_t lin_max, int32_t rot_max, int32_t out[2])
 {
 	int32_t grip = o->cfg.grip_um_s2 - (o->cfg.grip_um_s2 >> 3); /* 1/8 for the loop */
 	int32_t lin = grip - (grip >> 2), rot;
 
-	if (o->traj.a_max_um_s2 < lin)
-		lin = o->traj.a_max_um_s2;
+	if (lin_max < lin)
+		lin = lin_max;
 	rot = div_q8(grip - lin, o->cfg.rot_grip_q8);
 	if (rot < PROFILE_A_MIN_UM_S2)
 		rot = PROFILE_A_MIN_UM_S2;
-	if (o->rot.a_max_um_s2 < rot)
-		rot = o->rot.a_max_um_s2;
-	o->grip_a_um_s2[0] = lin;
-	o->grip_a_um_s2[1] = rot;
+	if (rot_max < rot)
+		rot = rot_max;
+	out[0] = lin;
+	out[1] = rot;
+}
+
+static void grip_share(struct orders *o)
+{
+	grip_split(o, o->traj.a_max_um_s2, o->rot.a_max_um_s2, o->grip_a_um_s2);
 }
 
 int orders_init(struct orders *o, const struct orders_config *cfg, uint16_t rate_hz,
@@ -81,6 +86,8 @@ int orders_init(struct orders *o, const struct orders_config *cfg, uint16_t rate
 	if (profile_init(&o->dist, &pc, dist_um) || profile_init(&o->angle, &pc, angle_um))
 		return -1;
 	grip_share(o);
+	/* PAUSE brakes at the grip's shares, whatever the master's accelerations. */
+	grip_split(o, PROFILE_A_MAX_UM_S2, PROFILE_A_MAX_UM_S2, &o->grip_a_um_s2[2]);
 	{
 		struct profile_limits d = o->traj, r = o->rot;
 
@@ -90,6 +97,7 @@ int orders_init(struct orders *o, const struct orders_config *cfg, uint16_t rate
 		profile_set_limits(&o->angle, &r);
 	}
 	o->designation = 0xFFu;
+	o->scale_percent = 100;
 	o->settle_ticks = fx_ticks_of_ms(cfg->settle_ms, rate_hz);
 	o->settle_timeout_ticks = fx_ticks_of_ms(cfg->settle_timeout_ms, rate_hz);
 	o->square_ticks = fx_ticks_of_ms(cfg->square_ms, rate_hz);
@@ -133,8 +141,14 @@ static void apply_limits(struct orders *o)
 
 	if (o->state == ORDER_STATE_PUSH && d.v_max_um_s > push)
 		d.v_max_um_s = push;
-	d.a_max_um_s2 = o->grip_a_um_s2[0];
-	r.a_max_um_s2 = o->grip_a_um_s2[1];
+	if (o->scale_percent < 100) { /* SET_SPEED_SCALE: at most 2.55 m/s x 100 in 32 bits */
+		d.v_max_um_s = d.v_max_um_s * o->scale_percent / 100;
+		r.v_max_um_s = r.v_max_um_s * o->scale_percent / 100;
+		d.v_max_um_s = d.v_max_um_s < 1 ? 1 : d.v_max_um_s;
+		r.v_max_um_s = r.v_max_um_s < 1 ? 1 : r.v_max_um_s;
+	}
+	d.a_max_um_s2 = o->grip_a_um_s2[o->paused ? 2 : 0];
+	r.a_max_um_s2 = o->grip_a_um_s2[o->paused ? 3 : 1];
 	profile_set_limits(&o->dist, &d);
 	profile_set_limits(&o->angle, &r);
 }
@@ -180,6 +194,9 @@ static void begin(struct orders *o, uint8_t designation)
 	o->recal.pending = 0;
 	o->give_way = 0;
 	o->braking = 0;
+	o->paused = 0;
+	o->through_um = 0;
+	o->corner_window_turn32 = 0;
 }
 
 static void end(struct orders *o, uint8_t reason)
@@ -503,7 +520,7 @@ static void step_goto(struct orders *o, const struct orders_measure *m)
 	}
 	aim(o, m, bearing(o, &m->pose));
 	if (o->state == ORDER_STATE_TRANSLATE)
-		profile_set_target(&o->dist, m->dist_um + projection(o, &m->pose));
+		profile_set_target(&o->dist, m->dist_um + projection(o, &m->pose) + o->through_um);
 }
 
 /* The heading that faces border side (0 +X, 1 +Y, 2 -X, 3 -Y): a quarter turn per side. */
@@ -607,6 +624,12 @@ static uint8_t update_border(struct orders *o, const struct orders_measure *m)
 	return END_REASON_NONE;
 }
 
+/* The heading error within which a turn ends (wider after a pass-through corner). */
+static uint32_t rotate_window(const struct orders *o)
+{
+	return o->corner_window_turn32 ? o->corner_window_turn32 : o->cfg.heading_window_turn32;
+}
+
 static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 {
 	uint32_t heading_err;
@@ -633,7 +656,7 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 				? (o->bearing_valid ? o->bearing_turn32 : bearing(o, &m->pose))
 				: o->target_heading_turn32,
 			m->pose.heading_turn32);
-		if (heading_err > o->cfg.heading_window_turn32)
+		if (heading_err > rotate_window(o))
 			break;
 		if (o->designation == PROTO_GOTO_PANIER) {
 			enter(o, ORDER_STATE_PUSH);
@@ -722,7 +745,8 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 	uint8_t reason = END_REASON_NONE;
 
 	if (o->state != ORDER_STATE_IDLE) {
-		reason = update_state(o, m);
+		if (!o->paused)
+			reason = update_state(o, m);
 	} else if (o->give_way) {
 		o->braking = 0;
 		give_way_axis(o, 0, &o->dist, m->dist_um, m->dist_speed_um_s);
@@ -790,6 +814,38 @@ int orders_basket_pose(const struct orders *o, const struct odometry_pose *estim
 	out->x_um = best->x_um - (int32_t)fx_shr_round64(along * c - lateral * s, 30);
 	out->y_um = best->y_um - (int32_t)fx_shr_round64(along * s + lateral * c, 30);
 	return 0;
+}
+
+void orders_pause(struct orders *o)
+{
+	if (o->state == ORDER_STATE_IDLE || o->state == ORDER_STATE_STOPPING || o->paused)
+		return;
+	o->paused = 1;
+	o->paused_target_um[0] = profile_get_target_um(&o->dist);
+	o->paused_target_um[1] = profile_get_target_um(&o->angle);
+	apply_limits(o); /* the grip's accelerations */
+	profile_stop(&o->dist);
+	profile_stop(&o->angle);
+}
+
+void orders_resume(struct orders *o)
+{
+	if (!o->paused)
+		return;
+	o->paused = 0;
+	apply_limits(o);
+	profile_set_target(&o->dist, o->paused_target_um[0]);
+	profile_set_target(&o->angle, o->paused_target_um[1]);
+	if (o->designation == PROTO_GOTO && !o->frozen)
+		o->aim_wait = 1; /* re-aim from where it stands, at the next update */
+	o->settle_count = 0;
+	o->settle_time = 0;
+}
+
+void orders_set_speed_scale(struct orders *o, uint8_t percent)
+{
+	o->scale_percent = percent > 100 ? 100 : percent;
+	apply_limits(o);
 }
 
 int orders_busy(const struct orders *o)

@@ -105,11 +105,13 @@ struct orders {
 	struct profile angle;
 	struct profile_limits traj; /* SET_VITESSE_TRAJ */
 	struct profile_limits rot;  /* SET_VITESSE_ROT */
-	int32_t grip_a_um_s2[2];    /* their accelerations within the grip (orders.c) */
-	uint8_t designation;        /* the running or last order, PROTO_NONE before the first */
-	uint8_t state;              /* ORDER_STATE_* */
-	uint8_t end_reason;         /* END_REASON_* of the last order that ended */
-	uint8_t options;            /* GOTO options */
+	/* Their accelerations within the grip (orders.c); [2], [3]: PAUSE's, the grip's shares
+	 * whatever the master set. */
+	int32_t grip_a_um_s2[4];
+	uint8_t designation; /* the running or last order, PROTO_NONE before the first */
+	uint8_t state;       /* ORDER_STATE_* */
+	uint8_t end_reason;  /* END_REASON_* of the last order that ended */
+	uint8_t options;     /* GOTO options */
 	int32_t target_x_um;
 	int32_t target_y_um;
 	uint32_t target_heading_turn32;
@@ -160,6 +162,16 @@ struct orders {
 	uint16_t brake_ticks[2]; /* what braking at grip_um_s2 from the shock's speed takes */
 	int32_t reach_um[2];     /* how far each axis went towards the obstacle */
 	uint16_t rate_hz;        /* orders_update() calls per second */
+	/* Match play (motion.c): a paused order keeps its state and its targets, its profiles
+	 * braked to rest; the speed scale [%] of both axes' speed limits; a pass-through corner's
+	 * extension of GOTO's distance target past its point [um]. */
+	uint8_t paused;
+	uint8_t scale_percent;
+	int32_t paused_target_um[2];
+	int32_t through_um;
+	/* A GOTO that follows a pass-through corner starts its line within this heading error
+	 * (0: heading_window_turn32), the line's re-aims turning it the rest of the way. */
+	uint32_t corner_window_turn32;
 };
 
 /* Power-on: no order, holding (dist_um, angle_um); limits 10 cm/s, 40 cm/s^2 on both axes;
@@ -211,6 +223,19 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m);
  * does not measure it). Returns 0, or -1 with no basket configured. */
 int orders_basket_pose(const struct orders *o, const struct odometry_pose *estimate,
 		       struct odometry_pose *out);
+
+/* PAUSE: both profiles brake to rest at their limits (within the grip) and hold; the order keeps
+ * its state and its targets, and does not advance. Nothing when idle or stopping, or paused.
+ * Interrupt-safe: no. */
+void orders_pause(struct orders *o);
+
+/* RESUME: the paused order goes on to the same targets from where the robot stands (a GOTO
+ * re-aims at its next update). Nothing when not paused. Interrupt-safe: no. */
+void orders_resume(struct orders *o);
+
+/* SET_SPEED_SCALE: both axes' speed limits times percent / 100 (at least 1 um/s), at once,
+ * also for the running order (it slows down at its acceleration limit). Interrupt-safe: no. */
+void orders_set_speed_scale(struct orders *o, uint8_t percent);
 
 /* 1 while an order runs (BUSY_TRAJET). */
 int orders_busy(const struct orders *o);

@@ -59,6 +59,7 @@ int planner_init(struct planner *pl, const struct board_config *cfg, const struc
 						      << 16) /
 						     cfg->faults.motor_um_per_count_q16);
 	pl->silent_turn_q16 = board_turn_q16(cfg, cfg->odometry.track_um);
+	motion_init(&pl->motion, cfg);
 	return 0;
 }
 
@@ -434,7 +435,9 @@ static void planner_steps(struct board *b)
 	/* 4. Stop conditions. */
 	step_stops(pl, draft, cfg, p, travel_q16);
 
-	/* 5. Orders -> profiles -> set points of both axes; the contact recalibrations. */
+	/* 5. Orders -> profiles -> set points of both axes; the contact recalibrations; the
+	 * queue's next order after one that ended (motion.c). */
+	motion_before(pl, cfg);
 	reason = orders_update(&pl->orders, &pl->m);
 	if (pl->orders.gave_way) { /* the hold after a shock moved away from the obstacle */
 		pl->orders.gave_way = 0;
@@ -443,6 +446,7 @@ static void planner_steps(struct board *b)
 	recal_border(pl, &cfg->orders);
 	finish(pl, draft, cfg, reason);
 	select_gains(pl, draft, cfg);
+	motion_after(pl);
 	planner_update_status(pl);
 
 	/* 6. The hand-over's draft: motors off after a motor problem, the set points. */

@@ -1,0 +1,273 @@
+/* Match play (motion.h): sequence numbers, the motion queue, PAUSE and RESUME, the speed scale,
+ * the pass-through corners and the MOTION reply, on the planner's orders. */
+#include "motion.h"
+
+#include <stddef.h>
+
+#include "board_parts.h"
+#include "fixmath.h"
+#include "protocol_defs.h"
+
+void motion_init(struct motion *mo, const struct board_config *cfg)
+{
+	*mo = (struct motion){0};
+	mo->scale_percent = 100;
+	mo->corner_um = MOTION_CORNER_DEFAULT_MM * UM_PER_MM;
+	/* A message waits for the period's end, the planner works on it (planner_ticks), the
+	 * servo takes the new set points over the next period. */
+	mo->latency_ticks = (uint8_t)(cfg->planner_ticks > 0 ? 3 : 2);
+}
+
+static uint8_t options_of(const struct proto_msg *msg)
+{
+	switch (msg->designation) {
+	case PROTO_GOTO:
+		return (uint8_t)msg->arg[ARG_GOTO_OPTIONS];
+	case PROTO_GOTO_REVERSE:
+		return (uint8_t)msg->arg[ARG_GOTO_REVERSE_OPTIONS];
+	case PROTO_GOTO_PANIER:
+		return (uint8_t)msg->arg[ARG_GOTO_PANIER_OPTIONS];
+	default:
+		return 0;
+	}
+}
+
+/* Run an order now, as its sequence number's; from the queue, the end bits of the order that
+ * ended before it stay readable until it ends. */
+static void run(struct planner *pl, const struct proto_msg *msg, uint8_t seq, uint8_t queued)
+{
+	struct motion *mo = &pl->motion;
+	uint8_t stale = pl->status & STATUS_END_BITS;
+
+	if (options_of(msg) & PROTO_OPT_APPEND)
+		mo->appends_done++;
+	board_start_order(pl, msg);
+	mo->running = 1;
+	mo->running_seq = seq;
+	mo->from_queue = queued;
+	mo->stale_bits = queued ? stale : 0;
+	mo->through = (options_of(msg) & PROTO_OPT_PASS_THROUGH) != 0;
+}
+
+/* Every waiting order dropped (a replacement, STOP, a fault): none of them ran. */
+static void drop_queue(struct motion *mo)
+{
+	for (; mo->count > 0;
+	     mo->count--, mo->head = (uint8_t)((mo->head + 1u) % PROTO_MOTION_QUEUE_DEPTH))
+		if (options_of(&mo->queue[mo->head].msg) & PROTO_OPT_APPEND)
+			mo->appends_done++;
+}
+
+/* The next waiting order, if any and not paused. */
+static void run_next(struct planner *pl)
+{
+	struct motion *mo = &pl->motion;
+	const struct motion_entry *e = &mo->queue[mo->head];
+
+	if (mo->count == 0 || mo->paused)
+		return;
+	mo->head = (uint8_t)((mo->head + 1u) % PROTO_MOTION_QUEUE_DEPTH);
+	mo->count--;
+	run(pl, &e->msg, e->seq, 1);
+}
+
+static void enqueue(struct motion *mo, const struct proto_msg *msg, uint8_t seq)
+{
+	struct motion_entry *e;
+
+	if (mo->count >= PROTO_MOTION_QUEUE_DEPTH) { /* the protocol layer refuses it first */
+		mo->appends_done++;
+		return;
+	}
+	e = &mo->queue[(mo->head + mo->count) % PROTO_MOTION_QUEUE_DEPTH];
+	e->msg = *msg;
+	e->seq = seq;
+	mo->count++;
+}
+
+void motion_order(struct planner *pl, const struct proto_msg *msg)
+{
+	struct motion *mo = &pl->motion;
+	uint8_t d = msg->designation;
+
+	if (d == PROTO_PAUSE) {
+		mo->paused = 1;
+		orders_pause(&pl->orders);
+		return;
+	}
+	if (d == PROTO_RESUME) {
+		mo->paused = 0; /* a waiting order starts after the orders (motion_after()) */
+		orders_resume(&pl->orders);
+		return;
+	}
+	if (d == PROTO_STOP) { /* abandons everything; the running order ends STOPPED */
+		drop_queue(mo);
+		mo->paused = 0;
+		board_start_order(pl, msg);
+		return;
+	}
+	mo->seq++;
+	if ((options_of(msg) & PROTO_OPT_APPEND) && (mo->running || mo->count || mo->paused)) {
+		enqueue(mo, msg, mo->seq);
+		return;
+	}
+	drop_queue(mo);
+	mo->paused = 0;
+	run(pl, msg, mo->seq, 0);
+}
+
+void motion_refused(struct planner *pl, const struct proto_msg *msg)
+{
+	struct motion *mo = &pl->motion;
+
+	if (msg->designation == PROTO_PAUSE || msg->designation == PROTO_RESUME ||
+	    msg->designation == PROTO_STOP)
+		return;
+	if (options_of(msg) & PROTO_OPT_APPEND)
+		mo->appends_done++;
+	mo->seq++;
+	mo->last_seq = mo->seq;
+	mo->last_end = END_REASON_FAULT;
+}
+
+void motion_setting(struct planner *pl, const struct proto_msg *msg)
+{
+	if (msg->designation == PROTO_SET_SPEED_SCALE) {
+		pl->motion.scale_percent = (uint8_t)msg->arg[ARG_SET_SPEED_SCALE_PERCENT];
+		orders_set_speed_scale(&pl->orders, pl->motion.scale_percent);
+	} else { /* PROTO_SET_CORNER */
+		pl->motion.corner_um = msg->arg[ARG_SET_CORNER_TOLERANCE_MM] * UM_PER_MM;
+	}
+}
+
+/* [mm/s] or [mm/s^2], at least 1. */
+static int32_t mm_of_um(int32_t um)
+{
+	int32_t mm = (int32_t)fx_udiv1000(fx_mag32(um));
+
+	return mm > 0 ? mm : 1;
+}
+
+/* How far past a corner's point the distance axis may go (docs/control.md, "Corners"): braking
+ * from the corner speed v_c over e = v_c^2 / (2 a), e at most 7/8 of the tolerance; and
+ * v_c omega_max within a quarter of the grip, omega_max the angle axis's speed limit over half
+ * the drive track. [um] */
+static int32_t corner_reach_um(const struct planner *pl, const struct board_config *cfg)
+{
+	const struct orders *o = &pl->orders;
+	int32_t a = mm_of_um(o->dist.prm.lim.a_max_um_s2);
+	int32_t w = mm_of_um(o->angle.prm.lim.v_max_um_s);
+	int32_t half_track = mm_of_um((int32_t)(cfg->orders.drive_track_um / 2u));
+	int32_t vc = mm_of_um(cfg->orders.grip_um_s2 / 4) * half_track / w; /* [mm/s] */
+	int32_t e = pl->motion.corner_um - (pl->motion.corner_um >> 3);
+
+	if (vc > 3000)
+		vc = 3000;
+	if (vc * vc / (2 * a) * UM_PER_MM < e)
+		e = vc * vc / (2 * a) * UM_PER_MM;
+	return e;
+}
+
+void motion_before(struct planner *pl, const struct board_config *cfg)
+{
+	struct motion *mo = &pl->motion;
+	struct orders *o = &pl->orders;
+	int32_t e;
+
+	if (!mo->through)
+		return;
+	if (!mo->running || mo->count == 0 || mo->paused || o->designation != PROTO_GOTO ||
+	    o->state != ORDER_STATE_TRANSLATE) {
+		o->through_um = 0;
+		return;
+	}
+	e = corner_reach_um(pl, cfg);
+	o->through_um = e;
+	if (profile_get_target_um(&o->dist) - o->sp_dist.pos_um > e)
+		return;
+	/* At the corner: this order is done, the next one turns while the line brakes. */
+	mo->running = 0;
+	mo->last_seq = mo->running_seq;
+	mo->last_end = END_REASON_DONE;
+	pl->status &= (uint8_t)~STATUS_END_BITS;
+	run_next(pl);
+	if (o->designation == PROTO_GOTO)
+		o->corner_window_turn32 = MOTION_CORNER_WINDOW_TURN32;
+}
+
+/* The robot at rest: an order that ended on a contact (a basket) ended at speed, held where it
+ * was measured; the next one waits until the hold has stopped it. */
+static int at_rest(const struct planner *pl)
+{
+	int32_t slow = pl->orders.cfg.arrive_speed_um_s;
+
+	return fx_abs32(pl->m.dist_speed_um_s) < slow && fx_abs32(pl->m.angle_speed_um_s) < slow;
+}
+
+void motion_after(struct planner *pl)
+{
+	struct motion *mo = &pl->motion;
+	uint8_t end;
+
+	if (mo->running) {
+		if (orders_busy(&pl->orders))
+			return;
+		end = pl->timed_out ? END_REASON_TIMEOUT : pl->orders.end_reason;
+		mo->running = 0;
+		mo->from_queue = 0;
+		mo->stale_bits = 0;
+		mo->last_seq = mo->running_seq;
+		mo->last_end = end;
+		if (end != END_REASON_DONE && end != END_REASON_BORDER && end != END_REASON_BASKET)
+			drop_queue(mo);
+	}
+	if (mo->count && at_rest(pl))
+		run_next(pl);
+}
+
+/* Braking from v_um_s at PAUSE's deceleration a_um_s2 on a profile of n_filt ticks'
+ * smoothing, with the message's latency: time [ms], and distance [mm] when dist_mm is not NULL;
+ * rounded up. */
+static uint16_t braking(const struct planner *pl, const struct profile *p, int32_t v_um_s,
+			int32_t a_um_s2, uint16_t *dist_mm)
+{
+	int32_t v = (int32_t)fx_udiv1000(fx_mag32(v_um_s) + 999u); /* [mm/s] */
+	int32_t a = mm_of_um(a_um_s2);
+	int32_t lag_ms = (int32_t)(p->prm.n_filt + pl->motion.latency_ticks) * 1000 / pl->slow_hz;
+	int32_t t = (v * 1000 + a - 1) / a + lag_ms + 1;
+	int32_t d = (v * v + 2 * a - 1) / (2 * a) + (v * lag_ms + 999) / 1000 + 1;
+
+	if (dist_mm)
+		*dist_mm = (uint16_t)(d > 65535 ? 65535 : d);
+	return (uint16_t)(t > 65535 ? 65535 : t);
+}
+
+void motion_publish(const struct planner *pl, struct proto_snapshot *s)
+{
+	const struct motion *mo = &pl->motion;
+	const struct orders *o = &pl->orders;
+	struct proto_motion *out = &s->motion;
+	uint16_t ta;
+
+	out->running_seq = mo->running ? mo->running_seq : mo->seq;
+	out->pending = mo->count;
+	out->flags = (uint8_t)((mo->paused ? PROTO_MOTION_PAUSED : 0u) |
+			       (orders_busy(o) ? PROTO_MOTION_RUNNING : 0u));
+	out->last_seq = mo->last_seq;
+	out->last_end = mo->last_end;
+	out->scale_percent = mo->scale_percent;
+	out->appends_done = mo->appends_done;
+	out->braking_mm = 0;
+	out->braking_ms = 0;
+	if (mo->running && mo->from_queue)
+		s->status |= mo->stale_bits; /* CHECK_BUSY: the end bits of the last order ended */
+	if (mo->count)
+		s->status |= STATUS_BUSY_TRAJET; /* waiting (paused) is busy too */
+	if (o->sp_dist.vel_um_s == 0 && o->sp_angle.vel_um_s == 0)
+		return;
+	out->braking_ms =
+		braking(pl, &o->dist, o->sp_dist.vel_um_s, o->grip_a_um_s2[2], &out->braking_mm);
+	ta = braking(pl, &o->angle, o->sp_angle.vel_um_s, o->grip_a_um_s2[3], NULL);
+	if (ta > out->braking_ms)
+		out->braking_ms = ta;
+}

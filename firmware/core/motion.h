@@ -1,0 +1,44 @@
+/* Match play (issue 31, docs/protocol.md "Match play"): the sequence numbers of the orders, the
+ * motion queue (APPEND), PAUSE and RESUME, the speed scale, the pass-through corners, and what
+ * MOTION reports. The planner owns a struct motion (board.h) and calls these at its steps: the
+ * messages (3), before and after the orders (5), the reply snapshot (7). With none of the new
+ * messages used, nothing here changes what the board does. */
+#ifndef ASSERV_MOTION_H
+#define ASSERV_MOTION_H
+
+#include <stdint.h>
+
+#include "protocol.h"
+
+/* An order waiting in the queue: the message as it came, with its sequence number. */
+struct motion_entry {
+	struct proto_msg msg;
+	uint8_t seq;
+};
+
+struct motion {
+	struct motion_entry queue[PROTO_MOTION_QUEUE_DEPTH];
+	uint8_t head;  /* the oldest waiting entry */
+	uint8_t count; /* entries waiting, 0..PROTO_MOTION_QUEUE_DEPTH */
+	uint8_t seq;   /* the last sequence number given (0 before the first order) */
+	uint8_t running_seq;
+	uint8_t running;    /* an order with a sequence number runs (running_seq) */
+	uint8_t from_queue; /* ... and it came from the queue: stale_bits show the last ending */
+	uint8_t stale_bits; /* the end bits of the order that ended before it (STATUS_*) */
+	uint8_t last_seq;
+	uint8_t last_end; /* END_REASON_* */
+	uint8_t paused;
+	uint8_t through;       /* the running order is a GOTO with PASS_THROUGH */
+	uint8_t scale_percent; /* 0..100 */
+	uint8_t appends_done;  /* APPEND orders started or dropped, wrapping (protocol.h) */
+	uint8_t latency_ticks; /* [planner periods] from a message's last byte to its set points */
+	int32_t corner_um;     /* SET_CORNER's tolerance [um] */
+};
+
+/* The default corner tolerance (SET_CORNER), [mm]. */
+#define MOTION_CORNER_DEFAULT_MM 30
+
+/* The heading error within which the line after a corner starts (orders.h), 30 degrees. */
+#define MOTION_CORNER_WINDOW_TURN32 ((uint32_t)357913941u)
+
+#endif

@@ -1,0 +1,329 @@
+"""Issue 31, match play: PAUSE and RESUME, SET_SPEED_SCALE, MOTION and the sequence numbers, the
+motion queue (APPEND), the pass-through corners (docs/protocol.md, "Match play").
+
+The cases; the property soak of item 6 is test_match_soak.py, the figures bench/pause.py and
+bench/course.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from asserv import codec, field
+from asserv._protocol import EndReason, Reject, Status
+from asserv.driver import Board, OrderRejected
+from asserv.sim import AVR_RATES, Simulator
+
+APPEND, THROUGH = 0x04, 0x08
+REST_MM_S = 10.0  # the holding loop's jitter in the simulator stays below this
+
+
+def motion(board: Board) -> codec.Motion:
+    return board._query("MOTION", codec.Motion)
+
+
+def robot(seed: int = 3, avr: bool = False) -> tuple[Simulator, Board]:
+    # An empty table: the default one's elements would end long lines on a contact.
+    sim = Simulator(
+        seed=seed, randomize=True, field=field.Field(), board_config=AVR_RATES if avr else None
+    )
+    board = Board(sim.bus)
+    board.set_vitesse_traj(100, 100)
+    board.set_vitesse_rot(60, 100)
+    return sim, board
+
+
+def raw(sim: Simulator, frame: bytes) -> tuple[Status, Reject]:
+    """A write the driver's codec would refuse before the board: the status read by a repeated
+    start, then LAST_REJECT's reason."""
+    sim.i2c_write(frame, stop=False)
+    status = Status(sim.i2c_read(1)[0])
+    sim.i2c_write(bytes([14]), stop=False)
+    return status, Reject(sim.i2c_read(3)[0])
+
+
+def travel_mm(sim: Simulator, since: int) -> float:
+    tr = sim.trace[since:]
+    return float(np.sum(np.hypot(np.diff(tr["x_mm"]), np.diff(tr["y_mm"]))))
+
+
+def rest_ms(sim: Simulator, since: int, t0: float) -> float:
+    """When the robot came to rest for good after row since: its speed below REST_MM_S since."""
+    tr = sim.trace[since:]
+    moving = np.nonzero(np.abs(tr["v_mm_s"]) >= REST_MM_S)[0]
+    return 0.0 if len(moving) == 0 else (float(tr["t_s"][moving[-1]]) - t0) * 1000
+
+
+# ---- PAUSE and RESUME ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("avr", [False, True])
+def test_a_pause_on_a_straight_brakes_within_what_motion_said_and_resumes(avr: bool) -> None:
+    sim, board = robot(avr=avr)
+    board.goto(900, -400)
+    sim.advance(1.2)
+    before = motion(board)
+    assert before.running and not before.paused and before.braking_mm > 50
+    n, t0 = len(sim.trace), sim.time_s
+    board._command("PAUSE")
+    sim.advance(0.8)
+    m = motion(board)
+    assert m.paused and m.running and m.running_seq == 1
+    assert board.check_busy() & Status.BUSY_TRAJET  # busy while paused
+    assert travel_mm(sim, n) <= before.braking_mm + 2
+    assert rest_ms(sim, n, t0) <= before.braking_ms + 10
+    # It holds: no creep during a long pause.
+    n = len(sim.trace)
+    sim.advance(1.0)
+    assert travel_mm(sim, n) < 2
+    board._command("RESUME")
+    assert board.wait_idle(10) == 0
+    m = motion(board)
+    assert (m.last_seq, m.last_end, m.paused, m.running) == (1, EndReason.DONE, False, False)
+    pose = sim.true_pose()
+    assert np.hypot(pose.x_mm - 900, pose.y_mm + 400) < board.position().radius_mm + 1
+
+
+def test_a_pause_in_a_turn_stops_the_turn_and_resume_finishes_it() -> None:
+    sim, board = robot()
+    board.goto(-600, -850)  # behind the start: a half turn first
+    sim.advance(0.15)
+    assert board.debug().order_state == 1  # ROTATE
+    board._command("PAUSE")
+    sim.advance(0.5)
+    h = sim.true_pose().heading_deg
+    sim.advance(0.5)
+    assert abs(sim.true_pose().heading_deg - h) < 0.5
+    board._command("RESUME")
+    assert board.wait_idle(10) == 0
+    assert motion(board).last_end == EndReason.DONE
+
+
+def test_a_new_order_replaces_a_paused_one_and_stop_ends_it() -> None:
+    sim, board = robot()
+    board.goto(900, -400)
+    sim.advance(0.8)
+    board._command("PAUSE")
+    sim.advance(0.3)
+    board.goto(0, -600)  # no APPEND: replaces everything and runs
+    m = motion(board)
+    assert not m.paused and m.running_seq == 2
+    assert board.wait_idle(10) == 0
+    board.goto(600, -600)
+    sim.advance(0.5)
+    board._command("PAUSE")
+    board.stop()
+    assert board.wait_idle(5) == 0
+    m = motion(board)
+    assert (m.last_seq, m.last_end, m.paused) == (3, EndReason.STOPPED, False)
+
+
+def test_pause_and_resume_when_idle_change_nothing_but_the_flag() -> None:
+    sim, board = robot()
+    board._command("PAUSE")
+    sim.advance(0.05)
+    assert motion(board).paused and board.check_busy() == 0
+    board._command("RESUME")
+    sim.advance(0.05)
+    assert motion(board).flags == 0
+
+
+# ---- SET_SPEED_SCALE -----------------------------------------------------------------------------
+
+
+def test_the_speed_scale_slows_the_running_order_and_lets_it_speed_up_again() -> None:
+    sim, board = robot()
+    board.goto(1100, -850)  # straight ahead, 1.1 m
+    sim.advance(0.9)
+    assert sim.trace["v_mm_s"][-1] > 800
+    board._command("SET_SPEED_SCALE", 30)
+    sim.advance(0.8)  # from 0.9 m/s to 0.3 m/s at 1 m/s^2
+    assert motion(board).scale_percent == 30
+    assert abs(sim.trace["v_mm_s"][-50:]).max() < 300 * 1.03
+    board._command("SET_SPEED_SCALE", 100)
+    assert board.wait_idle(10) == 0
+    assert motion(board).last_end == EndReason.DONE
+
+
+def test_the_speed_scale_applies_to_the_next_orders() -> None:
+    sim, board = robot()
+    board._command("SET_SPEED_SCALE", 20)
+    board.goto(900, -850)
+    assert board.wait_idle(20) == 0
+    assert abs(sim.trace["v_mm_s"]).max() < 200 * 1.03
+
+
+def test_a_speed_scale_out_of_range_is_rejected_and_changes_nothing() -> None:
+    sim, board = robot()
+    status, reason = raw(sim, bytes([19, 101]))
+    assert status & Status.COMMANDE_REJETEE and reason == Reject.OUT_OF_RANGE
+    sim.advance(0.01)
+    assert motion(board).scale_percent == 100
+
+
+# ---- the queue -----------------------------------------------------------------------------------
+
+SQUARE = [(300, -850), (300, -450), (-100, -450), (-100, -850)]
+
+
+def test_appended_orders_run_in_turn_and_motion_follows_them() -> None:
+    sim, board = robot()
+    for x, y in SQUARE:
+        board._command("GOTO", x, y, APPEND)
+    board._command("GOTO_REVERSE", 100, APPEND)
+    sim.advance(0.05)
+    m = motion(board)
+    assert (m.running_seq, m.pending) == (1, 4)
+    seen = set()
+    while board.check_busy() & Status.BUSY_TRAJET:
+        sim.advance(0.05)
+        seen.add(motion(board).running_seq)
+    m = motion(board)
+    assert seen >= {1, 2, 3, 4, 5}
+    assert (m.last_seq, m.last_end, m.pending, m.running_seq) == (5, EndReason.DONE, 0, 5)
+    pose = sim.true_pose()
+    assert np.hypot(pose.x_mm + 100, pose.y_mm + 750) < 15  # 100 mm back from (-100, -850)
+
+
+def test_eight_orders_wait_and_a_ninth_is_rejected_with_nothing_lost() -> None:
+    sim, board = robot()
+    board.goto(200, -850)
+    for i in range(8):
+        board._command("GOTO", 200 + 50 * (i % 2), -800 + 20 * i, APPEND)
+    with pytest.raises(OrderRejected) as e:
+        board._command("GOTO", 0, 0, APPEND)
+    assert e.value.reason == Reject.MOTION_QUEUE_FULL
+    sim.advance(0.02)
+    assert motion(board).pending == 8
+    assert board.wait_idle(60) == Status.COMMANDE_REJETEE  # until the next accepted write
+    m = motion(board)
+    assert (m.last_seq, m.last_end) == (9, EndReason.DONE)  # the rejected one had no number
+    pose = sim.true_pose()
+    assert np.hypot(pose.x_mm - 250, pose.y_mm + 660) < 15
+
+
+def test_an_order_without_append_drops_the_queue() -> None:
+    sim, board = robot()
+    for x, y in SQUARE:
+        board._command("GOTO", x, y, APPEND)
+    sim.advance(0.3)
+    board.goto(0, -700)
+    sim.advance(0.02)
+    assert motion(board).pending == 0
+    assert board.wait_idle(10) == 0
+    assert motion(board).last_seq == 5
+
+
+def test_a_shock_abandons_the_queue_and_motion_says_which_order_ended_how() -> None:
+    sim, board = robot()
+    for x, y in SQUARE:
+        board._command("GOTO", x, y, APPEND)
+    while motion(board).running_seq < 2:
+        sim.advance(0.02)
+    sim.advance(0.3)
+    sim.press(0x01)
+    sim.advance(0.1)
+    sim.press(0)
+    status = board.wait_idle(5)
+    assert status & (Status.CHOC_BORD | Status.CHOC_PANIER)
+    m = motion(board)
+    assert (m.last_seq, m.last_end, m.pending) == (2, EndReason.SHOCK, 0)
+    sim.advance(1.0)
+    assert board.check_busy() & Status.BUSY_TRAJET == 0
+
+
+def test_a_motor_fault_abandons_the_queue() -> None:
+    sim, board = robot()
+    for x, y in SQUARE:
+        board._command("GOTO", x, y, APPEND)
+    while motion(board).running_seq < 3:
+        sim.advance(0.02)
+    sim.set_motor_stuck(0, True)
+    status = board.wait_idle(5)
+    assert status & Status.PB_MOTEUR
+    m = motion(board)
+    assert (m.last_seq, m.last_end, m.pending) == (3, EndReason.MOTOR, 0)
+
+
+def test_appended_orders_wait_while_paused() -> None:
+    sim, board = robot()
+    board._command("PAUSE")
+    board._command("GOTO", 300, -850, APPEND)
+    sim.advance(0.5)
+    m = motion(board)
+    assert (m.pending, m.paused) == (1, True)
+    assert board.check_busy() & Status.BUSY_TRAJET  # busy while an order waits
+    assert travel_mm(sim, 0) < 2
+    board._command("RESUME")
+    assert board.wait_idle(10) == 0
+    assert motion(board).last_seq == 1
+
+
+def test_a_queued_order_shows_the_last_ending_bits_until_it_ends() -> None:
+    sim, board = robot()
+    board._command("GOTO_PANIER", 0, APPEND)  # straight ahead, then pushing
+    board._command("GOTO", 300, -600, APPEND)
+    while board.debug().order_state != 4:  # PUSH
+        sim.advance(0.01)
+    sim.advance(0.2)
+    sim.press(0, basket=True)
+    while motion(board).running_seq < 2:
+        sim.advance(0.005)
+    sim.press(0)
+    status = board.check_busy()
+    assert status == Status.BUSY_TRAJET | Status.CHOC_PANIER  # GOTO_PANIER's ending
+    assert motion(board).last_end == EndReason.BASKET
+    assert board.wait_idle(10) == 0  # the GOTO's own ending: done
+    assert (motion(board).last_seq, motion(board).last_end) == (2, EndReason.DONE)
+
+
+# ---- pass-through corners -----------------------------------------------------------------------
+
+
+def test_pass_through_with_nothing_queued_stops_at_the_point() -> None:
+    sim, board = robot()
+    board._command("GOTO", 500, -850, THROUGH)
+    assert board.wait_idle(10) == 0
+    assert board.debug().end_reason == EndReason.DONE
+    assert abs(sim.trace["v_mm_s"][-1]) < REST_MM_S
+    pose = sim.true_pose()
+    assert np.hypot(pose.x_mm - 500, pose.y_mm + 850) < board.position().radius_mm + 1
+
+
+def test_pass_through_with_a_recalibration_is_rejected() -> None:
+    sim, board = robot()
+    for opt in (THROUGH | 1, THROUGH | 2, THROUGH | APPEND | 1):
+        status, reason = raw(sim, bytes([0, 1, 0xF4, 0xFC, 0xAE, opt]))
+        assert status & Status.COMMANDE_REJETEE and reason == Reject.BAD_OPTIONS
+        with pytest.raises(codec.FrameError):
+            board._command("GOTO", 500, -850, opt)
+    sim.advance(0.05)
+    assert motion(board).running_seq == 0 and board.check_busy() & Status.BUSY_TRAJET == 0
+
+
+@pytest.mark.parametrize("tolerance", [10, 30, 80])
+def test_a_tour_through_corners_stays_within_the_tolerance_and_is_faster(tolerance: int) -> None:
+    pts = [(400, -500), (400, 100), (-300, 100), (-300, -500), (200, -700)]
+
+    def tour(through: bool) -> tuple[float, list[float]]:
+        sim, board = robot(seed=5)
+        board._command("SET_CORNER", tolerance)
+        t0 = sim.time_s
+        for x, y in pts:
+            if through:
+                board._command("GOTO", x, y, APPEND | THROUGH)
+            else:
+                board.goto(x, y)
+                board.wait_idle(20)
+        assert board.wait_idle(30) == 0
+        m = motion(board)
+        assert (m.last_seq, m.last_end) == (len(pts), EndReason.DONE)
+        tr = sim.trace
+        near = [float(np.hypot(tr["x_mm"] - x, tr["y_mm"] - y).min()) for x, y in pts[:-1]]
+        return sim.time_s - t0, near
+
+    t_stop, _ = tour(False)
+    t_through, near = tour(True)
+    assert t_through < t_stop
+    assert max(near) <= tolerance
