@@ -244,18 +244,28 @@ class Yielding:
     """An opponent that, as every Eurobot robot must, stops for what is ahead of it: while our
     robot's outline is within ``gap_mm`` of its disc, less than 90 degrees off its direction of
     travel, it stands; it goes on along its loop once the gap is ``gap_mm`` + 50 mm or our robot
-    is no longer ahead. It does not stop for a robot that comes at its side or its back.
-    ``Simulator.add_crossing_opponent`` runs it every 10 ms of simulated time."""
+    is no longer ahead. After ``give_up_s`` standing it gives its way up, as our strategy does:
+    it turns back and runs its loop the other way. It does not stop for a robot that comes at
+    its side or its back. ``Simulator.add_crossing_opponent`` runs it every 10 ms of simulated
+    time."""
 
     PERIOD_S = 0.01
 
     def __init__(
-        self, index: int, path: list[tuple[float, float]], speed_mm_s: float, gap_mm: float
+        self,
+        index: int,
+        path: list[tuple[float, float]],
+        speed_mm_s: float,
+        gap_mm: float,
+        give_up_s: float = 4.0,
     ) -> None:
         self.index, self.path, self.speed_mm_s, self.gap_mm = index, path, speed_mm_s, gap_mm
+        self.give_up_s = give_up_s
         self.next = 0  # the point of path it heads for
         self.standing = False
+        self.since = 0.0  # when it stopped
         self.stops = 0  # how many times it stood for our robot
+        self.turns = 0  # how many times it gave its way up
 
     def _track(self, ox: float, oy: float) -> None:
         """Follow which point it heads for: it is on the run from the previous point to it."""
@@ -289,9 +299,22 @@ class Yielding:
         )
         ahead = (px - ox) * math.cos(heading) + (py - oy) * math.sin(heading) > 0
         if not self.standing and ahead and gap < self.gap_mm:
-            self.standing = True
+            self.standing, self.since = True, sim.time_s
             self.stops += 1
             sim.set_opponent_path(self.index, [], self.speed_mm_s)
+        elif self.standing and sim.time_s - self.since > self.give_up_s:
+            # Back to the point it came from, round its loop the other way.
+            n = len(self.path)
+            self.path = self.path[::-1]
+            self.next = (n - self.next) % n
+            self.turns += 1
+            self.since = sim.time_s  # and it may stand again for as long, if still blocked
+            bx, by = self.path[self.next]
+            heading = math.atan2(by - oy, bx - ox)
+            if (px - ox) * math.cos(heading) + (py - oy) * math.sin(heading) <= 0:
+                self.standing = False
+                rest = self.path[self.next :] + self.path[: self.next]
+                sim.set_opponent_path(self.index, rest, self.speed_mm_s, loop=True)
         elif self.standing and (gap > self.gap_mm + 50 or not ahead):
             self.standing = False
             rest = self.path[self.next :] + self.path[: self.next]

@@ -329,3 +329,27 @@ def test_the_server_gives_the_same_scan() -> None:
     for r, h in zip(remote.hits, local.hits, strict=True):
         assert r.bearing_deg == h.bearing_deg
         assert r.range_mm == pytest.approx(h.range_mm, abs=0.05)
+
+
+def test_a_blocked_crossing_opponent_turns_back_after_give_up_s() -> None:
+    sim = Simulator(seed=11, record=False)
+    i = sim.add_crossing_opponent(ROUTE, crossings=2, speed_mm_s=300)
+    y = sim.yielding[i]
+    (ax, ay), (bx, by) = y.path[-1], y.path[0]  # its first run: from its start to path[0]
+    heading = math.degrees(math.atan2(by - ay, bx - ax)) + 90
+    sim.place((ax + bx) / 2, (ay + by) / 2, heading)  # across its way, half-way
+    gaps: list[tuple[float, float]] = []
+
+    def watch(s: Simulator) -> None:
+        gaps.append((s.time_s, _gap(s, i)))
+        s.at(s.time_s + 0.01, watch)
+
+    sim.at(0.0, watch)
+    run_s = math.dist((ax, ay), (bx, by)) / 2 / 300
+    sim.advance(run_s + 2.0)
+    assert y.standing and y.stops == 1 and y.turns == 0
+    assert 100 - 3 - 1e-6 <= gaps[-1][1] <= 100
+    sim.advance(y.give_up_s + 2.0)
+    assert y.turns == 1 and not y.standing
+    assert gaps[-1][1] > 100 + 300 * 1.5  # it went back the way it came
+    assert min(g for _, g in gaps) > 96
