@@ -6,7 +6,7 @@ A scenario is a text file, one command a line, ``#`` starts a comment::
     field annex              # field/annex.toml (or a path to a field file)
     set_vitesse_traj 100     # cm/s (an optional second number: cm/s^2)
     set_vitesse_rot 50
-    goto 200 100             # x_mm y_mm [options: ligne, bord, ligne+bord or a number]
+    goto 200 100             # x_mm y_mm [options: ligne, bord, append, through, a+b, a number]
     wait                     # poll CHECK_BUSY until the order ends [timeout_s, default 30]
     goto_panier 44           # degrees, sent in 2-degree steps
 
@@ -18,8 +18,9 @@ board also believes), ``config KEY VALUE...`` (a member of ``struct sim_config``
 Then the bus commands, one per driver method: ``goto``, ``goto_reverse``, ``goto_panier``,
 ``stop``, ``set_vitesse_traj``, ``set_vitesse_rot``, ``set_filtre`` (STD, SOUPLE, RAIDE or a
 number), ``set_filtre_raw``, ``set_new_pos``, ``declare_pose``, ``check_busy``, ``position``,
-``info_choc``, ``version``, ``last_reject``, ``debug``; and ``wait [TIMEOUT_S]``,
-``sleep SECONDS``.
+``info_choc``, ``version``, ``last_reject``, ``debug``, ``pause``, ``resume``,
+``set_speed_scale``, ``set_corner``, ``motion`` (issue 31's match play); and
+``wait [TIMEOUT_S]``, ``sleep SECONDS``.
 
 Opponents and timed events (docs/simulator.md, "Scenario files")::
 
@@ -53,7 +54,7 @@ from typing import Any
 
 from . import codec
 from . import field as fieldmod
-from ._protocol import EndReason, Filtre, Status
+from ._protocol import Capability, EndReason, Filtre, Status
 from .driver import AsservError, Board, GotoOption, Outcome, outcome_of
 from .sim import Frame, Simulator
 
@@ -82,7 +83,11 @@ def _options(word: str) -> int:
         pass
     value = 0
     for part in word.replace("|", "+").split("+"):
-        name = {"ligne": "RECALAGE_LIGNE", "bord": "RECALAGE_BORD"}.get(part.lower(), part.upper())
+        name = {
+            "ligne": "RECALAGE_LIGNE",
+            "bord": "RECALAGE_BORD",
+            "through": "PASS_THROUGH",
+        }.get(part.lower(), part.upper())
         try:
             value |= GotoOption[name]
         except KeyError:
@@ -122,6 +127,11 @@ BUS_COMMANDS: dict[str, tuple[str, list[Parser], list[Parser], str]] = {
     "version": ("version", [], [], "version"),
     "last_reject": ("last_reject", [], [], "last_reject"),
     "debug": ("debug", [], [], "debug"),
+    "pause": ("pause", [], [], "pause"),
+    "resume": ("resume", [], [], "resume"),
+    "set_speed_scale": ("set_speed_scale", [_int], [], "set_speed_scale PERCENT"),
+    "set_corner": ("set_corner", [_int], [], "set_corner TOLERANCE_MM"),
+    "motion": ("motion", [], [], "motion"),
     "wait": ("", [], [_num], "wait [TIMEOUT_S]"),
     "sleep": ("", [_num], [], "sleep SECONDS"),
 }
@@ -345,6 +355,7 @@ def parse(
     base = base or Path.cwd()
     scn = Scenario(source, fieldmod.load())
     dry = Board(_DryBus(), check=False)
+    dry._capabilities = Capability(sum(int(c) for c in Capability))  # judge the args only
     for n, raw in enumerate(text.splitlines(), 1):
         words = raw.split("#", 1)[0].split()
         if not words:

@@ -359,3 +359,52 @@ def test_cli_says_the_board_has_no_pause(capsys: pytest.CaptureFixture[str]) -> 
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and "this board has no" in err
     assert fake.dev.layer.tick() == []
+
+
+# Scenario files.
+
+QUEUED = """\
+set_vitesse_traj 60 60
+goto 600 -600 through
+goto 900 0 append+through
+goto 400 400 append
+sleep 2
+pause
+sleep 1
+motion
+resume
+set_speed_scale 50
+set_corner 40
+wait
+expect done
+expect pose 400 400 20
+"""
+
+
+def test_a_scenario_queues_pauses_and_resumes() -> None:
+    from asserv import scenario
+
+    lines: list[str] = []
+    result = scenario.play(scenario.parse(QUEUED), out=lines.append)
+    assert result.ok, "\n".join(lines)
+    motion = next(line for line in lines if "MOTION ->" in line)
+    assert "pending=2, flags=3" in motion  # paused, the first GOTO running, two waiting
+    gotos = [line for line in lines if "GOTO x_mm" in line]
+    assert [g.split("options=")[1].split()[0] for g in gotos] == ["8", "12", "4"]
+
+
+@pytest.mark.parametrize(
+    "line",
+    [
+        "set_speed_scale 101",
+        "set_speed_scale x",
+        "set_corner 0",
+        "pause 1",
+        "goto 0 0 bord+through",
+    ],
+)
+def test_scenario_lines_are_checked(line: str) -> None:
+    from asserv import scenario
+
+    with pytest.raises(scenario.ScenarioError, match=r"<scenario>:1: "):
+        scenario.parse(line + "\n")
