@@ -303,6 +303,7 @@ class SimSource(Source):
         except AsservError:
             return
         if self.match is not None and self.sim.lidar_targets:
+            self.sim.lidar()  # switched on at the first frame that has something to see
             self.match.lidar = self.sim.lidar_points()
 
     def _strategy(self) -> None:
