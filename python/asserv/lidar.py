@@ -21,9 +21,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .sim import Simulator
 
 __all__ = [
     "LIDAR",
@@ -31,6 +34,7 @@ __all__ = [
     "LidarScan",
     "LidarSpec",
     "Target",
+    "Yielding",
     "crossing_path",
     "scan_targets",
 ]
@@ -146,8 +150,8 @@ def scan_targets(
         best = np.minimum(best, _ray_distances(x_mm, y_mm, ux, uy, t))
     noise = np.zeros(spec.beams)
     if rng is not None:
-        noise = np.clip(rng.normal(0.0, spec.sigma_mm, spec.beams), -3 * spec.sigma_mm,
-                        3 * spec.sigma_mm)  # fmt: skip
+        cut = 3 * spec.sigma_mm
+        noise = np.clip(rng.normal(0.0, spec.sigma_mm, spec.beams), -cut, cut)
     seen = (best >= spec.min_mm) & (best <= spec.max_mm)
     wrapped = (bearings + 180.0) % 360.0 - 180.0
     return tuple(
@@ -279,10 +283,8 @@ class Yielding:
                 return
             self.next = (self.next + 1) % n
 
-    def step(self, sim: object) -> None:
-        from .sim import Simulator
-
-        assert isinstance(sim, Simulator)
+    def step(self, sim: Simulator) -> None:
+        """One check (a timed event of ``sim``, which schedules the next)."""
         ox, oy = sim.obstacles()[self.index]
         if not self.standing:
             self._track(ox, oy)
