@@ -36,6 +36,7 @@ import numpy as np
 
 from asserv import Status, codec, field
 from asserv.driver import Board
+from asserv.goals import Goals, add_strict_flag
 from asserv.sim import AVR_RATES, Frame, Simulator
 
 # The random moves: distances of issue 23, and the limits SET_VITESSE_TRAJ takes (1..255 cm/s
@@ -352,9 +353,18 @@ def summarize(results: Sequence[MoveResult]) -> Summary:
     )
 
 
-def report(s: Summary) -> str:
+def report(s: Summary, goals: Goals | None = None) -> str:
+    """The figures of one rate, issue 23's goals marked met or MISSED (and kept in ``goals``)."""
+    goals = goals if goals is not None else Goals("bench/latency.py")
     rate = "one rate" if s.slow_shift == 0 else f"planner every {1 << s.slow_shift} ticks"
-    goal_moves = "yes" if s.within_goal == s.moves else "no"
+    end = goals.check(f"slow_shift {s.slow_shift}: end, worst [ms]", s.end_ms[1], "<=", GOAL_END_MS)
+    moves = goals.check(
+        f"slow_shift {s.slow_shift}: moves within {GOAL_RATIO:g} x bound + "
+        f"{GOAL_EXTRA_S * 1000:g} ms",
+        s.within_goal,
+        "==",
+        s.moves,
+    )
     w = s.worst
     lines = [
         f"slow_shift {s.slow_shift} ({rate}, planner period {s.period_ms:g} ms), {s.moves} moves",
@@ -363,12 +373,12 @@ def report(s: Summary) -> str:
         f"  reply age: tick shown -> DEBUG reply prepared     {s.reply_age_ms[0]:6.2f} .. "
         f"{s.reply_age_ms[1]:6.2f} ms",
         f"  end: robot settled -> CHECK_BUSY not busy         {s.end_ms[0]:6.2f} .. "
-        f"{s.end_ms[1]:6.2f} ms   (goal <= {GOAL_END_MS:g} ms)",
+        f"{s.end_ms[1]:6.2f} ms   (goal <= {GOAL_END_MS:g} ms: {end.mark})",
         f"  straight moves: time / bound, worst               {s.ratio_max:6.4f}",
         f"  straight moves: time - bound                      {s.excess_ms[0]:6.2f} .. "
         f"{s.excess_ms[1]:6.2f} ms",
         f"  within {GOAL_RATIO:g} x bound + {GOAL_EXTRA_S * 1000:g} ms: "
-        f"{s.within_goal}/{s.moves} moves ({goal_moves})",
+        f"{s.within_goal}/{s.moves} moves (goal: all, {moves.mark})",
         f"  the largest excess: {w.distance_mm} mm at {w.speed_cm_s} cm/s, {w.accel_cm_s2} cm/s^2",
     ]
     return "\n".join(lines)
@@ -386,6 +396,7 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
         help="the board's slow_shift values to measure, 0..3 (0 3)",
     )
     p.add_argument("--per-move", action="store_true", help="print every move's figures")
+    add_strict_flag(p)
     args = p.parse_args(argv)
     if args.moves < 1:
         p.error(f"--moves must be at least 1, not {args.moves}")
@@ -401,6 +412,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = _parse(argv)
     started = time.process_time()
     moves = draw_moves(random.Random(args.seed), args.moves)
+    goals = Goals("bench/latency.py")
     print(
         f"bench/latency.py: {args.moves} straight moves of {DISTANCE_MM[0]}..{DISTANCE_MM[1]} mm"
         f" at {SPEED_CM_S[0]}..{SPEED_CM_S[1]} cm/s, {ACCEL_CM_S2[0]}..{ACCEL_CM_S2[1]} cm/s^2"
@@ -421,9 +433,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     f" bound {r.bound_s * 1000:8.1f} ms, time {r.time_s * 1000:8.1f} ms,"
                     f" +{r.excess_ms:5.1f} ms, order {r.order_ms:5.2f} ms, end {r.end_ms:5.2f} ms"
                 )
-        print(report(summarize(results)))
+        print(report(summarize(results), goals))
     print(f"({time.process_time() - started:.1f} s of CPU)")
-    return 0
+    print(goals.summary())
+    return goals.exit_code(args.strict)
 
 
 if __name__ == "__main__":

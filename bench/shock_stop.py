@@ -13,7 +13,12 @@ Then, with --random N, N random hits at each rate (a wall or a disc within a swi
 start within 5 mm, speed and acceleration, nominal and randomized robots), and the worst of each
 promise's measure over them.
 
-    python bench/shock_stop.py [--random N]
+    python bench/shock_stop.py [--random N] [--strict]
+
+The promises' bounds (docs/failure-model.md) are its goals: at rest within 1.1 times the braking
+time or SLOW_REST_MS (the AVR's rates: 1.1 times plus AVR_EXTRA_MS), never more than BACK_MM
+back towards the obstacle, under FORCE_N from 300 ms on. Each line is marked met or MISSED, and
+the last line sums them up; --strict exits 1 on a miss.
 """
 
 from __future__ import annotations
@@ -22,11 +27,13 @@ import argparse
 import dataclasses
 import math
 import random
+import sys
 
 import numpy as np
 
 from asserv import field
 from asserv.driver import Board
+from asserv.goals import MET, MISSED, Goals, add_strict_flag
 from asserv.sim import AVR_RATES, Simulator
 
 #: The contact may turn the robot: the braking the grip allows is counted from the speed and
@@ -40,6 +47,33 @@ REST_MM_S = 10.0
 #: a hard obstacle throws the robot back before it has braked, and that rebound is braked too:
 #: at rest within this, whatever the braking time.
 SLOW_REST_MS = 40
+#: The AVR's rates: the switch seen up to 11 ms later and the set points a period at a time; the
+#: rest is bounded by 1.1 times the braking time plus this.
+AVR_EXTRA_MS = 120
+BACK_MM = 0.2  # the most it may come back towards the obstacle once it first stopped
+FORCE_N = 10.0  # the largest contact force from 300 ms after the contact on
+
+
+def rest_bound_ms(braking_ms: float, rates: bool) -> float:
+    """The promise's bound on the time to rest, at 1 kHz or at the AVR's rates."""
+    if rates:
+        return 1.1 * braking_ms + AVR_EXTRA_MS
+    return max(1.1 * braking_ms, SLOW_REST_MS)
+
+
+def check(goals: Goals, label: str, s: Stop, rates: bool) -> str:
+    """The three promises of one stop as goals; the line's mark (met, or MISSED: which)."""
+    marks = {
+        "rest": goals.check(
+            f"{label}: rest [ms]", s.rest_ms, "<=", rest_bound_ms(s.braking_ms, rates)
+        ),
+        "back": goals.check(f"{label}: back [mm]", s.back_mm, "<=", BACK_MM),
+        "force": goals.check(
+            f"{label}: force from 300 ms [N]", s.force_after_300_ms, "<=", FORCE_N
+        ),
+    }
+    missed = [k for k, g in marks.items() if not g.met]
+    return MET if not missed else f"{MISSED}: {', '.join(missed)}"
 
 
 @dataclasses.dataclass
@@ -133,19 +167,30 @@ def hit(
     return int(status), stop_of(sim, c, disc, first=True)
 
 
-def run(speed_cm_s: int, seed: int = 0, randomize: bool = False, rates: bool = False) -> str:
+def run(
+    speed_cm_s: int,
+    seed: int = 0,
+    randomize: bool = False,
+    rates: bool = False,
+    goals: Goals | None = None,
+) -> str:
     cfg = dict(AVR_RATES) if rates else None
     status, s = hit("disc", speed_cm_s, 150, 0, 0, seed, randomize, cfg)
+    label = f"disc {speed_cm_s} cm/s{' seed ' + str(seed) if randomize else ''}"
+    mark = check(goals, f"{'AVR ' if rates else ''}{label}", s, rates) if goals else ""
     return (
         f"{s.v0_mm_s:7.0f} mm/s  braking {s.braking_ms:5.0f} ms  rest {s.rest_ms:4d} ms "
         f"({s.rest_ms / s.braking_ms:4.2f}x)  back {s.back_mm:5.2f} mm  "
-        f"{s.force_after_300_ms:5.1f} N  status 0x{status:02x}"
-    )
+        f"{s.force_after_300_ms:5.1f} N  status 0x{status:02x}  {mark}"
+    ).rstrip()
 
 
-def random_hits(n: int, rates: dict[str, int] | None, min_speed: int) -> str:
+def random_hits(
+    n: int, rates: dict[str, int] | None, min_speed: int, goals: Goals | None = None
+) -> str:
     rng = random.Random(1)
     worst_ratio = worst_back = worst_force = worst_extra = 0.0
+    over_bound = -math.inf  # the most a hit's rest went past its bound [ms]
     slow_rest = 0
     back_case = ""
     for _ in range(n):
@@ -163,30 +208,45 @@ def random_hits(n: int, rates: dict[str, int] | None, min_speed: int) -> str:
             worst_back = s.back_mm
             back_case = f"{kind} {speed} cm/s {accel} cm/s^2 dx {dx:.2f} lateral {lateral:.1f}"
         worst_force = max(worst_force, s.force_after_300_ms)
+        over_bound = max(over_bound, s.rest_ms - rest_bound_ms(s.braking_ms, rates is not None))
+    mark = ""
+    if goals is not None:
+        label = f"{n} random hits{' (AVR)' if rates else ''}"
+        got = [
+            goals.check(f"{label}: rest past its bound, worst [ms]", over_bound, "<=", 0),
+            goals.check(f"{label}: back, worst [mm]", worst_back, "<=", BACK_MM),
+            goals.check(f"{label}: force from 300 ms, worst [N]", worst_force, "<=", FORCE_N),
+        ]
+        mark = f"; {MET if all(g.met for g in got) else MISSED}"
     return (
         f"{n} hits: rest up to {worst_ratio:.2f}x the braking time (where 1.1x is over "
         f"{SLOW_REST_MS} ms), {slow_rest} ms below; at most {worst_extra:.0f} ms beyond 1.1x; "
         f"back {worst_back:.3f} mm at most ({back_case}); {worst_force:.1f} N at most from 300 "
-        "ms on"
+        f"ms on{mark}"
     )
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--random", type=int, default=0, metavar="N", help="N random hits a rate")
-    args = ap.parse_args()
+    add_strict_flag(ap)
+    args = ap.parse_args(argv)
     if args.random < 0:
         ap.error("--random: N must be 0 or more")
+    goals = Goals("bench/shock_stop.py")
     for speed in (5, 10, 20, 30, 60, 100, 150):
-        print(f"limit {speed:3d} cm/s: {run(speed)}")
-    print(f"seed 7, randomized, 100 cm/s: {run(100, seed=7, randomize=True)}")
+        print(f"limit {speed:3d} cm/s: {run(speed, goals=goals)}")
+    print(f"seed 7, randomized, 100 cm/s: {run(100, seed=7, randomize=True, goals=goals)}")
     print("the AVR board's rates (AVR_RATES: the planner every 8th tick, its results 3 ticks on):")
     for speed in (10, 30, 60, 100, 150):
-        print(f"limit {speed:3d} cm/s: {run(speed, rates=True)}")
+        print(f"limit {speed:3d} cm/s: {run(speed, rates=True, goals=goals)}")
     if args.random:
-        print(f"random, 1 kHz, 20-150 cm/s: {random_hits(args.random, None, 20)}")
-        print(f"random, AVR_RATES, 10-150 cm/s: {random_hits(args.random, dict(AVR_RATES), 10)}")
+        print(f"random, 1 kHz, 20-150 cm/s: {random_hits(args.random, None, 20, goals)}")
+        avr = random_hits(args.random, dict(AVR_RATES), 10, goals)
+        print(f"random, AVR_RATES, 10-150 cm/s: {avr}")
+    print(goals.summary())
+    return goals.exit_code(args.strict)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

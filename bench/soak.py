@@ -6,7 +6,8 @@ Each match is a random robot (calibrated or not, half each), a random master and
 for S simulated seconds; match k draws everything from random.Random(first_seed + k). Prints the
 error radius's coverage at settled ticks and at order ends, for calibrated and uncalibrated
 robots apart, the worst error/radius ratio, and the endings whose status disagreed with DEBUG's
-end reason. docs/failure-model.md quotes its figures. Asserts nothing.
+end reason. docs/failure-model.md quotes its figures. The promises are its goals, each marked
+met or MISSED, with a summary line; --strict exits 1 on a miss.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 
+from asserv.goals import Goals, add_strict_flag
 from asserv.soak import MatchResult, play_match
 
 
@@ -33,6 +35,7 @@ def _parse(argv: list[str]) -> argparse.Namespace:
     p.add_argument("--first-seed", type=int, default=0, help="seed of the first match (0)")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="processes (all cores)")
     p.add_argument("--no-faults", action="store_true", help="no injected faults")
+    add_strict_flag(p)
     a = p.parse_args(argv)
     if a.matches < 1:
         p.error(f"--matches must be at least 1, not {a.matches}")
@@ -59,6 +62,7 @@ def main(argv: list[str]) -> int:
         f"{'robots':<14}{'matches':>8}{'settled ticks':>15}{'covered':>9}{'order ends':>12}"
         f"{'covered':>9}{'worst e/r':>10}"
     )
+    goals = Goals("bench/soak.py")
     for label, cal in (("uncalibrated", False), ("calibrated", True), ("all", None)):
         rs = [r for r in results if cal is None or r.calibrated == cal]
         if not rs:
@@ -72,12 +76,22 @@ def main(argv: list[str]) -> int:
             f"{label:<14}{len(rs):>8}{settled:>15}{100 * s_cov / max(settled, 1):>8.2f}%"
             f"{ends:>12}{100 * e_cov / max(ends, 1):>8.2f}%{worst:>10.2f}"
         )
+        if cal is None:  # the promise: the error within the radius at every one of them
+            goals.check(
+                "settled ticks within the radius [%]", 100 * s_cov / max(settled, 1), "==", 100
+            )
+            goals.check("order ends within the radius [%]", 100 * e_cov / max(ends, 1), "==", 100)
     bad = [(k, b) for k, r in enumerate(results) for b in r.bad_endings]
     print(f"endings whose status disagreed with DEBUG's end reason: {len(bad)}")
     for k, b in bad[:10]:
         print(f"  match {a.first_seed + k}: {b}")
+    goals.check("endings whose status disagreed with DEBUG", len(bad), "==", 0)
+    print("goals (docs/failure-model.md, section 4):")
+    for line in goals.lines():
+        print(line)
     print(f"wall time: {time.monotonic() - t0:.1f} s on {a.jobs} processes")
-    return 0
+    print(goals.summary())
+    return goals.exit_code(a.strict)
 
 
 if __name__ == "__main__":

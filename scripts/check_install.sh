@@ -8,11 +8,17 @@
 #  4. asserv[view] on the driver's install (no compiler, no simulator): its page and default
 #     field, and `asserv --sim ... log` of a simulator server run from the asserv[sim] install;
 #  5. asserv[sim] from the sdists (the extension compiled from the C sources the sdist carries):
-#     `asserv demo` and a scenario.
+#     `asserv demo` and a scenario; then asserv[view] added to it.
+# In each install (driver only, [view], [sim], both), scripts/check_commands.py runs `--help` of
+# every subcommand and the commands that install should run: help, a run, or one line naming the
+# extra to install (exit 1); never a traceback or "unrecognized arguments".
 # Needs network access to PyPI for the dependencies (smbus2, numpy, matplotlib, cffi, pytest).
 set -euo pipefail
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 PYTHON=${PYTHON:-python3}
+SCENARIO="$ROOT/scenarios/annex.txt"
+# The dependencies at the versions the tests pin (pyproject.toml has the ranges)
+export PIP_CONSTRAINT="$ROOT/constraints.txt"
 WORK=$(mktemp -d)
 trap 'rm -rf "$WORK"' EXIT
 say() { printf -- '-- %s %s\n' "$(date +%T)" "$*"; }
@@ -73,6 +79,7 @@ for kind in wheel sdist; do
 		[ $rc_demo = 1 ] && grep -q 'pip install "asserv\[sim\]"' demo-err.txt ||
 			fail "asserv demo without the simulator: exit $rc_demo, $(cat demo-err.txt)"
 		cat demo-err.txt
+		python "$ROOT/scripts/check_commands.py" driver "$SCENARIO" || fail "the driver's commands ($kind)"
 	)
 	[ ! -s compiler-calls ] || fail "a compiler was called: $(cat compiler-calls)"
 done
@@ -90,6 +97,7 @@ say "asserv[sim] from the wheels: demo, a scenario, the driver's tests"
 	mkdir tests
 	cp "$ROOT"/python/tests/test_{driver,bus,codec,cli_bus}.py tests/
 	python -m pytest -q -p no:cacheprovider tests
+	python "$ROOT/scripts/check_commands.py" sim "$SCENARIO" || fail "asserv[sim]'s commands"
 )
 
 say "asserv[view] without the simulator (a Pi beside the robot): log a served simulator"
@@ -98,6 +106,7 @@ say "asserv[view] without the simulator (a Pi beside the robot): log a served si
 	pip install -q "$WHEEL[view]"
 	python -c 'from asserv import field, view; field.load(); assert (view.STATIC / "index.html").is_file()'
 	if pip show -q cffi 2>/dev/null; then fail "asserv[view] pulled in cffi"; fi
+	python "$ROOT/scripts/check_commands.py" view "$SCENARIO" || fail "asserv[view]'s commands"
 )
 [ ! -s compiler-calls ] || fail "a compiler was called: $(cat compiler-calls)"
 PORT=$((20000 + RANDOM % 20000))
@@ -128,5 +137,8 @@ say "asserv[sim] from the sdists: the extension compiled from the sources the sd
 	python -c 'import asserv_sim._core, sys; print("built:", asserv_sim._core.__file__)'
 	asserv demo --no-png | tail -n 2
 	asserv sim run recal_line | tail -n 1
+	say "asserv[sim] and asserv[view] together"
+	pip install -q "$SDIST[view]"
+	python "$ROOT/scripts/check_commands.py" both "$SCENARIO" || fail "asserv[sim,view]'s commands"
 )
 say "install checks passed"

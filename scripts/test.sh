@@ -7,6 +7,7 @@ step() { printf '\n== %s\n' "$*"; }
 step "generated files: C and Python match protocol/messages.toml and field/default.toml"
 python protocol/gen.py --check
 python field/gen_field.py --check
+python firmware/ports/host/gen_trace.py --check
 
 step "generated files: the simulator's and the boards' robots match robot/*.toml"
 python robot/gen_robot.py --check
@@ -17,8 +18,8 @@ step "style: clang-format, ruff, mypy"
 mapfile -t c_files < <(git ls-files -co --exclude-standard '*.c' '*.h' |
 	grep -v -e '_gen\.h$' -e 'protocol_defs\.h$' -e 'field_defs\.h$' -e 'robot_defs\.h$' -e 'protocol_table\.c$')
 clang-format --dry-run --Werror "${c_files[@]}"
-ruff check python protocol field bench fuzz
-ruff format --check python protocol field bench fuzz
+ruff check python protocol field bench fuzz scripts firmware/ports/host/gen_trace.py
+ruff format --check python protocol field bench fuzz scripts firmware/ports/host/gen_trace.py
 mypy
 
 step "structure: no function of firmware/core over 80 lines (Universal Ctags)"

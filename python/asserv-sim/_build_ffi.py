@@ -393,24 +393,7 @@ struct host {
     ...;
 };
 
-struct host_sample {
-    double t_s;
-    double x_mm, y_mm;
-    double heading_deg;
-    double est_x_mm, est_y_mm;
-    double est_heading_deg;
-    double radius_mm;
-    double v_mm_s;
-    double omega_deg_s;
-    double v_set_mm_s;
-    double omega_set_deg_s;
-    double duty_left, duty_right;
-    double current_left_A, current_right_A;
-    double contact_force_N;
-    double status;
-    double order_state;
-    double shocks;
-};
+@HOST_SAMPLE@
 
 void board_default_config(struct board_config *cfg);
 void host_board_config(const struct sim_config *sc, const struct sim_field *f,
@@ -502,8 +485,17 @@ uint32_t asim_bus_read(struct host *h, uint8_t *out, uint32_t n, uint64_t byte_n
 }
 """
 
+
+def _host_sample() -> str:
+    """struct host_sample as gen_trace.py wrote it (firmware/ports/host/trace.toml), between its
+    cdef markers: the one list of the trace's columns."""
+    text = (PORTS / "host" / "host_sample_gen.h").read_text()
+    begin, end = "/* cdef: begin */", "/* cdef: end */"
+    return text[text.index(begin) + len(begin) : text.index(end)]
+
+
 ffibuilder = FFI()
-ffibuilder.cdef(CDEF)
+ffibuilder.cdef(CDEF.replace("@HOST_SAMPLE@", _host_sample()))
 ffibuilder.set_source(
     "asserv_sim._core",
     PREAMBLE,

@@ -7,17 +7,32 @@ subcommand are in ``cli_args``; the commands that drive a board over I2C are in 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import importlib.util
 import os
+import re
+import signal
 import sys
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, NoReturn
 
 from . import __version__, cli_args, cli_bus, codec
 from .cli_args import Subparsers, UsageError, at_least, finite_float, natural, positive_float
+from .driver import GotoOption
+from .goals import add_strict_flag
 
-SIMULATOR_MODULES = {"asserv_sim", "asserv_sim._core", "numpy", "matplotlib", "cffi"}
+#: The extra that installs each optional module (numpy is in both: see ``_extra_of``).
+EXTRA_OF = {
+    "asserv_sim": "sim",
+    "cffi": "sim",
+    "matplotlib": "sim",
+    "numpy": "sim",
+    "websockets": "view",
+    "mcap": "view",
+}
 
 
 class _Parser(argparse.ArgumentParser):
@@ -53,6 +68,12 @@ def _encode(args: argparse.Namespace) -> int:
                 values.append(finite_float(w))
             except argparse.ArgumentTypeError:
                 raise UsageError(f"param {i} ({w!r}) is not a number of degrees") from None
+            continue
+        if f is not None and msg.name == "GOTO" and f.name == "options":
+            try:  # ligne, bord, ligne+bord, as in scenario files and --options
+                values.append(GotoOption.parse(w))
+            except ValueError as e:
+                raise UsageError(f"param {i}: {e}") from None
             continue
         try:
             values.append(int(w, 0))
@@ -152,6 +173,7 @@ def _sim_run(args: argparse.Namespace) -> int:
         scn = scenario.load(path)
     except scenario.ScenarioError as e:
         raise UsageError(str(e)) from None
+    start_ns = time.time_ns()  # the logs' times: the wall clock at the start, plus the run's
     res = scenario.play(scn)
     scenario.summary(res)
     if args.png:
@@ -165,10 +187,13 @@ def _sim_run(args: argparse.Namespace) -> int:
             zoom=box,
             outline=log.Outline.of(res.sim),
         )
-        print(f"plot: {out}")
+        print(f"plot: {Path(out).resolve()}")
     if args.mcap or args.csv:
         rows, outline = log.from_sim(res.sim), log.Outline.of(res.sim)
-        if log.write_outputs("asserv sim run", rows, args.mcap, args.csv, scn.field, outline):
+        wrote = log.write_outputs(
+            "asserv sim run", rows, args.mcap, args.csv, scn.field, outline, start_ns
+        )
+        if wrote:
             return 2
     return 0 if res.ok else 1
 
@@ -341,27 +366,29 @@ def _bench_accuracy(args: argparse.Namespace) -> int:
         cli_args.check_output_dir(args.out)
     from . import accuracy
     from .calibration import Plan
+    from .goals import Goals
 
     plan = Plan(turns=args.turns, round_trips=args.round_trips)
-
-    def progress(done: int, total: int) -> None:
-        if done == total or done % max(1, total // 10) == 0:
-            print(f"  {done}/{total} robots", file=sys.stderr, flush=True)
-
-    res = accuracy.bench(
-        args.robots,
-        args.first_seed,
-        plan=plan,
-        jobs=args.jobs,
-        examples=not args.no_png,
-        progress=progress,
-    )
-    for line in accuracy.report(res):
+    with cli_args.progress_bar(args.robots, "robots") as bar:
+        res = accuracy.bench(
+            args.robots,
+            args.first_seed,
+            plan=plan,
+            jobs=args.jobs,
+            examples=not args.no_png,
+            progress=lambda done, total: bar.update(done - bar.n),
+        )
+    goals = Goals("asserv bench accuracy")
+    lines = accuracy.report(res, goals)
+    for line in lines[:-1]:
         print(line)
     if not args.no_png:
-        for path in accuracy.plot(res, args.out):
-            print(f"plot: {path}")
-    return 0
+        from . import plots
+
+        for path in plots.plot_accuracy(res, Path(args.out)):
+            print(f"plot: {Path(path).resolve()}")
+    print(lines[-1])  # the summary line, last
+    return goals.exit_code(args.strict)
 
 
 def _add_bench(sub: Subparsers) -> None:
@@ -387,27 +414,52 @@ def _add_bench(sub: Subparsers) -> None:
         "--out", default="bench-out", help="directory of the PNGs (default %(default)s)"
     )
     acc.add_argument("--no-png", action="store_true", help="do not write the plots")
+    add_strict_flag(acc)
     acc.set_defaults(func=_bench_accuracy)
 
 
 # main ----------------------------------------------------------------------------------------
 
 
-def _add_optional(module: str, command: str, extra: str, what: str) -> Callable[[Subparsers], None]:
+def _completion_command(args: argparse.Namespace) -> int:
+    import shtab
+
+    print(shtab.complete(parser(), args.shell), end="")
+    return 0
+
+
+def _add_completion(sub: Subparsers) -> None:
+    """``asserv completion bash|zsh``: the shell's completion script (shtab), installed as
+    docs/driver.md says."""
+    p = sub.add_parser(
+        "completion",
+        help="print the bash or zsh completion script (docs/driver.md)",
+        description="Print the completion script of the shell: asserv completion bash >"
+        " ~/.local/share/bash-completion/completions/asserv (docs/driver.md).",
+    )
+    p.add_argument("shell", choices=("bash", "zsh"), help="the shell")
+    p.set_defaults(func=_completion_command)
+
+
+def _add_optional(
+    module: str, command: str, what: str, options: tuple[str, ...] = ()
+) -> Callable[[Subparsers], None]:
     """A subcommand whose module needs an extra (numpy, mcap, websockets): its own register()
-    when the extra is installed (it sets ``run``), otherwise a parser that says what to install."""
+    when the module imports, otherwise a stand-in that takes any words (``--help`` too) and
+    names the module that is missing; ``main`` then prints the extra to install (exit 1)."""
 
     def add(sub: Subparsers) -> None:
         try:
             mod = importlib.import_module(f".{module}", __package__)
-        except ImportError:
-
-            def missing(args: argparse.Namespace) -> int:
-                raise UsageError(f'{what} is not installed: pip install "asserv[{extra}]"')
-
-            p = sub.add_parser(command, help=f"{what} (needs asserv[{extra}])", add_help=False)
-            p.add_argument("rest", nargs=argparse.REMAINDER)
-            p.set_defaults(func=missing)
+        except ImportError as e:
+            p = sub.add_parser(
+                command, help=f"{what} (needs an extra: {command} --help)", add_help=False
+            )
+            p.add_argument("-h", "--help", action="store_true", default=argparse.SUPPRESS)
+            for option in options:  # what the hint depends on (--replay: no simulator needed)
+                p.add_argument(option, default=argparse.SUPPRESS)
+            cli_bus.add_bus_options(p)
+            p.set_defaults(unavailable=(e.name or "numpy").split(".")[0])
             return
         mod.register(sub)
 
@@ -422,21 +474,54 @@ REGISTER: list[Callable[[Subparsers], None]] = [
     _add_codec,
     _add_calibrate,
     _add_bench,
-    _add_optional("log", "log", "view", "asserv log"),
-    _add_optional("tune", "tune", "sim", "asserv tune"),
-    _add_optional("view", "view", "view", "asserv view"),
+    _add_optional("log", "log", "record a board to MCAP and/or CSV"),
+    _add_optional("tune", "tune", "step responses and a P/I/D sweep"),
+    _add_optional("view", "view", "the robot on its field in the browser", ("--replay",)),
+    _add_completion,
 ]
 
 
 def parser() -> argparse.ArgumentParser:
     """The whole command line's parser."""
-    ap: argparse.ArgumentParser = _Parser(prog="asserv", description=__doc__.splitlines()[0])
+    ap: argparse.ArgumentParser = _Parser(
+        prog="asserv",
+        description="The asserv command line: the annex demonstration, simulated scenarios,"
+        " protocol tools, and the commands that drive a board (--bus N or --sim HOST:PORT).",
+    )
     ap.add_argument("--version", action="version", version=f"asserv {__version__}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for register in REGISTER:
         register(sub)
     cli_bus.add_bus_arguments(ap, sub)
+    _plain_text(ap)
     return ap
+
+
+_MARKUP = re.compile(r"``?([^`]+?)``?")
+
+
+def _plain_text(ap: argparse.ArgumentParser) -> None:
+    """The help as plain text: ``x`` and `x` (docstring and Markdown markup) become 'x', in
+    every parser's description and every argument's help, whoever registered them."""
+    seen: set[int] = set()
+
+    def walk(p: argparse.ArgumentParser) -> None:
+        if id(p) in seen:
+            return
+        seen.add(id(p))
+        if p.description:
+            p.description = _MARKUP.sub(r"'\1'", p.description)
+        for action in p._actions:
+            if isinstance(action.help, str):
+                action.help = _MARKUP.sub(r"'\1'", action.help)
+            if isinstance(action, argparse._SubParsersAction):
+                for choice in action._choices_actions:
+                    if isinstance(choice.help, str):
+                        choice.help = _MARKUP.sub(r"'\1'", choice.help)
+                for child in action.choices.values():
+                    walk(child)
+
+    walk(ap)
 
 
 def _prog(args: argparse.Namespace) -> str:
@@ -444,16 +529,138 @@ def _prog(args: argparse.Namespace) -> str:
     return " ".join(["asserv", *(w for w in words if w)])
 
 
+def _names_board(args: argparse.Namespace) -> bool:
+    return getattr(args, "bus", None) is not None or getattr(args, "bus_sim", None) is not None
+
+
+def _extra_of(module: str, args: argparse.Namespace) -> str:
+    """The extra that brings ``module`` for this command: numpy comes with asserv[view] (a
+    board: log, view, tune --bus; the lighter one for --help) and with asserv[sim]."""
+    light = args.command in ("log", "view") or _names_board(args) or getattr(args, "help", False)
+    if module == "numpy" and light:
+        return "view"
+    return EXTRA_OF.get(module, "sim")
+
+
+def _installed(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def needs(args: argparse.Namespace) -> dict[str, str]:
+    """The optional modules this command line needs (module: the extra that brings it)."""
+    cmd, board = args.command, _names_board(args)
+    want: list[str] = []
+    if getattr(args, "unavailable", None):
+        want.append(args.unavailable)
+        if getattr(args, "help", False):  # the help of a command this install lacks
+            return {m: _extra_of(m, args) for m in want}
+    replay = getattr(args, "replay", None) is not None
+    if cmd == "view":
+        want += ["numpy", "websockets"] + (["mcap"] if replay else [])
+        if not (board or replay):
+            want.append("asserv_sim")
+    elif cmd == "log":
+        want += ["numpy"] + (["mcap"] if getattr(args, "mcap", None) else [])
+    elif cmd == "tune":
+        want += ["numpy"] + ([] if board else ["asserv_sim"])
+        want += ["matplotlib"] if getattr(args, "png", None) else []
+    elif cmd in ("demo", "sim", "bench") or (cmd == "calibrate" and not board):
+        want += ["asserv_sim", "numpy"]
+        if getattr(args, "mcap", None):
+            want.append("mcap")
+    return {m: _extra_of(m, args) for m in want if not _installed(m)}
+
+
+def missing_hint(prog: str, missing: dict[str, str]) -> str:
+    """One line: what is missing and the extra that installs it."""
+    extras = ",".join(sorted(set(missing.values())))
+    install = f'pip install "asserv[{extras}]"'
+    if set(missing.values()) == {"sim"}:
+        return f"{prog}: the simulator is not installed: {install} {SIM_NOTE}"
+    names = ", ".join(sorted(missing))
+    note = f" {SIM_NOTE}" if "sim" in missing.values() else ""
+    verb = "is" if len(missing) == 1 else "are"
+    return f"{prog}: needs asserv[{extras}] ({names} {verb} not installed): {install}{note}"
+
+
+SIM_NOTE = "(it needs a C compiler and the Python headers)"
+
+
+#: What Ctrl-C leaves, by command (``interrupted`` for the others); printed on stderr.
+INTERRUPTED = {
+    "asserv view": "stopped serving the page (Ctrl-C)",
+    "asserv sim serve": "stopped serving (Ctrl-C)",
+    "asserv log": "interrupted: the log is closed with the rows so far",
+    "asserv calibrate": "interrupted (the robot may still be moving: `asserv --bus N stop`)",
+    "asserv tune": "interrupted (the robot may still be moving: `asserv --bus N stop`)",
+}
+
+
+@contextlib.contextmanager
+def _sigint(seen: list[bool]) -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt as usual, and is noted in ``seen``: a command that
+    catches it to close its files or its server still ends with 130."""
+
+    def on_sigint(signum: int, frame: object) -> None:
+        seen.append(True)
+        raise KeyboardInterrupt
+
+    try:
+        before = signal.signal(signal.SIGINT, on_sigint)
+    except ValueError:  # not the main thread: left as it is
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code: 0 done, 1 the bus, the board or the run
-    failed, 2 bad usage or input (one line on stderr), 130 interrupted."""
+    failed, or an extra is not installed, 2 bad usage or input (one line on stderr), 130
+    interrupted by Ctrl-C (one line on stderr that says what it left: INTERRUPTED)."""
     try:
-        args = parser().parse_args(argv)
+        return _main(argv)
+    except BrokenPipeError:  # asserv demo | head: the reader has gone, so has the output
+        with contextlib.suppress(OSError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+
+
+def _main(argv: list[str] | None) -> int:
+    ap = parser()
+    try:
+        args, rest = ap.parse_known_args(argv)
+        if rest and not getattr(args, "unavailable", None):
+            ap.error(f"unrecognized arguments: {' '.join(rest)}")
     except SystemExit as e:  # --help, --version (0) or a usage error (2), already printed
         return e.code if isinstance(e.code, int) else 2
+    prog = "asserv " + args.bus_command if cli_bus.is_bus_command(args) else _prog(args)
+    missing = {} if cli_bus.is_bus_command(args) else needs(args)
+    if missing:
+        print(cli_args.one_line(missing_hint(prog, missing)), file=sys.stderr)
+        return 1
+    seen: list[bool] = []
+    try:
+        with _sigint(seen):
+            code = _run(args, prog)
+    except KeyboardInterrupt:
+        seen.append(True)
+        code = -1
+    if seen and code != 130:  # a command that says 130 has said what it left
+        sys.stdout.flush()
+        print(f"{prog}: {INTERRUPTED.get(prog, 'interrupted')}", file=sys.stderr)
+        return 130
+    return code
+
+
+def _run(args: argparse.Namespace, prog: str) -> int:
     if cli_bus.is_bus_command(args):
         return cli_bus.run_bus_command(args)
-    prog = _prog(args)
     try:
         handler = getattr(args, "func", None) or getattr(args, "run", None) or args.sim_handler
         code: int = handler(args)
@@ -464,15 +671,11 @@ def main(argv: list[str] | None = None) -> int:
         print(cli_args.one_line(f"{prog}: the board would reject this: {e}"), file=sys.stderr)
         return 2
     except ImportError as e:
-        if not (getattr(e, "name", None) in SIMULATOR_MODULES or "asserv[sim]" in str(e)):
+        module = (getattr(e, "name", None) or "").split(".")[0]
+        if "asserv[sim]" in str(e):
+            module = "asserv_sim"
+        if module not in EXTRA_OF:
             raise
-        print(
-            f'{prog}: the simulator is not installed: pip install "asserv[sim]"'
-            " (it needs a C compiler and the Python headers)",
-            file=sys.stderr,
-        )
+        print(missing_hint(prog, {module: _extra_of(module, args)}), file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted (an order already sent goes on; `stop` stops it)")
-        return 130
     return code

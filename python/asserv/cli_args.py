@@ -1,7 +1,8 @@
 """The ``asserv`` command line's conventions, as helpers every subcommand uses.
 
-- **Exit codes.** 0 done; 1 the bus or the board failed (or the simulator is not installed);
-  2 bad usage or input: one line on stderr, ``asserv COMMAND: what is wrong``, nothing done.
+- **Exit codes.** 0 done; 1 the bus or the board failed, or an extra is not installed (one
+  line naming it: ``cli.needs``); 2 bad usage or input: one line on stderr, ``asserv COMMAND:
+  what is wrong``, nothing done; 130 Ctrl-C, one line on stderr (``cli.INTERRUPTED``).
 - **Checked first.** Every argument and output path is checked before the bus opens or a long
   run starts: raise ``UsageError`` (or use the ``type=`` checkers below with argparse).
 - **Names and units.** Message names in any case (``message_name``); angles in degrees, raw
@@ -24,10 +25,11 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import TypeAlias
+from typing import Any, TypeAlias
 
 from . import codec
 from ._protocol import Message
@@ -184,6 +186,14 @@ def _output_dir(text: str) -> Path:
 
 #: argparse ``type=``: ``check_output_dir``.
 output_dir = _type(_output_dir, "output directory")
+
+
+def progress_bar(total: int, unit: str) -> Any:
+    """A progress bar on stderr (tqdm) for a long command, quiet when stderr is not a terminal
+    (a log, a pipe, CI): ``with progress_bar(200, "robots") as bar: bar.update(1)``."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit=f" {unit}", file=sys.stderr, disable=not sys.stderr.isatty())
 
 
 def readable_file(text: str) -> Path:

@@ -27,11 +27,12 @@ from . import codec
 from ._protocol import ADDRESS, Filtre, Status
 from .cli_args import UsageError as _UsageError
 from .cli_args import one_line
-from .driver import AsservError, Board, SMBusLike, _flag_names
+from .driver import AsservError, Board, GotoOption, SMBusLike, _flag_names
 
 __all__ = [
     "BUS_COMMANDS",
     "add_bus_arguments",
+    "add_bus_options",
     "is_bus_command",
     "open_error",
     "parse_address",
@@ -106,6 +107,12 @@ def _bus_options(parser: argparse.ArgumentParser, *, suppress: bool) -> None:
     )
 
 
+def add_bus_options(parser: argparse.ArgumentParser) -> None:
+    """``--bus``, ``--sim``, ``--address``, ``--pec`` on a subcommand's parser, left out of its
+    namespace when absent (the main parser has them before the subcommand too)."""
+    _bus_options(parser, suppress=True)
+
+
 def add_bus_arguments(
     parser: argparse.ArgumentParser,
     subparsers: argparse._SubParsersAction[argparse.ArgumentParser] | None = None,
@@ -143,7 +150,9 @@ def add_bus_arguments(
     p.add_argument("x", metavar="X", help="target X, mm (-32000..32000)")
     p.add_argument("y", metavar="Y", help="target Y, mm (-32000..32000)")
     p.add_argument(
-        "--options", default="0", help="option bits: 1 line recalibration, 2 border recalibration"
+        "--options",
+        default="0",
+        help="recalibration: ligne (1), bord (2), ligne+bord (3), or the number",
     )
     p.add_argument("--append", action="store_true", help=append_help)
     p.add_argument(
@@ -259,7 +268,10 @@ def _action(args: argparse.Namespace) -> Action:
         return info_choc
     if cmd == "goto":
         x, y = _int("X", args.x), _int("Y", args.y)
-        opts = _int("--options", args.options)
+        try:
+            opts = GotoOption.parse(args.options)  # the scenario files' names too
+        except ValueError as e:
+            raise _UsageError(f"--options {e}") from None
         app, thr = bool(args.append), bool(args.through)
         _checked("GOTO", x, y, opts | (4 if app else 0) | (8 if thr else 0))
         label = f"GOTO ({x}, {y}) options {opts}" + (" append" if app else "")
@@ -436,7 +448,10 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = N
                 raise _UsageError(f"--sim {e}") from None
             number = -1
         elif getattr(args, "bus", None) is None:
-            raise _UsageError("--bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi)")
+            raise _UsageError(
+                "--bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi),"
+                " or --sim HOST:PORT for the simulator of `asserv sim serve`"
+            )
         else:
             number = parse_bus(args.bus)
         address = parse_address(args.bus_address)

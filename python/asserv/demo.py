@@ -37,7 +37,7 @@ def run(out: Callable[[str], None] = print, png: str | Path | None = "asserv-dem
             title="asserv demo: the annex session (GOTO 200,100; GOTO 100,50; GOTO_PANIER 44 deg)",
             targets=res.targets,
         )
-        out(f"plot: {path}")
+        out(f"plot: {Path(path).resolve()}")
     touched = bool(res.final_status & Status.CHOC_PANIER)
     if not (res.ok and touched):
         out("the session did not end on the basket as the annex describes")

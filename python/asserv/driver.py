@@ -72,6 +72,34 @@ class GotoOption(enum.IntFlag):
     APPEND = 4  # queue behind the running order instead of replacing it (capability QUEUE)
     PASS_THROUGH = 8  # do not stop at the point when another order waits (capability CORNERS)
 
+    @classmethod
+    def parse(cls, text: str) -> int:
+        """GOTO's options as the CLI and the scenario files write them: a number (``3``,
+        ``0x2``), or names joined by ``+`` or ``|``: ``ligne``, ``bord``, ``ligne+bord``,
+        ``RECALAGE_BORD``, ``append``, ``through`` (PASS_THROUGH), in any case. ValueError names
+        what is not an option."""
+        try:
+            return int(text, 0)
+        except ValueError:
+            pass
+        value = 0
+        for part in text.replace("|", "+").split("+"):
+            name = part.strip().upper()
+            aliases = {
+                "LIGNE": "RECALAGE_LIGNE",
+                "BORD": "RECALAGE_BORD",
+                "THROUGH": "PASS_THROUGH",
+            }
+            name = aliases.get(name, name)
+            try:
+                value |= cls[name]
+            except KeyError:
+                raise ValueError(
+                    f"{text!r} is not GOTO options (a number, or ligne, bord, append, through,"
+                    " joined by +)"
+                ) from None
+        return value
+
 
 class Outcome(enum.Enum):
     """How an order ended, as ``Board.complete`` tells it (docs/strategy.md)."""

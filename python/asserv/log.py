@@ -33,6 +33,7 @@ import json
 import math
 import struct
 import sys
+import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,6 +41,7 @@ from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
+from ._columns import INTEGER, LOG_FIELDS, UNITS
 from .bus import Clock
 from .field import Field
 
@@ -61,58 +63,22 @@ __all__ = [
     "save",
 ]
 
-#: The columns of a log, in order. ``dist_err_mm`` and ``angle_err_mm`` are the following errors
-#: of the distance loop and of the angle loop (as the arc at the drive wheels), as DEBUG reports
-#: them; ``end_reason`` is DEBUG's (the end_reason table of protocol/messages.toml).
-LOG_FIELDS = (
-    "t_s",
-    "x_mm",
-    "y_mm",
-    "heading_deg",
-    "est_x_mm",
-    "est_y_mm",
-    "est_heading_deg",
-    "radius_mm",
-    "v_mm_s",
-    "omega_deg_s",
-    "v_set_mm_s",
-    "omega_set_deg_s",
-    "dist_err_mm",
-    "angle_err_mm",
-    "duty_left",
-    "duty_right",
-    "current_left_A",
-    "current_right_A",
-    "status",
-    "order_state",
-    "end_reason",
-)
+#: The columns of a log, in order, what each is, and those that hold integers: one table,
+#: firmware/ports/host/trace.toml, generated into _columns.py. ``dist_err_mm`` and
+#: ``angle_err_mm`` are the following errors of the distance loop and of the angle loop (as the
+#: arc at the drive wheels), as DEBUG reports them; ``end_reason`` is DEBUG's (the end_reason
+#: table of protocol/messages.toml).
 LOG_DTYPE = np.dtype([(name, "<f8") for name in LOG_FIELDS])
 
-#: What each column is, for the CSV header's companion and the JSON schema.
-UNITS = {
-    "t_s": "s since the start of the log",
-    "x_mm": "true x (simulator)",
-    "y_mm": "true y (simulator)",
-    "heading_deg": "true heading (simulator)",
-    "est_x_mm": "the board's estimate",
-    "est_y_mm": "the board's estimate",
-    "est_heading_deg": "the board's estimate",
-    "radius_mm": "the board's error radius",
-    "v_mm_s": "forward speed (true in the simulator, measured on a board)",
-    "omega_deg_s": "turn rate (true in the simulator, measured on a board)",
-    "v_set_mm_s": "set-point speed (simulator)",
-    "omega_set_deg_s": "set-point turn rate (simulator)",
-    "dist_err_mm": "following error of the distance loop",
-    "angle_err_mm": "following error of the angle loop, as arc at the drive wheels",
-    "duty_left": "-1..1",
-    "duty_right": "-1..1",
-    "current_left_A": "motor current",
-    "current_right_A": "motor current",
-    "status": "CHECK_BUSY status byte",
-    "order_state": "DEBUG order_state",
-    "end_reason": "DEBUG end_reason",
-}
+#: The MCAP header's profile: JSON messages with JSON schemas, Foxglove's well-known schemas and
+#: asserv.Sample; times are wall-clock ns since 1970 (UTC).
+PROFILE = "asserv"
+
+
+def _version() -> str:
+    from . import __version__
+
+    return __version__
 
 
 class LogError(ValueError):
@@ -265,8 +231,13 @@ def from_sim(sim: Simulator) -> np.ndarray:
 # ---- writing ----------------------------------------------------------------------------------
 
 
-def _stamp(t_s: float) -> dict[str, int]:
-    ns = max(0, round(t_s * 1e9))
+def _ns(t_s: float, start_ns: int = 0) -> int:
+    """The wall-clock time of the log's time ``t_s``: its start, plus ``t_s`` (ns)."""
+    return start_ns + max(0, round(t_s * 1e9))
+
+
+def _stamp(t_s: float, start_ns: int = 0) -> dict[str, int]:
+    ns = _ns(t_s, start_ns)
     return {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
 
 
@@ -337,7 +308,13 @@ SCHEMAS: dict[str, dict[str, Any]] = {
         }
     ),
     "asserv.Sample": _obj(
-        {name: {"type": ["number", "null"], "description": UNITS[name]} for name in LOG_FIELDS}
+        {
+            name: {
+                "type": ["integer" if name in INTEGER else "number", "null"],
+                "description": UNITS[name],
+            }
+            for name in LOG_FIELDS
+        }
     ),
 }
 
@@ -359,9 +336,11 @@ def _pose(x_mm: float, y_mm: float, z_mm: float, heading_deg: float) -> dict[str
     }
 
 
-def _entity(frame: str, ident: str, t_s: float, **prims: list[dict[str, Any]]) -> dict[str, Any]:
+def _entity(
+    frame: str, ident: str, t_s: float, start_ns: int = 0, **prims: list[dict[str, Any]]
+) -> dict[str, Any]:
     e: dict[str, Any] = {
-        "timestamp": _stamp(t_s),
+        "timestamp": _stamp(t_s, start_ns),
         "frame_id": frame,
         "id": ident,
         "lifetime": {"sec": 0, "nsec": 0},
@@ -400,8 +379,9 @@ def field_from_dict(d: dict[str, Any]) -> Field:
     )
 
 
-def field_scene(field: Field, t_s: float = 0.0) -> dict[str, Any]:
-    """The field as a foxglove.SceneUpdate in the frame ``field`` (metres)."""
+def field_scene(field: Field, t_s: float = 0.0, start_ns: int = 0) -> dict[str, Any]:
+    """The field as a foxglove.SceneUpdate in the frame ``field`` (metres), stamped at the log's
+    start ``start_ns`` (ns since 1970, UTC) plus ``t_s``."""
     hx, hy = field.length_mm / 2, field.width_mm / 2
     corners = [(-hx, -hy), (hx, -hy), (hx, hy), (-hx, hy), (-hx, -hy)]
     border = {
@@ -466,12 +446,20 @@ def field_scene(field: Field, t_s: float = 0.0) -> dict[str, Any]:
         "color": _color(0.85, 0.9, 0.85, 1.0),
     }
     entity = _entity(
-        "field", "field", t_s, lines=[border, *lines], cylinders=cylinders, cubes=[table, *cubes]
+        "field",
+        "field",
+        t_s,
+        start_ns,
+        lines=[border, *lines],
+        cylinders=cylinders,
+        cubes=[table, *cubes],
     )
     return {"deletions": [], "entities": [entity]}
 
 
-def robot_scene(outline: Outline, frames: Sequence[str], t_s: float = 0.0) -> dict[str, Any]:
+def robot_scene(
+    outline: Outline, frames: Sequence[str], t_s: float = 0.0, start_ns: int = 0
+) -> dict[str, Any]:
     """The robot's outline as a box in each of ``frames`` (``robot``, ``robot_true``)."""
     colors = {"robot": _color(0.85, 0.1, 0.1, 0.5), "robot_true": _color(0.1, 0.3, 0.9, 0.5)}
     entities = [
@@ -479,6 +467,7 @@ def robot_scene(outline: Outline, frames: Sequence[str], t_s: float = 0.0) -> di
             frame,
             frame,
             t_s,
+            start_ns,
             cubes=[
                 {
                     "pose": _pose(outline.offset_x_mm, outline.offset_y_mm, 60, 0),
@@ -496,9 +485,26 @@ def robot_scene(outline: Outline, frames: Sequence[str], t_s: float = 0.0) -> di
     return {"deletions": [], "entities": entities}
 
 
-def sample_json(row: np.void | dict[str, float]) -> dict[str, float | None]:
-    """One row as the /asserv message (NaN as null)."""
-    return {name: _num(float(row[name])) for name in LOG_FIELDS}
+def sample_json(row: np.void | dict[str, float]) -> dict[str, float | int | None]:
+    """One row as the /asserv message (NaN as null; the INTEGER columns as integers)."""
+    out: dict[str, float | int | None] = {}
+    for name in LOG_FIELDS:
+        v = float(row[name])
+        out[name] = None if math.isnan(v) else _integer(name, v) if name in INTEGER else v
+    return out
+
+
+def _integer(name: str, v: float) -> int:
+    if not v.is_integer():
+        raise LogError(f"the column {name} holds integers, not {v!r}")
+    return int(v)
+
+
+def _cell(name: str, v: float) -> str:
+    """A CSV cell: empty for NaN, an integer column as an integer, else the float in full."""
+    if math.isnan(v):
+        return ""
+    return str(_integer(name, v)) if name in INTEGER else repr(v)
 
 
 def _mcap_writer() -> Any:
@@ -532,10 +538,14 @@ class LogWriter:
         field: Field | None = None,
         outline: Outline | None = None,
         truth: bool = True,
+        start_ns: int | None = None,
     ) -> None:
         if mcap is None and csv_path is None:
             raise LogError("nothing to write: give an MCAP file, a CSV file or both")
         self._truth = truth
+        #: The wall-clock time of the log's t_s = 0 (ns since 1970, UTC): the MCAP's times are
+        #: this plus each row's t_s, so that a viewer dates the recording right.
+        self.start_ns = time.time_ns() if start_ns is None else int(start_ns)
         self._mcap_file: IO[Any] | None = None
         self._csv_file: IO[Any] | None = None
         self._writer: Any = None
@@ -547,7 +557,7 @@ class LogWriter:
                 Writer = _mcap_writer()  # noqa: N806 (a class)
                 self._mcap_file = _open(mcap, "mcap")
                 self._writer = Writer(self._mcap_file)
-                self._writer.start(profile="", library="asserv")
+                self._writer.start(profile=PROFILE, library=f"asserv {_version()}")
                 schema_ids = {
                     name: self._writer.register_schema(
                         name=name,
@@ -562,14 +572,18 @@ class LogWriter:
                     self._channels[topic] = self._writer.register_channel(
                         topic=topic, message_encoding="json", schema_id=schema_ids[schema]
                     )
-                meta = {"outline": json.dumps(dataclasses.asdict(outline or Outline()))}
+                meta = {
+                    "outline": json.dumps(dataclasses.asdict(outline or Outline())),
+                    "start_ns": str(self.start_ns),
+                }
                 if field is not None:
                     meta["field"] = json.dumps(field_dict(field))
                 self._writer.add_metadata("asserv", meta)
                 if field is not None:
-                    self._write("/field", 0.0, field_scene(field))
+                    self._write("/field", 0.0, field_scene(field, 0.0, self.start_ns))
                 frames = ["robot", "robot_true"] if truth else ["robot"]
-                self._write("/robot", 0.0, robot_scene(outline or Outline(), frames))
+                scene = robot_scene(outline or Outline(), frames, 0.0, self.start_ns)
+                self._write("/robot", 0.0, scene)
             if csv_path is not None:
                 self._csv_file = _open(csv_path, "csv")
                 self._csv = csv.writer(self._csv_file)
@@ -579,7 +593,7 @@ class LogWriter:
             raise
 
     def _write(self, topic: str, t_s: float, msg: dict[str, Any]) -> None:
-        ns = max(0, round(t_s * 1e9))
+        ns = _ns(t_s, self.start_ns)
         self._seq += 1
         self._writer.add_message(
             channel_id=self._channels[topic],
@@ -593,7 +607,7 @@ class LogWriter:
         """One row (a record of LOG_DTYPE, or a dict with every column)."""
         t = float(row["t_s"])
         if self._writer is not None:
-            stamp = _stamp(t)
+            stamp = _stamp(t, self.start_ns)
             est = (float(row["est_x_mm"]), float(row["est_y_mm"]), float(row["est_heading_deg"]))
             tru = (float(row["x_mm"]), float(row["y_mm"]), float(row["heading_deg"]))
             poses = [("estimate", "robot", est)]
@@ -620,9 +634,7 @@ class LogWriter:
                 )
             self._write("/asserv", t, sample_json(row))
         if self._csv is not None:
-            self._csv.writerow(
-                "" if math.isnan(float(row[n])) else repr(float(row[n])) for n in LOG_FIELDS
-            )
+            self._csv.writerow(_cell(n, float(row[n])) for n in LOG_FIELDS)
 
     def flush(self) -> None:
         if self._csv_file is not None:
@@ -657,13 +669,15 @@ def save(
     field: Field | None = None,
     outline: Outline | None = None,
     every: int = 1,
+    start_ns: int | None = None,
 ) -> None:
     """Write a whole log (``from_sim``, ``from_trace``, ``poll_board``) to MCAP and/or CSV.
-    ``every`` keeps one row in that many (1: all; the simulator records 1000 rows a second)."""
+    ``every`` keeps one row in that many (1: all; the simulator records 1000 rows a second).
+    ``start_ns``: the wall-clock time of the rows' t_s = 0 (ns since 1970; default now)."""
     if every < 1:
         raise LogError(f"every must be at least 1, not {every}")
     truth = bool(len(rows)) and not np.isnan(rows["x_mm"]).all()
-    with LogWriter(mcap, csv, field=field, outline=outline, truth=truth) as w:
+    with LogWriter(mcap, csv, field=field, outline=outline, truth=truth, start_ns=start_ns) as w:
         for row in rows[::every]:
             w.add(row)
 
@@ -681,6 +695,8 @@ class McapLog:
     messages: dict[str, list[dict[str, Any]]]  # topic: decoded messages (all but /asserv)
     field: Field | None = None  # from the metadata "asserv"
     outline: Outline | None = None
+    start_ns: int | None = None  # the wall-clock time of t_s = 0 (ns since 1970, UTC)
+    profile: str = ""  # the header's
 
 
 def read_mcap(path: str | Path) -> McapLog:
@@ -695,11 +711,16 @@ def read_mcap(path: str | Path) -> McapLog:
     messages: dict[str, list[dict[str, Any]]] = {}
     fld: Field | None = None
     outline: Outline | None = None
+    start_ns: int | None = None
+    profile = ""
     try:
         with p.open("rb") as f:
             reader = make_reader(f)
+            profile = reader.get_header().profile
             for meta in reader.iter_metadata():
                 if meta.name == "asserv":
+                    if "start_ns" in meta.metadata:
+                        start_ns = int(meta.metadata["start_ns"])
                     if "field" in meta.metadata:
                         fld = field_from_dict(json.loads(meta.metadata["field"]))
                     if "outline" in meta.metadata:
@@ -724,7 +745,7 @@ def read_mcap(path: str | Path) -> McapLog:
     except (McapError, ValueError, KeyError, EOFError, TypeError, struct.error) as e:
         raise LogError(f"{p} is not an asserv MCAP log: {e}") from None
     out = np.array(rows, dtype=LOG_DTYPE) if rows else empty(0)
-    return McapLog(out, schemas, encodings, messages, fld, outline)
+    return McapLog(out, schemas, encodings, messages, fld, outline, start_ns, profile)
 
 
 def read_csv(path: str | Path) -> np.ndarray:
@@ -855,10 +876,11 @@ def write_outputs(
     csv_path: str | None,
     field: Field | None,
     outline: Outline | None,
+    start_ns: int | None = None,
 ) -> int:
     """Write a whole log for a command; prints what was written; returns an exit code."""
     try:
-        save(rows, mcap=mcap, csv=csv_path, field=field, outline=outline)
+        save(rows, mcap=mcap, csv=csv_path, field=field, outline=outline, start_ns=start_ns)
     except LogError as e:
         print(f"{prog}: {e}", file=sys.stderr)
         return 2

@@ -50,13 +50,17 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from . import codec
 from . import field as fieldmod
 from ._protocol import Capability, EndReason, Filtre, Status
+from .codec import Pose
 from .driver import AsservError, Board, GotoOption, Outcome, outcome_of
-from .sim import Frame, Simulator
+
+if TYPE_CHECKING:  # the simulator (asserv[sim]) is imported where a scenario is checked or
+    # played, so that asserv[view] without it imports this module (asserv --bus 1 view)
+    from .sim import Frame, Simulator
 
 SCENARIO_DIR = fieldmod.data_dir("scenarios")
 
@@ -77,22 +81,7 @@ def _num(word: str) -> float:
 
 
 def _options(word: str) -> int:
-    try:
-        return int(word, 0)
-    except ValueError:
-        pass
-    value = 0
-    for part in word.replace("|", "+").split("+"):
-        name = {
-            "ligne": "RECALAGE_LIGNE",
-            "bord": "RECALAGE_BORD",
-            "through": "PASS_THROUGH",
-        }.get(part.lower(), part.upper())
-        try:
-            value |= GotoOption[name]
-        except KeyError:
-            raise ValueError(word) from None
-    return value
+    return GotoOption.parse(word)  # the same names as the CLI's --options
 
 
 def _filtre(word: str) -> int:
@@ -242,6 +231,8 @@ class Scenario:
     events: list[Event] = dataclasses.field(default_factory=list)
 
     def simulator(self, record: bool = True) -> Simulator:
+        from .sim import Simulator
+
         config = dict(self.config)
         if self.start is not None:
             config["start"] = self.start
@@ -352,6 +343,8 @@ def parse(
     """Check a whole scenario; ScenarioError names the first bad line. ``setup_only``: the
     world of a scenario without bus commands (the robot, the field, opponents, events), for
     ``asserv sim serve --scenario``: a bus command is then refused."""
+    from .sim import Simulator
+
     base = base or Path.cwd()
     scn = Scenario(source, fieldmod.load())
     dry = Board(_DryBus(), check=False)
@@ -720,6 +713,7 @@ class Result:
     wall_s: float
     targets: list[tuple[float, float]]
     ok: bool
+    position: Pose | None = None  # the reply of the scenario's last ``position`` line
 
 
 def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
@@ -738,6 +732,7 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
     ok = True
     status = 0
     outcome: Outcome | None = None
+    position: Pose | None = None
     t0 = time.perf_counter()
     steps = scn.steps
     for k, step in enumerate(steps):
@@ -793,6 +788,8 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
                 value = getattr(board, method)(*step.args)
                 if step.command == "goto":
                     targets.append((float(step.args[0]), float(step.args[1])))
+                if step.command == "position":
+                    position = value
                 if value is not None:
                     printer.end_run()
         except AsservError as e:
@@ -811,7 +808,7 @@ def play(scn: Scenario, out: Callable[[str], None] = print) -> Result:
             f"warning: {scn.source}: the scenario ended with the robot still busy"
             f" ({_flags(int(busy))}): end it with a 'wait' to see how the order ends"
         )
-    return Result(sim, board, status, time.perf_counter() - t0, targets, ok)
+    return Result(sim, board, status, time.perf_counter() - t0, targets, ok, position)
 
 
 def _outcome_name(outcome: Outcome) -> str:
@@ -835,7 +832,8 @@ def summary(res: Result, out: Callable[[str], None] = print) -> float:
     error of the estimate in mm."""
     sim, tr = res.sim, res.sim.trace
     truth = sim.true_pose()
-    pose = res.board.position()
+    # the scenario's own POSITION, the one its log shows; a new read would be a later one
+    pose = res.position or res.board.position()
     last = tr[-1]
     err = math.hypot(last["est_x_mm"] - last["x_mm"], last["est_y_mm"] - last["y_mm"])
     out("")

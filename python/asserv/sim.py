@@ -27,33 +27,12 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from . import field as fieldmod
+from ._columns import TRACE_FIELDS
 from ._core import ffi, lib
 from .bus import VirtualBus
 from .lidar import LIDAR, LidarScan, Target, Yielding, crossing_path, scan_targets
 
 #: The columns of ``Simulator.trace``, in the order of ``struct host_sample`` (host.h).
-TRACE_FIELDS = (
-    "t_s",
-    "x_mm",
-    "y_mm",
-    "heading_deg",
-    "est_x_mm",
-    "est_y_mm",
-    "est_heading_deg",
-    "radius_mm",
-    "v_mm_s",
-    "omega_deg_s",
-    "v_set_mm_s",
-    "omega_set_deg_s",
-    "duty_left",
-    "duty_right",
-    "current_left_A",
-    "current_right_A",
-    "contact_force_N",
-    "status",
-    "order_state",
-    "shocks",
-)
 TRACE_DTYPE = np.dtype([(name, "<f8") for name in TRACE_FIELDS])
 
 

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import log
-from .cli_args import natural
+from .cli_args import natural, progress_bar
 
 if TYPE_CHECKING:
     from .driver import Board
@@ -390,28 +390,26 @@ def _command(args: argparse.Namespace) -> int:
         def board_for(g: Gains) -> Board:
             return sim_board(args.seed)[1]
 
+    bar = progress_bar(len(gain_sets) * len(axes), "steps")
+
     def progress(g: Gains, r: StepResponse) -> None:
-        m = r.metrics
-        print(
-            f"  {g}: {r.axis} overshoot {m.overshoot_pct:.1f} %,"
-            f" settling {_f(m.settling_s, '.3f')} s",
-            file=sys.stderr,
-            flush=True,
-        )
+        bar.set_postfix_str(f"{g} {r.axis}", refresh=False)
+        bar.update(1)
 
     where = log.board_where(args) if real else f"the simulated robot {args.seed}"
     print(f"{prog}: {len(gain_sets)} gain set(s) x {', '.join(axes)} on {where}", file=sys.stderr)
     try:
-        results = sweep(
-            board_for,
-            gain_sets,
-            axes,
-            steps,
-            window_s=args.window,
-            hz=args.hz,
-            limits=(args.speed, args.accel),
-            progress=progress,
-        )
+        with bar:
+            results = sweep(
+                board_for,
+                gain_sets,
+                axes,
+                steps,
+                window_s=args.window,
+                hz=args.hz,
+                limits=(args.speed, args.accel),
+                progress=progress,
+            )
         best = rank((g, [r.metrics for r in rs]) for g, rs in results.items())[0][0]
         for line in table(results):
             print(line)

@@ -15,6 +15,10 @@ how it runs:
   line to the next). ``<!-- example: board calibration -->``: a simulated robot standing where
   ``asserv calibrate`` puts it, rear against the west border.
 - ``<!-- example: skip REASON -->``: not run (REASON says why: output of a long benchmark...).
+- ``<!-- example: output asserv ARGS -->``: the block is what ``asserv ARGS`` prints: its lines
+  must appear in that output, in order and next to each other; a line ``...`` stands for any
+  number of lines left out. A figure quoted in a page is so checked against the command.
+  ``<!-- example: output python bench/NAME.py ARGS -->``: the same for a bench script.
 """
 
 from __future__ import annotations
@@ -42,10 +46,10 @@ class Command:
 class Example:
     path: Path
     line: int  # of the block's first line, 1-based
-    kind: str  # "python" or "commands"
+    kind: str  # "python", "commands" or "output" (the block is the output of marker_arg)
     code: str = ""
     commands: list[Command] = field(default_factory=list)
-    marker: str = ""  # "", "board", "skip"
+    marker: str = ""  # "", "board", "skip", "output"
     marker_arg: str = ""
 
     @property
@@ -135,6 +139,9 @@ def collect(paths: list[Path] | None = None) -> list[Example]:
             if not code_lines:
                 continue
             head = code_lines[0]
+            if marker == "output":
+                found.append(Example(path, first, "output", "\n".join(body), [], marker, arg))
+                continue
             if lang == "python" or (
                 not lang and (head.startswith("import ") or head.startswith("from "))
             ):
@@ -147,3 +154,24 @@ def collect(paths: list[Path] | None = None) -> list[Example]:
                 if cmds:
                     found.append(Example(path, first, "commands", "", cmds, marker, arg))
     return found
+
+
+def output_matches(block: str, printed: list[str]) -> bool:
+    """Whether the lines of ``block`` appear in ``printed`` in order, each run of lines next to
+    each other; a line ``...`` in the block stands for any number of lines."""
+    runs: list[list[str]] = [[]]
+    for line in block.splitlines():
+        if line.strip() == "...":
+            runs.append([])
+        else:
+            runs[-1].append(line.rstrip())
+    got = [p.rstrip() for p in printed]
+    at = 0
+    for run in (r for r in runs if r):
+        for k in range(at, len(got) - len(run) + 1):
+            if got[k : k + len(run)] == run:
+                at = k + len(run)
+                break
+        else:
+            return False
+    return True

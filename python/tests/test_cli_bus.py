@@ -209,7 +209,8 @@ def test_bus_is_required(capsys: pytest.CaptureFixture[str]) -> None:
     rig = Rig()
     assert rig.run("status") == 2
     assert capsys.readouterr().err == (
-        "asserv status: --bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi)\n"
+        "asserv status: --bus N is required (the Linux I2C bus number, 1 on a Raspberry Pi),"
+        " or --sim HOST:PORT for the simulator of `asserv sim serve`\n"
     )
     assert rig.opened == []
 

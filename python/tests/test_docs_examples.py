@@ -8,15 +8,18 @@ from __future__ import annotations
 
 import contextlib
 import io
+import os
 import runpy
 import shlex
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import pytest
 import smbus2
-from docs_examples import ROOT, Example, collect
+from docs_examples import ROOT, Example, collect, output_matches
 
 from asserv import VirtualBus, cli
 from asserv.sim import Simulator
@@ -69,9 +72,50 @@ def test_every_page_has_its_examples_collected() -> None:
     pages = {e.path.name for e in EXAMPLES}
     assert {"README.md", "driver.md", "protocol.md", "simulator.md"} <= pages
     assert sum(e.kind == "python" for e in EXAMPLES) >= 6
-    assert all(e.marker in ("", "board", "skip") for e in EXAMPLES), [
-        (e.id, e.marker) for e in EXAMPLES if e.marker not in ("", "board", "skip")
+    known = ("", "board", "skip", "output")
+    assert all(e.marker in known for e in EXAMPLES), [
+        (e.id, e.marker) for e in EXAMPLES if e.marker not in known
     ]
+    assert all(
+        e.marker_arg.startswith(("asserv ", "python bench/"))
+        for e in EXAMPLES
+        if e.kind == "output"
+    )
+
+
+#: The output of each command an ``output`` block quotes, run once for all its blocks.
+_PRINTED: dict[str, list[str]] = {}
+
+
+def _printed(command: str) -> list[str]:
+    if command not in _PRINTED and command.startswith("python bench/"):
+        argv = shlex.split(command)
+        p = subprocess.run(
+            [sys.executable, str(ROOT / argv[1]), *argv[2:]],
+            capture_output=True,
+            text=True,
+            timeout=1800,
+            check=False,
+            env={**os.environ, "MPLBACKEND": "Agg"},
+        )
+        assert p.returncode == 0, (command, p.stderr[-2000:])
+        _PRINTED[command] = p.stdout.splitlines()
+    if command not in _PRINTED:
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(io.StringIO()):
+            code = cli.main(shlex.split(command)[1:])
+        assert code == 0, (command, out.getvalue()[-2000:])
+        _PRINTED[command] = out.getvalue().splitlines()
+    return _PRINTED[command]
+
+
+def test_output_matching() -> None:
+    printed = ["a", "b 1", "c", "d", "e"]
+    assert output_matches("b 1\nc", printed)
+    assert output_matches("a\n...\nd\ne", printed)
+    assert not output_matches("b 2\nc", printed)  # a figure that changed
+    assert not output_matches("a\nc", printed)  # not next to each other
+    assert not output_matches("d\n...\nb 1", printed)  # not in order
 
 
 @pytest.mark.parametrize("ex", EXAMPLES, ids=[e.id for e in EXAMPLES])
@@ -79,6 +123,10 @@ def test_example_runs(ex: Example, workdir: Path, monkeypatch: pytest.MonkeyPatc
     if ex.marker == "skip":
         pytest.skip(ex.marker_arg or "marked skip")
     _board(ex, monkeypatch)
+    if ex.kind == "output":
+        printed = _printed(ex.marker_arg)
+        assert output_matches(ex.code, printed), (ex.id, ex.marker_arg, printed)
+        return
     if ex.kind == "python":
         script = workdir / "example.py"
         script.write_text(ex.code, encoding="utf-8")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import time
 from pathlib import Path
 
 import numpy as np
@@ -175,7 +176,11 @@ _value = st.one_of(
 )
 
 
-@given(st.lists(st.tuples(*[_value] * len(log.LOG_FIELDS)), max_size=30))
+_integer = st.one_of(st.integers(0, 255).map(float), st.just(math.nan))
+_row = st.tuples(*[_integer if n in log.INTEGER else _value for n in log.LOG_FIELDS])
+
+
+@given(st.lists(_row, max_size=30))
 @settings(suppress_health_check=[HealthCheck.function_scoped_fixture], deadline=None)
 def test_any_rows_round_trip(tmp_path: Path, data: list[tuple[float, ...]]) -> None:
     rows = np.array(data, dtype=log.LOG_DTYPE) if data else log.empty(0)
@@ -185,6 +190,19 @@ def test_any_rows_round_trip(tmp_path: Path, data: list[tuple[float, ...]]) -> N
     log.save(rows, mcap=m, csv=c)
     _same(log.read_mcap(m).rows, rows)
     _same(log.read_csv(c), rows)
+    # the integer columns are written as integers: no "5.0" in the CSV or the JSON
+    lines = c.read_text().splitlines()
+    k = [log.LOG_FIELDS.index(n) for n in sorted(log.INTEGER & set(log.LOG_FIELDS))]
+    for line in lines[1:]:
+        cells = line.split(",")
+        assert all("." not in cells[i] for i in k), line
+
+
+def test_an_integer_column_refuses_a_fraction(tmp_path: Path) -> None:
+    rows = log.empty(1)
+    rows["t_s"], rows["status"] = 0.0, 2.5
+    with pytest.raises(log.LogError, match=r"the column status holds integers, not 2\.5"):
+        log.save(rows, csv=tmp_path / "r.csv")
 
 
 @given(
@@ -251,7 +269,9 @@ def test_log_a_board(
     Board(sim.bus).goto(400, -850)
     monkeypatch.setattr(log, "BUS_FACTORY", lambda n: sim.bus)
     m, c = tmp_path / "b.mcap", tmp_path / "b.csv"
+    before = time.time_ns()
     code = cli.main(["--bus", "1", "log", "--mcap", str(m), "--csv", str(c), "--duration", "2"])
+    after = time.time_ns()
     assert code == 0, capsys.readouterr().err
     rows = log.read_csv(c)
     assert 95 <= len(rows) <= 101
@@ -264,6 +284,9 @@ def test_log_a_board(
     back = log.read_mcap(m)
     _same(back.rows, rows)
     assert "/pose/true" not in back.schemas
+    # a board's log is dated on the wall clock too: the log opened between before and after
+    assert back.start_ns is not None and before <= back.start_ns <= after
+    assert back.profile == log.PROFILE
 
 
 @pytest.mark.parametrize(

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import time
 from pathlib import Path
 from typing import Any
 
@@ -96,8 +97,15 @@ def _check_against_trace(sim: Simulator, tmp: Path) -> None:
     tr = sim.trace
     rows = log.from_sim(sim)
     m, c = tmp / "run.mcap", tmp / "run.csv"
+    before = time.time_ns()
     log.save(rows, mcap=m, csv=c, field=sim.field, outline=log.Outline.of(sim))
+    after = time.time_ns()
     schemas, msgs = read_all(m)
+    # Dated on the wall clock: the start of the recording, plus the run's time.
+    back = log.read_mcap(m)
+    start = back.start_ns
+    assert start is not None and before <= start <= after
+    assert back.profile == log.PROFILE
     assert schemas == log.TOPICS
     # Every Foxglove message conforms to Foxglove's definition of its schema.
     for topic, name in schemas.items():
@@ -108,7 +116,11 @@ def _check_against_trace(sim: Simulator, tmp: Path) -> None:
     samples = msgs["/asserv"]
     assert len(samples) == len(tr)
     ns = np.array([t for t, _ in samples])
-    np.testing.assert_array_equal(ns, np.maximum(0, np.round(tr["t_s"] * 1e9)).astype(int))
+    np.testing.assert_array_equal(ns - start, np.maximum(0, np.round(tr["t_s"] * 1e9)).astype(int))
+    # Each message's own timestamp is its log time.
+    for topic in ("/pose/estimate", "/tf"):
+        for t, msg in msgs[topic]:
+            assert msg["timestamp"]["sec"] * 10**9 + msg["timestamp"]["nsec"] == t, topic
     back_csv = log.read_csv(c)
     for name in log.LOG_FIELDS:
         col = np.array([math.nan if s[name] is None else s[name] for _, s in samples])

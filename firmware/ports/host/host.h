@@ -6,6 +6,7 @@
 #include <stdint.h>
 
 #include "board.h"
+#include "host_sample_gen.h"
 #include "port_nvm.h"
 #include "sim.h"
 
@@ -54,27 +55,10 @@ void host_tick(struct host *h);
 void host_i2c_write(struct host *h, const uint8_t *data, uint8_t n, int stop);
 void host_i2c_read(struct host *h, uint8_t *out, uint8_t n);
 
-/* One row of the trace host_advance_ns() records at each control tick, after the board's tick
- * (all doubles, so that Python reads a buffer of them as a structured array; field order and
- * names are mirrored in python/asserv/sim.py). Truth is the simulator's, estimates the board's. */
-struct host_sample {
-	double t_s;         /* time of the tick */
-	double x_mm, y_mm;  /* true pose of the encoder axis midpoint (the spec's position) */
-	double heading_deg; /* true heading, -180..180 */
-	double est_x_mm, est_y_mm;              /* the board's estimate (odometry) */
-	double est_heading_deg;                 /* -180..180 */
-	double radius_mm;                       /* the board's error radius */
-	double v_mm_s;                          /* true forward speed */
-	double omega_deg_s;                     /* true turn rate */
-	double v_set_mm_s;                      /* distance axis set-point speed */
-	double omega_set_deg_s;                 /* angle axis set-point turn rate */
-	double duty_left, duty_right;           /* -1..1 of the battery */
-	double current_left_A, current_right_A; /* motor currents */
-	double contact_force_N;                 /* border/basket push on the outline */
-	double status;      /* what CHECK_BUSY answers after the tick (STATUS_*) */
-	double order_state; /* ORDER_STATE_* */
-	double shocks;      /* shock switch mask */
-};
+/* struct host_sample: one row of the trace host_advance_ns() records at each control tick, after
+ * the board's tick (all doubles, so that Python reads a buffer of them as a structured array).
+ * Truth is the simulator's, estimates the board's. Its columns are trace.toml's, generated into
+ * host_sample_gen.h and python/asserv/_columns.py by gen_trace.py. */
 
 /* Runs the simulated board for duration_ns: control ticks at multiples of tick_ns (the first at
  * now_ns = 0), the physics in between, so that an I2C byte can arrive at any instant between two
