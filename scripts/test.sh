@@ -54,11 +54,12 @@ cmake -S . -B build-avr0 -G Ninja -DASSERV_AVR_HARNESS=ON -DASSERV_TESTS=OFF \
 cmake --build build-avr0
 ctest --test-dir build-avr0 -L avr --output-on-failure
 
-step "STM32: build the firmware for a Nucleo-F446RE, run the ELF in unicorn (harness/stm32, docs/stm32.md)"
+step "STM32: build the firmware and its bootloader for a Nucleo-F446RE, run the ELFs in unicorn (harness/stm32, docs/stm32.md, docs/update.md)"
 cmake -S firmware/ports/stm32 -B build-stm32 -G Ninja -DCMAKE_TOOLCHAIN_FILE="$ROOT/cmake/stm32f4.cmake" >/dev/null
 cmake --build build-stm32
 ruff check harness/stm32
 ruff format --check harness/stm32
-mypy --config-file harness/stm32/mypy.ini harness/stm32 bench/stm32.py
+mypy --config-file harness/stm32/mypy.ini harness/stm32 bench/stm32.py bench/update_stm32.py
 python -m pytest -p no:cacheprovider harness/stm32
 python bench/stm32.py build-stm32/asserv_stm32.elf
+python bench/update_stm32.py build-stm32

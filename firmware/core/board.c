@@ -265,6 +265,12 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 		/* in range by the message table; see set_odometrie */
 		(void)set_odometrie(pl, &mb->wheels, cfg, msg);
 		break;
+	case PROTO_BOOTLOADER:
+		/* The port leaves for its bootloader after this tick (docs/update.md); an order
+		 * started since the protocol layer's check keeps the board here. */
+		if (!orders_busy(&pl->orders))
+			pl->boot_request = 1;
+		break;
 	default:
 		break; /* ETAT messages never reach the queue */
 	}

@@ -191,6 +191,7 @@ struct planner {
 	uint8_t transactions_seen; /* proto.transactions at the last slow tick */
 	uint8_t timed_out;         /* the last order was stopped by the timeout */
 	uint8_t calibrated;        /* a calibration is installed: calibration holds it */
+	uint8_t boot_request;      /* BOOTLOADER accepted: the port enters its bootloader */
 	struct board_calibration calibration;
 	uint16_t motor_base[2]; /* the motors' counts at the last period's end */
 	/* Since each free wheel last counted: its motor's net travel, and how much of it has

@@ -288,6 +288,12 @@ static void end_write(struct proto *p)
 		reject(p, REJECT_REFUSED_PB_GRAVE);
 		return;
 	}
+	if (d->designation == PROTO_BOOTLOADER &&
+	    ((published(p)->status & STATUS_BUSY_TRAJET) || p->orders_in != p->orders_published)) {
+		/* Leaving for the bootloader stops the control: not while an order drives. */
+		reject(p, REJECT_REFUSED_BUSY);
+		return;
+	}
 	if ((uint8_t)(p->head - p->tail) >= PROTO_QUEUE_DEPTH) {
 		reject(p, REJECT_QUEUE_FULL);
 		return;

@@ -11,7 +11,7 @@
 #define PROTO_QUEUE_DEPTH 8
 #define PROTO_MAX_PARAMS 3
 #define PROTO_MAX_REPLY 22 /* [bytes] without PEC */
-#define PROTO_N_MSGS 22
+#define PROTO_N_MSGS 23
 
 /* Designations (the specification's names; extensions marked). */
 #define PROTO_GOTO 0
@@ -36,6 +36,7 @@
 #define PROTO_SET_SPEED_SCALE 19 /* extension */
 #define PROTO_MOTION 20 /* extension */
 #define PROTO_SET_CORNER 21 /* extension */
+#define PROTO_BOOTLOADER 30 /* extension */
 #define PROTO_DEBUG 200
 
 /* Bits of the CHECK_BUSY status byte. */
@@ -73,6 +74,7 @@
 #define REJECT_MOTION_QUEUE_FULL 9 /* an APPEND order found the motion queue full: nothing queued is lost (extension) */
 #define REJECT_BAD_OPTIONS 10 /* GOTO options that cannot combine: a recalibration with PASS_THROUGH (extension) */
 #define REJECT_UNSUPPORTED 11 /* a message of an extension this build leaves out (its capability bit is clear) */
+#define REJECT_REFUSED_BUSY 16 /* BOOTLOADER was sent while an order runs (the motors driving): stop the robot first */
 
 /* filter codes. */
 #define FILTRE_STD 0 /* standard gains for trajectories */
@@ -126,6 +128,7 @@
 #define ARG_SET_ODOMETRIE_SCALE_PPM 2
 #define ARG_SET_SPEED_SCALE_PERCENT 0
 #define ARG_SET_CORNER_TOLERANCE_MM 0
+#define ARG_BOOTLOADER_KEY 0
 
 /* Reply lengths [bytes], without PEC. */
 #define PROTO_CHECK_BUSY_REPLY_LEN 1

@@ -28,6 +28,7 @@ const struct proto_param_desc proto_params[] = {
 	{-30000, 30000, PROTO_S16, 0x00}, /* SET_ODOMETRIE.scale_ppm */
 	{0, 100, PROTO_U8, 0x00}, /* SET_SPEED_SCALE.percent */
 	{1, 255, PROTO_U8, 0x00}, /* SET_CORNER.tolerance_mm */
+	{45063, 45063, PROTO_U16, 0x00}, /* BOOTLOADER.key */
 };
 
 const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
@@ -52,7 +53,8 @@ const struct proto_msg_desc proto_msgs[PROTO_N_MSGS] = {
 	{PROTO_SET_SPEED_SCALE, PROTO_KIND_SET, 1, 1, 2, 2, 0, 22},
 	{PROTO_MOTION, PROTO_KIND_ETAT, 0, 0, 1, 1, 10, 23},
 	{PROTO_SET_CORNER, PROTO_KIND_SET, 1, 1, 2, 2, 0, 23},
-	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 24},
+	{PROTO_BOOTLOADER, PROTO_KIND_SET, 1, 1, 3, 3, 0, 24},
+	{PROTO_DEBUG, PROTO_KIND_ETAT, 0, 0, 1, 1, 22, 25},
 };
 
 const struct proto_msg_desc *proto_lookup(uint8_t designation)
@@ -101,8 +103,10 @@ const struct proto_msg_desc *proto_lookup(uint8_t designation)
 		return &proto_msgs[19];
 	case 21:
 		return &proto_msgs[20];
-	case 200:
+	case 30:
 		return &proto_msgs[21];
+	case 200:
+		return &proto_msgs[22];
 	default:
 		return NULL;
 	}

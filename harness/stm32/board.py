@@ -219,14 +219,16 @@ class Stm32Board(_Lockstep):
         bc: Any = None,
         byte_ns: int = 90_000,
         nvm: bytes | None = None,
+        boot_elf: str | Path | None = None,
     ) -> None:
         """``nvm``: flash sector 1 (the calibration log) at power-on, 16 KiB at most, the
-        rest erased; default: all erased (a new chip)."""
+        rest erased; default: all erased (a new chip). ``boot_elf``: the bootloader in sector
+        0, started at reset (boot.py); without it the application starts directly."""
         super().__init__(sc, f, byte_ns)
-        cpu = self.cpu = Cpu(elf)
+        cpu = self.cpu = Cpu(elf, boot_elf)
         self.rcc = Rcc(0x4002_3800)
         self.pwr = Pwr(0x4000_7000)
-        self.flash = Flash(0x4002_3C00)
+        self.flash = self._make_flash()
         self.flash.stall_on_sr = True  # the CPU fetches from this flash: see Flash
         if nvm is not None:
             if len(nvm) > len(self.flash.data):
@@ -283,6 +285,9 @@ class Stm32Board(_Lockstep):
         self._boot()
         self.proto_addr = cpu.symbols["asserv_board"] + self._layout()[2]
         self.padding = struct_padding(elf, "board")
+
+    def _make_flash(self) -> Flash:
+        return Flash(0x4002_3C00)
 
     def _boot(self) -> None:
         stalled = self.flash.stalled_ns

@@ -26,3 +26,13 @@ def elf() -> Path:
             "build-stm32 -DCMAKE_TOOLCHAIN_FILE=cmake/stm32f4.cmake && cmake --build build-stm32"
         )
     return path
+
+
+@pytest.fixture(scope="session")
+def boot_elf(elf: Path) -> Path:
+    """The bootloader (firmware/boot/stm32), built beside the application (ASSERV_STM32_BOOT_ELF
+    to override)."""
+    path = Path(os.environ.get("ASSERV_STM32_BOOT_ELF", elf.parent / "asserv_boot.elf"))
+    if not path.is_file():
+        pytest.fail(f"{path}: no bootloader; it is built with the STM32 firmware (see above)")
+    return path

@@ -23,6 +23,7 @@ from unicorn import (
     UC_ARCH_ARM,
     UC_ERR_EXCEPTION,
     UC_HOOK_BLOCK,
+    UC_HOOK_CODE,
     UC_MODE_MCLASS,
     UC_MODE_THUMB,
     UC_PROT_ALL,
@@ -77,7 +78,10 @@ class Cpu:
     """The CPU, its memory and its exceptions. Peripheral models attach with ``mmio``; they
     report their interrupt lines through ``irq_line`` callbacks."""
 
-    def __init__(self, elf_path: str | Path) -> None:
+    def __init__(self, elf_path: str | Path, boot_elf: str | Path | None = None) -> None:
+        """``boot_elf``: the bootloader (firmware/boot/stm32) in flash sector 0 too, started at
+        reset; without it the reset starts the application's vector table, as a debugger
+        would (the application alone is linked at its slot, not at the boot address)."""
         self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         self.uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
         # Flash but its sector 1, which the flash interface's model maps (periph.Flash).
@@ -89,6 +93,9 @@ class Cpu:
         self.sizes: dict[str, int] = {}
         self.sections: dict[str, int] = {}
         self._load(Path(elf_path))
+        self.boot_symbols: dict[str, int] = {}
+        if boot_elf is not None:
+            self._load(Path(boot_elf), self.boot_symbols, {}, {})
         # Exceptions: priorities, pending, enabled; the stack of active ones.
         self.pending: set[int] = set()
         self.active: list[int] = []
@@ -100,6 +107,14 @@ class Cpu:
             if name not in self.symbols:
                 raise EmuError(f"{elf_path}: not the asserv STM32 firmware (no symbol {name})")
         self.idle_pc = self.symbols["stm32_idle"] & ~1
+        # Where the CPU sleeps: the application's wfi, and the bootloader's.
+        self.idle_pcs = {self.idle_pc}
+        if "boot_idle" in self.boot_symbols:
+            self.idle_pcs.add(self.boot_symbols["boot_idle"] & ~1)
+            at = self.boot_symbols["boot_idle"] & ~1
+            self.uc.hook_add(UC_HOOK_CODE, lambda uc, a, s, u: uc.emu_stop(), begin=at, end=at)
+        self.reset_base = FLASH_BASE if boot_elf is not None else self.symbols["stm32_vectors"]
+        self.halt = False  # set by a model (a system reset): run_until_idle returns at once
         self.exception_returns = 0
         self.insns = 0
         self._counting = False
@@ -107,7 +122,16 @@ class Cpu:
         self.on_block: Callable[[int, int], None] | None = None
 
     # ---- loading ---------------------------------------------------------------------------
-    def _load(self, path: Path) -> None:
+    def _load(
+        self,
+        path: Path,
+        symbols: dict[str, int] | None = None,
+        sizes: dict[str, int] | None = None,
+        sections: dict[str, int] | None = None,
+    ) -> None:
+        symbols = self.symbols if symbols is None else symbols
+        sizes = self.sizes if sizes is None else sizes
+        sections = self.sections if sections is None else sections
         with path.open("rb") as f:
             try:
                 elf = ELFFile(f)
@@ -125,14 +149,14 @@ class Cpu:
                 # too: the reset handler copies them).
                 self.uc.mem_write(seg["p_paddr"], seg.data())
             for sec in elf.iter_sections():
-                self.sections[sec.name] = int(sec["sh_size"])
+                sections[sec.name] = int(sec["sh_size"])
             symtab = elf.get_section_by_name(".symtab")
             if symtab is None:
                 raise EmuError(f"{path}: no symbol table")
             for sym in symtab.iter_symbols():  # type: ignore[attr-defined]
                 if sym.name and sym["st_info"]["type"] in ("STT_FUNC", "STT_OBJECT"):
-                    self.symbols[sym.name] = int(sym["st_value"])
-                    self.sizes[sym.name] = int(sym["st_size"])
+                    symbols[sym.name] = int(sym["st_value"])
+                    sizes[sym.name] = int(sym["st_size"])
 
     # ---- memory helpers --------------------------------------------------------------------
     def read32(self, addr: int) -> int:
@@ -147,9 +171,11 @@ class Cpu:
     # ---- reset and exceptions --------------------------------------------------------------
     def reset(self) -> None:
         """PM0214 2.3.1 (reset): SP from vector 0, PC from vector 1 (the boot alias of flash)."""
-        self.uc.reg_write(UC_ARM_REG_SP, self.read32(FLASH_BASE))
-        self.uc.reg_write(UC_ARM_REG_PC, self.read32(FLASH_BASE + 4))
+        self.uc.reg_write(UC_ARM_REG_SP, self.read32(self.reset_base))
+        self.uc.reg_write(UC_ARM_REG_PC, self.read32(self.reset_base + 4))
         self.uc.reg_write(UC_ARM_REG_LR, 0xFFFF_FFFF)
+        self.uc.reg_write(UC_ARM_REG_PRIMASK, 0)  # PM0214 2.1.3: PRIMASK is 0 at reset
+        self.halt = False
 
     def _current_priority(self) -> int:
         return self.priority(self.active[-1]) if self.active else THREAD_PRIORITY
@@ -261,7 +287,7 @@ class Cpu:
     def wake(self, exc: int) -> None:
         """An exception ends the wfi the CPU sleeps in (PM0214 3.12.11): the wfi completes,
         and the exception returns to the instruction after it."""
-        self.uc.reg_write(UC_ARM_REG_PC, (self.idle_pc + 2) | 1)
+        self.uc.reg_write(UC_ARM_REG_PC, ((self.reg(UC_ARM_REG_PC) & ~1) + 2) | 1)
         self.enter_exception(exc)
 
     def run_until_idle(self, max_insns: int = 5_000_000) -> None:
@@ -269,7 +295,7 @@ class Cpu:
         wfi with none left to take."""
         for _ in range(1000):
             pc = self.reg(UC_ARM_REG_PC) & ~1
-            if pc == self.idle_pc and not self.active:
+            if pc in self.idle_pcs and not self.active:
                 exc = self._next_exception()
                 if exc is None:
                     return
@@ -279,7 +305,9 @@ class Cpu:
                 if exc is not None:
                     self.enter_exception(exc)
             self.step(self.idle_pc, max_insns)
-            if self.reg(UC_ARM_REG_PC) & ~1 != self.idle_pc:
+            if self.halt:
+                return
+            if self.reg(UC_ARM_REG_PC) & ~1 not in self.idle_pcs:
                 pc = self.reg(UC_ARM_REG_PC)
                 raise EmuError(f"the firmware did not reach its idle loop (PC 0x{pc:08x})")
         raise EmuError("interrupts kept coming: an interrupt line is never cleared")

@@ -816,8 +816,12 @@ class Scs(Regs):
     ISER, ICER, IPR = 0x100, 0x180, 0x400
     VTOR, SHPR3 = 0xD08, 0xD20
 
+    AIRCR = 0xD0C
+    SYSRESETREQ = 0x05FA_0004  # PM0214 4.4.5: VECTKEY and SYSRESETREQ
+
     def __init__(self, on_vtor: Callable[[int], None]) -> None:
         self.on_vtor = on_vtor
+        self.on_reset: Callable[[], None] | None = None  # a system reset requested (AIRCR)
         super().__init__(0xE000_E000)
 
     def write(self, off: int, value: int) -> None:
@@ -830,6 +834,12 @@ class Scs(Regs):
             self.mem[off] = value
             if off == self.VTOR:
                 self.on_vtor(value)
+            elif (
+                off == self.AIRCR
+                and value & 0xFFFF_0004 == self.SYSRESETREQ
+                and self.on_reset is not None
+            ):
+                self.on_reset()
 
     def read(self, off: int) -> int:
         if self.ICER <= off < self.ICER + 0x20:

@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 from board import Stm32Board, robot
-from emu import FLASH_BASE, IRQ0, SYSTICK, Cpu, EmuError, thumb_insn_count
+from emu import IRQ0, SYSTICK, Cpu, EmuError, thumb_insn_count
 from unicorn import UC_ERR_EXCEPTION
 from unicorn.arm_const import (
     UC_ARM_REG_LR,
@@ -105,7 +105,7 @@ def test_boot_sets_the_clock_tree_and_the_pins(board: Stm32Board) -> None:
     assert board.rcc.sysclk_hz() == 180_000_000
     assert board.rcc.apb_div(1) == 4 and board.rcc.apb_div(2) == 2
     assert board.pwr.overdrive() and board.flash.latency() == 5
-    assert board.cpu.vtor == FLASH_BASE
+    assert board.cpu.vtor == board.cpu.symbols["stm32_vectors"]  # the run slot's image
     gb = board.gpio["B"]
     assert gb.mode(8) == gb.mode(9) == 2  # I2C1 on AF
     assert gb.read(gb.OTYPER) >> 8 & 3 == 3  # open-drain

@@ -270,6 +270,17 @@ MESSAGES: tuple[Message, ...] = (
         "how far a PASS_THROUGH corner's path may pass from its point (power-on: 30 mm)",
     ),
     Message(
+        'BOOTLOADER',
+        30,
+        'SET',
+        (Field('key', 'u16', 45063, 45063), ),
+        1,
+        (),
+        (),
+        True,
+        'leave the application for the bootloader, which takes a firmware update (docs/update.md); refused with REFUSED_BUSY while an order runs; a board without a bootloader ignores it',
+    ),
+    Message(
         'DEBUG',
         200,
         'ETAT',
@@ -325,6 +336,7 @@ class Reject(enum.IntEnum):
     MOTION_QUEUE_FULL = 9
     BAD_OPTIONS = 10
     UNSUPPORTED = 11
+    REFUSED_BUSY = 16
 
 
 class Filtre(enum.IntEnum):

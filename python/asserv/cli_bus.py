@@ -71,6 +71,7 @@ BUS_COMMANDS: dict[str, str] = {
     "resume": "RESUME: go on with the paused order from where the robot stands",
     "scale": "SET_SPEED_SCALE P: P % (0..100) of the speed limits, at once",
     "motion": "read the queue, the pause, the braking distance and the scale (MOTION)",
+    "flash": "FIRMWARE.elf|bin: update the STM32 board's application over the bus (docs/update.md)",
 }
 
 
@@ -182,6 +183,7 @@ def add_bus_arguments(
     p.add_argument("ratio", metavar="RATIO_PPM", help="right/left wheel factor correction, ppm")
     p.add_argument("track", metavar="TRACK_MM", help="encoder track, mm (to 0.01 mm)")
     p.add_argument("scale", metavar="SCALE_PPM", help="common wheel factor correction, ppm")
+    add("flash").add_argument("firmware", metavar="FIRMWARE", help="the application's ELF or .bin")
     p = add("wait")
     p.add_argument("--timeout", default="30", help="give up after S seconds (default 30)")
     p.add_argument("--poll", default="0.01", help="poll period, seconds (default 0.01)")
@@ -248,6 +250,15 @@ def _action(args: argparse.Namespace) -> Action:
 
     if cmd == "status":
         return lambda b: [_flags(b.check_busy())]
+    if cmd == "flash":
+        from .bus import clock_of
+        from .update import Progress, UpdateError, flash, load_image
+
+        try:
+            image = load_image(args.firmware)
+        except UpdateError as e:
+            raise _UsageError(str(e)) from None
+        return lambda b: flash(b, image, Progress(sys.stderr, clock_of(b.bus)))
     if cmd == "position":
 
         def position(b: Board) -> list[str]:

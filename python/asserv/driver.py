@@ -469,6 +469,13 @@ class Board:
             _integer("err_angle_deg", err_angle_deg),
         )
 
+    def bootloader(self) -> None:
+        """BOOTLOADER (extension): leave the application for the bootloader, which takes a
+        firmware update (docs/update.md, ``asserv.update``). Refused (OrderRejected,
+        REFUSED_BUSY) while an order runs: stop the robot first. The board leaves at its next
+        control tick; a board without a bootloader (the AVR, the simulator) ignores it."""
+        self._command("BOOTLOADER", 0xB007)
+
     def set_odometrie(self, ratio_ppm: int, track_10um: int, scale_ppm: int = 0) -> None:
         """SET_ODOMETRIE (extension): the odometry's calibration, absolute (docs/calibration.md).
 

@@ -13,6 +13,12 @@ line per request and one per reply (docs/simulator.md, "The simulator server"):
     rdwr w02:0400c80064 r02:1      ok 05                    (one I2C_RDWR transaction)
     (anything wrong)               err ERRNO TEXT
 
+A connection starts with ``hello``. Its first line that is not a request of this protocol (an
+HTTP request line, an unknown word, an empty, overlong or non-ASCII line) gets ``err 71 ...``
+(EPROTO) and ends the connection, with a line on stderr: a web page that POSTs to this port
+(its body lines ``hello``, ``rdwr ...``) runs nothing. A request with wrong arguments (``sleep
+x``) is ``err 22`` and the connection goes on.
+
 ``rdwr`` carries the messages of one combined transaction, ``w<addr>:<hex bytes>`` for a write
 and ``r<addr>:<count>`` for a read; the reply gives the bytes of each read, in hex, ``-`` for an
 empty one. A NACK or a closed bus is ``err`` with the errno the local VirtualBus raises (6,
@@ -29,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import ipaddress
 import math
 import os
 import socket
@@ -36,7 +43,7 @@ import socketserver
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import TYPE_CHECKING, Any
@@ -50,7 +57,14 @@ if TYPE_CHECKING:
     from .lidar import LidarScan
     from .sim import Simulator
 
-__all__ = ["PROTOCOL_VERSION", "RemoteBus", "RemoteClock", "SimServer", "parse_address"]
+__all__ = [
+    "PROTOCOL_VERSION",
+    "RemoteBus",
+    "RemoteClock",
+    "SimServer",
+    "is_loopback",
+    "parse_address",
+]
 
 PROTOCOL_VERSION = 1
 DEFAULT_PORT = 5021
@@ -103,20 +117,53 @@ def decode_rdwr(words: Sequence[str]) -> list[tuple[int, bytes | None, int]]:
     return ops
 
 
+def _log_stderr(line: str) -> None:
+    print(f"asserv sim serve: {line}", file=sys.stderr, flush=True)
+
+
 # The server ---------------------------------------------------------------------------------
+
+
+REQUESTS = ("hello", "time", "sleep", "truth", "obstacles", "lidar", "rdwr")
+
+
+def _not_a_request(raw: bytes, greeted: bool) -> str:
+    """Why the raw line ``raw`` (its newline included) ends the connection, or "" if it is a
+    request of the protocol (whose arguments may still be wrong: that is an ``err`` reply)."""
+    if len(raw) > _MAX_LINE:
+        return f"a line longer than {_MAX_LINE} bytes is not a request of asserv-sim"
+    try:
+        words = raw.decode("ascii").split()
+    except UnicodeDecodeError:
+        return "a line that is not ASCII is not a request of asserv-sim"
+    if not words:
+        return "an empty line is not a request of asserv-sim"
+    if words[0].lower() not in REQUESTS:
+        shown = words[0] if len(words[0]) <= 20 else words[0][:20] + "..."
+        return f"{shown!r} is not a request of asserv-sim ({', '.join(REQUESTS)})"
+    if not greeted and words[0].lower() != "hello":
+        return "the first request must be hello"
+    return ""
 
 
 class SimServer:
     """Serves ``sim``'s bus and clock on ``host``:``port`` (port 0: any free port, see
-    ``address``). ``speed``: simulated seconds per wall second, or 0 for lockstep."""
+    ``address``). ``speed``: simulated seconds per wall second, or 0 for lockstep. ``log``
+    takes a line for each connection that the server closes (by default: stderr)."""
 
     def __init__(
-        self, sim: Simulator, host: str = "127.0.0.1", port: int = 0, speed: float = 1.0
+        self,
+        sim: Simulator,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        speed: float = 1.0,
+        log: Callable[[str], None] | None = None,
     ) -> None:
         if not (speed == 0 or 0 < speed <= 1e6) or math.isnan(speed):
             raise ValueError(f"speed must be 0 (lockstep) or within 0..1e6, not {speed}")
         self.sim = sim
         self.speed = float(speed)
+        self.log = log or _log_stderr
         self.lock = bus_lock(sim.bus)
         self._moved = threading.Condition(threading.Lock())
         self._stop = threading.Event()
@@ -124,7 +171,8 @@ class SimServer:
 
         class Handler(socketserver.StreamRequestHandler):
             def handle(self) -> None:
-                server._serve_client(self.rfile, self.wfile)
+                host, port = self.client_address[:2]
+                server._serve_client(self.rfile, self.wfile, f"{host}:{port}")
 
         class TCP(socketserver.ThreadingTCPServer):
             daemon_threads = True
@@ -207,7 +255,12 @@ class SimServer:
                 self._moved.wait(0.1)
 
     # Requests.
-    def _serve_client(self, rfile: Any, wfile: Any) -> None:
+    def _serve_client(self, rfile: Any, wfile: Any, peer: str = "a client") -> None:
+        """Answer one connection's requests until it closes. The first request must be
+        ``hello``, and the first line that is not a request of the protocol (an HTTP verb, an
+        unknown word, an empty or overlong line) ends the connection: so a browser's POST to this
+        port, whose body lines would otherwise run as requests, runs nothing."""
+        greeted = False
         while not self._stop.is_set():
             try:
                 raw = rfile.readline(_MAX_LINE + 1)
@@ -215,15 +268,17 @@ class SimServer:
                 return
             if not raw:
                 return
-            if len(raw) > _MAX_LINE:
-                reply = f"err {errno.EINVAL} request line longer than {_MAX_LINE} bytes"
-            else:
-                reply = self.handle_line(raw.decode("ascii", "replace").strip())
+            refused = _not_a_request(raw, greeted)
+            reply = f"err {errno.EPROTO} {refused}" if refused else self.handle_line(raw.decode())
             try:
                 wfile.write(reply.encode("ascii") + b"\n")
                 wfile.flush()
             except OSError:
                 return
+            if refused:
+                self.log(f"closed the connection of {peer}: {refused}")
+                return
+            greeted = True
 
     def handle_line(self, line: str) -> str:
         """The reply line to one request line (without newlines)."""
@@ -268,9 +323,7 @@ class SimServer:
                     except OSError as e:
                         return f"err {e.errno or errno.EIO} {e.strerror or e}"
                 return "ok" + "".join(" " + (r.hex() or "-") for r in reads)
-            raise ProtocolError(
-                f"unknown request {words[0]!r} (hello, time, sleep, truth, obstacles, lidar, rdwr)"
-            )
+            raise ProtocolError(f"unknown request {words[0]!r} ({', '.join(REQUESTS)})")
         except ProtocolError as e:
             return f"err {errno.EINVAL} {e}"
 
@@ -419,6 +472,16 @@ class RemoteClock:
             now = float(self.bus.request(f"sleep {min(left, 0.01):.9f}"))
 
 
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` (an address or ``localhost``) is only reachable from this machine."""
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False  # another name: it may resolve to any address
+
+
 def parse_address(text: str, default_port: int = DEFAULT_PORT) -> tuple[str, int]:
     """``HOST:PORT``, ``HOST`` or ``:PORT`` as (host, port); ValueError says what is wrong."""
     host, sep, port_text = text.rpartition(":")
@@ -539,6 +602,13 @@ def serve_main(args: argparse.Namespace) -> int:
     host, bound = server.address
     mode = "lockstep" if speed == 0 else f"{speed:g}x real time"
     print(f"{prog}: listening on {host}:{bound} ({mode}); Ctrl-C stops", flush=True)
+    if not is_loopback(args.host):
+        print(
+            f"{prog}: {args.host} is not loopback: any machine that reaches this port drives"
+            " the simulated robot (the protocol has no password)",
+            file=sys.stderr,
+            flush=True,
+        )
     wall0 = time.monotonic()
     server.start()
     try:

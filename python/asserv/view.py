@@ -13,11 +13,21 @@ of ``asserv.log.LOG_FIELDS``) and takes the page's commands (``goto``, ``pause``
 ``BoardSource`` runs on any smbus2-like bus, so a simulated bus served by another process is one
 more bus object, not a new source.
 
-Messages on ``/ws`` are JSON. Server to page: ``{"type": "hello", "info": {...}}`` once, then
-``{"type": "rows", "rows": [[...], ...], "state": {...}}`` about 30 times a second. Page to
+Messages on ``/ws`` are JSON. Server to page: ``{"type": "hello", "info": {...}, "access":
+{"commands": bool, "drive": bool, "mode": text}}`` once, then ``{"type": "rows", "rows": [[...],
+...], "state": {...}}`` about 30 times a second, and ``{"type": "refused", "why": text}`` for
+a message refused. Page to
 server: ``{"type": "goto", "x": mm, "y": mm}``, ``{"type": "pause", "paused": bool}``,
 ``{"type": "speed", "speed": 1..50}``. The simulator's and the replay's time stands still
 while no page is open.
+
+Who may do what (docs/view.md, "What is protected"): the socket takes connections only from
+the page it serves (websockets' ``origins``: a page of another site is refused). Each run makes
+a random token; the address printed carries it (``/?token=...``), the page passes it on when it
+opens ``/ws?token=...``, and only such a connection may send commands. Without it a page on
+loopback may watch, and on another host may do nothing. A real board (``--bus N``, ``--sim
+HOST:PORT``) takes GOTOs from the page only with ``--control``. A message that is not a command
+of the list above, or one over the rate, gets a line in the log and changes nothing.
 """
 
 from __future__ import annotations
@@ -29,9 +39,13 @@ import dataclasses
 import json
 import math
 import queue
+import secrets
+import socket
 import sys
 import threading
 import time
+import urllib.parse
+import weakref
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,12 +58,14 @@ from ._protocol import OrderState, Status
 from .field import Field
 
 if TYPE_CHECKING:
+    from websockets.typing import Origin
+
     from .codec import Motion
     from .driver import Board
     from .scenario import Scenario
     from .sim import Simulator
 
-__all__ = ["BoardSource", "ReplaySource", "SimSource", "Source", "ViewServer"]
+__all__ = ["BoardSource", "PageMessageError", "ReplaySource", "SimSource", "Source", "ViewServer"]
 
 STATIC = Path(__file__).resolve().parent / "view_static"
 SPEEDS = (1, 2, 5, 10, 20, 50)
@@ -61,7 +77,12 @@ _CONTENT_TYPES = {
     ".html": "text/html; charset=utf-8",
     ".js": "text/javascript; charset=utf-8",
     ".css": "text/css; charset=utf-8",
+    ".svg": "image/svg+xml",
 }
+MAX_MESSAGE_BYTES = 4096  # a page's command is under 100 bytes; a longer message ends the socket
+RATE_HZ = 10.0  # a page's commands a second, sustained (a click, a button)
+BURST = 20  # ... and at once; over that, messages are dropped with a line in the log
+MAX_CLIENTS = 16  # pages open at once
 
 
 def status_names(status: int) -> list[str]:
@@ -144,6 +165,10 @@ class Source:
     #: Match play (issue 31): what MOTION says, the points queued by this view that the board
     #: has not reached, the lidar's hits on the field; None where the board or bus has none.
     match: MatchState | None = None
+
+    def why_no_goto(self) -> str:
+        """Why the page's clicks send no GOTO here ("" when they do)."""
+        return "" if self.can_goto else f"a {self.kind} takes no GOTO"
 
     def info(self) -> dict[str, Any]:
         return {
@@ -390,17 +415,20 @@ class SimSource(Source):
 
 class BoardSource(Source):
     """A board on a bus (a real one, the simulator server's ``RemoteBus``, or any smbus2-like
-    bus), polled at ``hz`` in a thread; the page's GOTOs go through the same thread. Pause
-    freezes the view (the robot goes on). The true pose is drawn where the bus knows it
-    (``RemoteBus.truth``)."""
+    bus), polled at ``hz`` in a thread; ``goto`` goes through the same thread. The page's clicks
+    are GOTOs only with ``control`` (``asserv view --control``): by default the board is
+    watched, not driven. Pause freezes the view (the robot goes on). The true pose is drawn
+    where the bus knows it (``RemoteBus.truth``)."""
 
-    def __init__(self, board: Board, hz: float = 50.0, field: Field | None = None) -> None:
+    def __init__(
+        self, board: Board, hz: float = 50.0, field: Field | None = None, control: bool = False
+    ) -> None:
         from . import field as fieldmod
         from .bus import SystemClock
 
         truth = log.bus_truth(board.bus) is not None  # the simulator server knows it
         super().__init__(
-            field or fieldmod.load(), log.Outline(), kind="board", truth=truth, can_goto=True
+            field or fieldmod.load(), log.Outline(), kind="board", truth=truth, can_goto=control
         )
         self.board = board
         self.hz = hz
@@ -445,6 +473,11 @@ class BoardSource(Source):
                 return
             x, y, h = (float(row[k]) for k in ("est_x_mm", "est_y_mm", "est_heading_deg"))
             self.match.lidar = scan.points(x, y, h)
+
+    def why_no_goto(self) -> str:
+        if self.can_goto:
+            return ""
+        return "the board is watched, not driven: asserv view --control lets clicks drive it"
 
     def goto(self, x_mm: float, y_mm: float) -> None:
         """Queued for the polling thread; ``target`` shows it once the board has taken it."""
@@ -520,6 +553,72 @@ class ReplaySource(Source):
         raise ValueError("a replay takes no GOTO")
 
 
+# ---- the page's messages ------------------------------------------------------------------------
+
+
+class PageMessageError(ValueError):
+    """A page's message that the view does not take; the text says why (it goes to the log)."""
+
+
+def _short(value: Any, n: int = 40) -> str:
+    """``repr(value)``, cut to ``n`` characters for a log line."""
+    text = repr(value)
+    return text if len(text) <= n else text[: n - 3] + "..."
+
+
+def _no_constant(name: str) -> Any:
+    raise PageMessageError(f"{name} is not a number of JSON")
+
+
+def _number(msg: dict[str, Any], key: str, lo: float, hi: float) -> float:
+    """``msg[key]`` as a float within lo..hi, or PageMessageError."""
+    v = msg[key]
+    if isinstance(v, bool) or not isinstance(v, int | float):
+        raise PageMessageError(f"{key} must be a number, not {_short(v)}")
+    if not lo <= v <= hi:  # an int of any size compares; NaN never passes
+        raise PageMessageError(f"{key} {_short(v, 24)} is not within {lo:g}..{hi:g}")
+    return float(v)
+
+
+_KEYS = {"goto": {"type", "x", "y"}, "pause": {"type", "paused"}, "speed": {"type", "speed"}}
+
+
+def parse_command(text: str | bytes, source: Source) -> dict[str, Any]:
+    """The command of one message from the page, checked whole: ``{"type": "goto", "x": mm,
+    "y": mm}`` on the table, ``{"type": "pause", "paused": bool}`` or ``{"type": "speed",
+    "speed": 1..50}``, nothing else in them. PageMessageError says what is wrong."""
+    if isinstance(text, bytes):
+        raise PageMessageError("a binary message: the page sends JSON text")
+    if len(text) > MAX_MESSAGE_BYTES:
+        raise PageMessageError(f"a message longer than {MAX_MESSAGE_BYTES} characters")
+    try:
+        msg = json.loads(text, parse_constant=_no_constant)
+    except PageMessageError:
+        raise
+    except (ValueError, RecursionError) as e:  # RecursionError: [[[[... nested too deep
+        raise PageMessageError(f"not JSON: {_short(text)}: {type(e).__name__}") from None
+    if not isinstance(msg, dict):
+        raise PageMessageError(f"not a JSON object: {_short(msg)}")
+    kind = msg.get("type")
+    if not isinstance(kind, str) or kind not in _KEYS:
+        raise PageMessageError(f"unknown kind {_short(kind)} (goto, pause, speed)")
+    if set(msg) != _KEYS[kind]:
+        want = ", ".join(sorted(_KEYS[kind] - {"type"}))
+        raise PageMessageError(f"{kind} takes {want}; got {_short(sorted(msg))}")
+    if kind == "goto":
+        half_x, half_y = source.field.length_mm / 2, source.field.width_mm / 2
+        return {
+            "type": "goto",
+            "x": _number(msg, "x", -half_x, half_x),
+            "y": _number(msg, "y", -half_y, half_y),
+        }
+    if kind == "pause":
+        if not isinstance(msg["paused"], bool):
+            raise PageMessageError(f"paused must be true or false, not {_short(msg['paused'])}")
+        return {"type": "pause", "paused": msg["paused"]}
+    return {"type": "speed", "speed": _number(msg, "speed", 1, max(SPEEDS))}
+
+
 # ---- the server ---------------------------------------------------------------------------------
 
 
@@ -527,17 +626,120 @@ def _row_list(row: np.void) -> list[float | None]:
     return [None if math.isnan(float(v)) else round(float(v), 4) for v in row.tolist()]
 
 
-class ViewServer:
-    """The page and its stream for one source, on ``host:port`` (port 0: any free one)."""
+def _log_stderr(line: str) -> None:
+    print(f"asserv view: {line}", file=sys.stderr, flush=True)
 
-    def __init__(self, source: Source, host: str = "127.0.0.1", port: int = 8765) -> None:
+
+@dataclass
+class _Access:
+    """What one connection to ``/ws`` may do, and its share of the message rate."""
+
+    peer: str
+    commands: bool  # it gave this run's token
+    why: str = ""  # why not, when it may not
+    allowance: float = BURST
+    last: float = dataclasses.field(default_factory=time.monotonic)
+    dropped: int = 0
+    dropped_logged: float = 0.0
+
+    def spend(self) -> bool:
+        """One message's share of the rate: False if the page is over it."""
+        now = time.monotonic()
+        self.allowance = min(BURST, self.allowance + (now - self.last) * RATE_HZ)
+        self.last = now
+        if self.allowance < 1:
+            return False
+        self.allowance -= 1
+        return True
+
+
+class ViewServer:
+    """The page and its stream for one source, on ``host:port`` (port 0: any free one).
+
+    ``url`` is the page's address with this run's token (``token``, random unless given): the
+    address to open. A connection to ``/ws`` without it may watch on loopback and do nothing
+    elsewhere; only the page's own origin may connect. ``log`` takes a line for each connection
+    or message refused (by default: stderr)."""
+
+    def __init__(
+        self,
+        source: Source,
+        host: str = "127.0.0.1",
+        port: int = 8765,
+        token: str | None = None,
+        log: Callable[[str], None] | None = None,
+    ) -> None:
+        from .server import is_loopback
+
         self.source = source
         self.host = host
         self.port = port
+        self.token = token if token is not None else secrets.token_urlsafe(24)
+        self.loopback = is_loopback(host)
+        self.log = log or _log_stderr
         self._clients: set[Any] = set()
+        self._access: weakref.WeakKeyDictionary[Any, _Access] = weakref.WeakKeyDictionary()
         self._commands: queue.Queue[dict[str, Any]] = queue.Queue()
         self._server: Any = None
+        self.origins: list[Origin | None] = []
+        self.base_url = ""
         self.url = ""
+
+    @property
+    def ws_url(self) -> str:
+        """The stream's address with this run's token (a Python client's)."""
+        return f"{self.base_url.replace('http', 'ws', 1)}ws?token={self.token}"
+
+    # -- who may connect
+
+    def _token_of(self, path: str) -> str | None:
+        values = urllib.parse.parse_qs(urllib.parse.urlsplit(path).query).get("token")
+        return values[0] if values else None
+
+    def _admit(self, connection: Any, request: Any) -> Any:
+        """The checks of a ``/ws`` handshake: None lets it go on (websockets then checks the
+        Origin against ``origins``), a response refuses it."""
+        from websockets.exceptions import InvalidHandshake
+        from websockets.typing import Origin
+
+        peer = "{}:{}".format(*connection.remote_address[:2])
+        if not self.loopback:
+            # Another host: the page's own origin is the address it was opened at (the Host
+            # header). A page of another site that resolves to this machine passes this check,
+            # which is why the token is required here for everything.
+            hosts = request.headers.get_all("Host")
+            host = hosts[0] if len(hosts) == 1 else ""  # two Host headers: no origin passes
+            connection.protocol.origins = [*self.origins, Origin(f"http://{host}")]
+        try:
+            connection.protocol.process_origin(request.headers)
+        except InvalidHandshake:
+            origin = request.headers.get_all("Origin")
+            self.log(
+                f"refused a connection from {peer} with Origin {', '.join(origin)}: only the page"
+                f" that this view serves ({self.base_url}) may connect"
+            )
+            return None  # websockets answers 403 Forbidden
+        if len(self._clients) >= MAX_CLIENTS:
+            self.log(f"refused a connection from {peer}: {MAX_CLIENTS} pages are open already")
+            return connection.respond(503, f"{MAX_CLIENTS} pages are open already\n")
+        given = self._token_of(request.path)
+        good = given is not None and secrets.compare_digest(
+            given.encode("utf-8", "replace"), self.token.encode()
+        )
+        why = ""
+        if not good:
+            why = (
+                "this address has no token"
+                if given is None
+                else "the token in this address is not this run's"
+            )
+            why += ": open the address that asserv view printed to send commands"
+            if not self.loopback:
+                self.log(f"refused a connection from {peer}: {why.split(':')[0]}")
+                return connection.respond(403, f"{why}\n")
+            self.log(f"a page at {peer} watches without the token ({why.split(':')[0]})")
+        self._access[connection] = _Access(peer, good, why)
+        return None
 
     def _http(self, connection: Any, request: Any) -> Any:
         from websockets.datastructures import Headers
@@ -545,7 +747,7 @@ class ViewServer:
 
         path = request.path.split("?", 1)[0]
         if path == "/ws":
-            return None  # the websocket handshake goes on
+            return self._admit(connection, request)
         name = "index.html" if path in ("/", "/index.html") else path.lstrip("/")
         f = STATIC / name
         if "/" in name or not f.is_file() or f.suffix not in _CONTENT_TYPES:
@@ -556,40 +758,89 @@ class ViewServer:
                 ("Content-Type", _CONTENT_TYPES[f.suffix]),
                 ("Content-Length", str(len(body))),
                 ("Cache-Control", "no-store"),
+                ("Referrer-Policy", "no-referrer"),  # the token stays off other sites' logs
             ]
         )
         return Response(200, "OK", headers, body)
 
+    # -- what a connection may send
+
+    def access_of(self, access: _Access) -> dict[str, Any]:
+        """What the page is told it may do, and the mode it shows."""
+        src = self.source
+        drive = access.commands and src.can_goto
+        if not access.commands:
+            mode = f"watching only: {access.why}"
+        elif src.kind == "replay":
+            mode = "replay"
+        elif not src.can_goto:
+            mode = f"watching: {src.why_no_goto()}"
+        elif src.kind == "board":
+            mode = "driving the board: a click sends a GOTO"
+        else:
+            mode = "driving the simulator: a click sends a GOTO"
+        return {"commands": access.commands, "drive": drive, "mode": mode}
+
+    def receive(self, access: _Access, text: str | bytes) -> str:
+        """Take one message of a page: queue its command, or return why not ("" if taken).
+        Every refusal, and the first of a flood's dropped messages each second, is logged."""
+        if not access.spend():
+            access.dropped += 1
+            now = time.monotonic()
+            if now - access.dropped_logged >= 1:
+                self.log(
+                    f"dropped {access.dropped} message(s) of {access.peer}: over"
+                    f" {RATE_HZ:g} a second"
+                )
+                access.dropped_logged, access.dropped = now, 0
+            return "over the rate"
+        try:
+            cmd = parse_command(text, self.source)
+            if not access.commands:
+                raise PageMessageError(
+                    f"{cmd['type']}: commands need this run's token ({access.why})"
+                )
+            if cmd["type"] == "goto" and not self.source.can_goto:
+                raise PageMessageError(f"goto: {self.source.why_no_goto()}")
+        except PageMessageError as e:
+            self.log(f"refused a message of {access.peer}: {e}")
+            return str(e)
+        self._commands.put(cmd)
+        return ""
+
     async def _client(self, ws: Any) -> None:
+        from websockets.exceptions import ConnectionClosed
+
+        access = self._access.get(ws)
+        if access is None:  # not through _admit: never
+            await ws.close(1008, "not admitted")
+            return
         self._clients.add(ws)
         try:
-            await ws.send(json.dumps({"type": "hello", "info": self.source.info()}))
+            hello = {"type": "hello", "info": self.source.info(), "access": self.access_of(access)}
+            await ws.send(json.dumps(hello))
             async for text in ws:
-                try:
-                    msg = json.loads(text)
-                except ValueError:
-                    continue
-                if isinstance(msg, dict):
-                    self._commands.put(msg)
-        except Exception:  # a page that went away
-            pass
+                why = self.receive(access, text)
+                if why and why != "over the rate":
+                    await ws.send(json.dumps({"type": "refused", "why": why}))
+        except ConnectionClosed as e:
+            if e.sent is not None and e.sent.code == 1009:
+                self.log(f"closed the connection of {access.peer}: {e.sent.reason}")
         finally:
             self._clients.discard(ws)
 
-    def _apply(self, msg: dict[str, Any]) -> None:
+    def _apply(self, cmd: dict[str, Any]) -> None:
+        """A command that ``parse_command`` checked."""
         src = self.source
         try:
-            kind = msg.get("type")
-            if kind == "goto" and src.can_goto:
-                src.goto(float(msg["x"]), float(msg["y"]))
-            elif kind == "pause":
-                src.set_paused(bool(msg["paused"]))
-            elif kind == "speed":
-                src.set_speed(float(msg["speed"]))
-        except (KeyError, TypeError, ValueError) as e:
-            src.message = f"page command {msg!r}: {e}"
+            if cmd["type"] == "goto":
+                src.goto(cmd["x"], cmd["y"])
+            elif cmd["type"] == "pause":
+                src.set_paused(cmd["paused"])
+            elif cmd["type"] == "speed":
+                src.set_speed(cmd["speed"])
         except Exception as e:  # the driver's errors: shown, the view goes on
-            src.message = f"{type(e).__name__}: {e}"
+            src.message = f"{cmd['type']}: {type(e).__name__}: {e}"
 
     def _tick(self, dt: float) -> np.ndarray:
         while not self._commands.empty():
@@ -623,17 +874,35 @@ class ViewServer:
             )
             websockets.broadcast(self._clients, msg)
 
+    def _listen(self) -> socket.socket:
+        """The listening socket, bound first: the page's origins name its port."""
+        family, _, _, _, addr = socket.getaddrinfo(
+            self.host, self.port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE
+        )[0]
+        sock = socket.create_server(addr[:2], family=family)
+        self.port = int(sock.getsockname()[1])
+        return sock
+
     async def run(self, ready: threading.Event | None = None) -> None:
         from websockets.asyncio.server import serve
+        from websockets.typing import Origin
 
+        sock = self._listen()
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        self.base_url = f"http://{host}:{self.port}/"
+        self.url = f"{self.base_url}?token={self.token}"
+        # The page's own origins (a browser opened at one of these names); None: a client that
+        # is no browser (Python's websockets), which no web page can make.
+        names = ["127.0.0.1", "localhost", "[::1]"] + ([] if self.loopback else [host])
+        self.origins = [None, *(Origin(f"http://{n}:{self.port}") for n in names)]
         async with serve(
-            self._client, self.host, self.port, process_request=self._http, max_size=2**16
+            self._client,
+            sock=sock,
+            process_request=self._http,
+            origins=self.origins,
+            max_size=MAX_MESSAGE_BYTES,
         ) as server:
             self._server = server
-            sock = next(iter(server.sockets))
-            self.port = int(sock.getsockname()[1])
-            host = f"[{self.host}]" if ":" in self.host else self.host
-            self.url = f"http://{host}:{self.port}/"
             if ready is not None:
                 ready.set()
             await self._pump()
@@ -688,6 +957,11 @@ def _command(args: argparse.Namespace) -> int:
         return usage("give one of SCENARIO, --replay FILE, --bus N or --sim HOST:PORT")
     if not 1 <= args.hz <= 500:
         return usage("--hz takes 1..500 polls a second")
+    if args.control and not real:
+        return usage(
+            "--control lets the page drive a board (--bus N or --sim HOST:PORT); the"
+            " simulator of the view is always driven, a replay never"
+        )
     bus: Any = None
     source: Source
     try:
@@ -699,7 +973,7 @@ def _command(args: argparse.Namespace) -> int:
             if isinstance(opened, int):
                 return opened
             board, bus = opened
-            source = BoardSource(board, args.hz, fld)
+            source = BoardSource(board, args.hz, fld, control=args.control)
             source.message = f"polling {log.board_where(args)} at {args.hz:g} Hz"
         else:
             if args.scenario and args.scenario.endswith(".py"):
@@ -717,6 +991,16 @@ def _command(args: argparse.Namespace) -> int:
             await asyncio.sleep(0.05)
         if server.url:
             print(f"{prog}: open {server.url}  (Ctrl-C stops)", flush=True)
+            if not server.loopback:
+                print(
+                    f"{prog}: {args.host} is not loopback: the robot's control is exposed to"
+                    " every machine that reaches this port; the page needs the token of the"
+                    " address above to watch or drive: give it to the team only",
+                    file=sys.stderr,
+                    flush=True,
+                )
+            if isinstance(source, BoardSource) and not source.can_goto:
+                print(f"{prog}: {source.why_no_goto()}", flush=True)
         await task
 
     try:
@@ -741,7 +1025,8 @@ def register(sub: Any) -> None:
         " --replay RUN.mcap",
         description="Serve a page that shows the field, the robot (estimate and, simulated, the"
         " truth), the error radius, the path, the target, the status and scrolling plots;"
-        " play/pause, speed x1..x50, a click on the field sends a GOTO (docs/view.md).",
+        " play/pause, speed x1..x50, a click on the field sends a GOTO (docs/view.md). Open"
+        " the address it prints: its token lets the page send commands.",
     )
     log.bus_options(p)
     p.add_argument(
@@ -754,4 +1039,10 @@ def register(sub: Any) -> None:
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     p.add_argument("--hz", type=float, default=50.0, help="board polls a second (default 50)")
     p.add_argument("--field", help="field file (a real board; default field/default.toml)")
+    p.add_argument(
+        "--control",
+        action="store_true",
+        help="let the page's clicks send GOTOs to the board of --bus N or --sim HOST:PORT"
+        " (without it the board is watched, not driven)",
+    )
     p.set_defaults(run=_command)

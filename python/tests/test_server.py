@@ -62,14 +62,155 @@ def test_nack_and_errors_cross_the_socket(lockstep: tuple[Simulator, RemoteBus])
     with pytest.raises(OSError) as e:
         bus.i2c_rdwr(i2c_msg.write(0x33, b"\x03"))
     assert e.value.errno == errno.ENXIO
-    for bad in ("", "nonsense", "rdwr", "rdwr x02:00", "rdwr w02:0g", "sleep -1", "sleep x"):
+    for bad in ("rdwr", "rdwr x02:00", "rdwr w02:0g", "sleep -1", "sleep x", "SLEEP 1e999"):
         with pytest.raises(OSError) as e:
             bus.request(bad)
-        assert e.value.errno == errno.EINVAL
+        assert e.value.errno == errno.EINVAL  # a request of the protocol: the connection goes on
+    assert bus.request("time")
+    with pytest.raises(OSError) as e:
+        bus.request("nonsense")
+    assert e.value.errno == errno.EPROTO and "not a request of asserv-sim" in str(e.value)
+    with pytest.raises(OSError, match="closed the connection"):
+        bus.request("time")  # dropped at its first line that is not of the protocol
     bus.close()
     with pytest.raises(OSError) as e:
         bus.i2c_rdwr(i2c_msg.read(2, 1))
     assert e.value.errno == errno.EBADF
+
+
+class _Recorder:
+    """A bus that records each transaction as the server's ``rdwr`` line, then passes it on."""
+
+    def __init__(self, bus: object) -> None:
+        self.bus, self.lines = bus, []  # type: ignore[var-annotated]
+
+    def i2c_rdwr(self, *msgs: i2c_msg) -> None:
+        ops = [
+            (m.addr, None, m.len) if m.flags & 1 else (m.addr, bytes(m), 0)  # type: ignore[attr-defined]
+            for m in msgs
+        ]
+        self.lines.append(encode_rdwr(ops))
+        self.bus.i2c_rdwr(*msgs)  # type: ignore[attr-defined]
+
+
+def _goto_lines() -> list[str]:
+    """The rdwr lines of a GOTO (400, -600), as Board sends them."""
+    local = Simulator(record=False)
+    rec = _Recorder(local.bus)
+    Board(rec).goto(400, -600)
+    assert rec.lines
+    return list(rec.lines)
+
+
+def _talk(address: tuple[str, int], data: bytes) -> list[str]:
+    """Send ``data`` on a fresh connection; the reply lines until the server closes it."""
+    import socket
+
+    with socket.create_connection(address, timeout=10) as s:
+        s.sendall(data)
+        got = b""
+        while chunk := s.recv(65536):
+            got += chunk
+    return got.decode("ascii").splitlines()
+
+
+def test_a_post_to_the_server_runs_nothing() -> None:
+    """A web page's form POSTed to the server: its body lines (hello, a GOTO) are never run,
+    and the connection ends at the request line, with a line in the server's log."""
+    sim = Simulator(record=False)
+    logged: list[str] = []
+    lines = ["hello", *_goto_lines(), "sleep 1"]
+    body = "".join(line + "\n" for line in lines)
+    post = (
+        "POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: text/plain\r\n"
+        f"Content-Length: {len(body)}\r\n\r\n{body}"
+    )
+    with SimServer(sim, "127.0.0.1", 0, speed=0, log=logged.append) as server:
+        replies = _talk(server.address, post.encode())
+        assert replies == [
+            "err 71 'POST' is not a request of asserv-sim"
+            " (hello, time, sleep, truth, obstacles, lidar, rdwr)"
+        ]
+        # In lockstep the bytes of a transaction move the simulated time: none ran.
+        assert sim.time_s == 0
+        # The same lines on a connection of the protocol do run: the robot drives.
+        replies = _talk(server.address, body.encode() + b"quit\n")
+        assert len(replies) == len(lines) + 1 and replies[-1].startswith("err 71 'quit'")
+        assert all(r.startswith("ok") for r in replies[:-1]), replies
+        assert sim.true_pose().x_mm > 0.5
+    assert len(logged) == 2
+    assert logged[0].startswith("closed the connection of 127.0.0.1:") and "'POST'" in logged[0]
+
+
+def test_the_first_request_must_be_hello() -> None:
+    sim = Simulator(record=False)
+    logged: list[str] = []
+    with SimServer(sim, "127.0.0.1", 0, speed=0, log=logged.append) as server:
+        replies = _talk(server.address, ("".join(f"{x}\n" for x in _goto_lines())).encode())
+        assert replies == ["err 71 the first request must be hello"]
+        assert _talk(server.address, b"sleep 1\nhello\n") == [
+            "err 71 the first request must be hello"
+        ]
+        assert _talk(server.address, b"\n") == [
+            "err 71 an empty line is not a request of asserv-sim"
+        ]
+        assert _talk(server.address, b"hello\n\xff\n")[1].startswith("err 71 a line that is not")
+        long = _talk(server.address, b"hello\nrdwr " + b"w02:00 " * 2000 + b"\n")
+        assert long[1].startswith("err 71 a line longer than 8192 bytes")
+    assert sim.time_s == 0
+    assert len(logged) == 5 and all("closed the connection" in x for x in logged)
+
+
+#: Lines of each kind: requests of the protocol (with the simulated seconds each one moves in
+#: lockstep), requests whose arguments are wrong, lines from other protocols.
+_GOOD = st.sampled_from(
+    [("time", 0.0), ("truth", 0.0), ("obstacles", 0.0), ("hello", 0.0), ("sleep 0.002", 0.002)]
+)
+_BAD_ARGS = st.sampled_from(["sleep", "sleep x", "sleep -1", "rdwr", "rdwr zz", "TIME 3"])
+_WORDS = ("hello", "time", "sleep", "truth", "obstacles", "rdwr")
+_FOREIGN = st.one_of(
+    st.sampled_from(["GET / HTTP/1.1", "POST /x HTTP/1.0", "Host: 127.0.0.1", "", "  ", "\t"]),
+    st.text(st.characters(codec="ascii", exclude_characters="\r\n"), max_size=30).filter(
+        lambda t: not t.split() or t.split()[0].lower() not in _WORDS
+    ),
+)
+_LINE = st.one_of(
+    _GOOD.map(lambda g: ("good", *g)),
+    _BAD_ARGS.map(lambda b: ("bad", b, 0.0)),
+    _FOREIGN.map(lambda f: ("foreign", f, 0.0)),
+)
+
+
+@given(st.lists(_LINE, max_size=12))
+@settings(max_examples=80, deadline=None)
+def test_property_nothing_runs_after_a_line_of_another_protocol(
+    lines: list[tuple[str, str, float]],
+) -> None:
+    """Any sequence of lines: one reply per line up to the first line that is not a request
+    (or the first request before hello), then the connection ends; only the requests before it
+    ran (the simulated time moved by their sleeps only)."""
+    import io
+
+    sim = Simulator(record=False)
+    server = SimServer(sim, "127.0.0.1", 0, speed=0, log=lambda _: None)  # never started
+    try:
+        data = "".join(text + "\n" for _, text, _ in lines).encode()
+        out = io.BytesIO()
+        server._serve_client(io.BytesIO(data), out)
+    finally:
+        server._tcp.server_close()
+    replies = out.getvalue().decode().splitlines()
+    expected_time, greeted, n = 0.0, False, len(lines)
+    for i, (kind, text, dt) in enumerate(lines):
+        if kind == "foreign" or not (greeted or text == "hello"):
+            n = i + 1
+            assert replies[i].startswith("err 71 "), (replies, lines)
+            break
+        greeted = True
+        assert replies[i].startswith("ok" if kind == "good" else "err 22 "), (replies[i], text)
+        expected_time += dt
+    assert len(replies) == n
+    assert sim.time_s == pytest.approx(expected_time, abs=1e-9)
 
 
 def test_the_server_runs_in_real_time_by_itself() -> None:
@@ -267,3 +408,20 @@ def test_cli_bad_server_arguments_exit_2() -> None:
     assert r.returncode == 2 and "port" in r.stderr
     r = _asserv("--sim", "127.0.0.1:1", "status")
     assert r.returncode == 1 and "asserv sim serve" in r.stderr
+
+
+def test_serving_beyond_loopback_says_so() -> None:
+    r = _asserv("sim", "serve", "--host", "0.0.0.0", "--port", "0", "--duration", "0.2")
+    assert r.returncode == 0, r.stderr
+    assert "0.0.0.0 is not loopback: any machine that reaches this port drives" in r.stderr
+    r = _asserv("sim", "serve", "--port", "0", "--duration", "0.2")
+    assert r.returncode == 0 and "loopback" not in r.stderr, r.stderr
+
+
+def test_is_loopback() -> None:
+    from asserv.server import is_loopback
+
+    for host in ("127.0.0.1", "127.3.2.1", "::1", "[::1]", "localhost", "LOCALHOST"):
+        assert is_loopback(host), host
+    for host in ("0.0.0.0", "::", "192.168.1.5", "pi.local", "localhost.evil.example", ""):
+        assert not is_loopback(host), host

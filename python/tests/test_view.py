@@ -192,17 +192,21 @@ def test_server_serves_the_page_and_the_stream() -> None:
     try:
         time.sleep(0.3)
         assert src.sim.time_s == 0  # no page yet: the simulator waits
-        assert srv.url.startswith("http://127.0.0.1:")
+        assert srv.url == f"{srv.base_url}?token={srv.token}"
+        assert srv.base_url.startswith("http://127.0.0.1:")
         code, ctype, body = _get(srv.url)
         assert code == 200 and ctype.startswith("text/html") and b"view.js" in body
-        assert _get(srv.url + "view.js")[0] == 200
+        assert _get(srv.base_url + "view.js")[0] == 200
+        code, ctype, _ = _get(srv.base_url + "favicon.svg")
+        assert code == 200 and ctype == "image/svg+xml"
         for bad in ("nothing.js", "..%2Fview.py", "../view.py", "view_static/view.js"):
-            assert _get(srv.url + bad)[0] == 404, bad
+            assert _get(srv.base_url + bad)[0] == 404, bad
 
-        async def talk() -> tuple[dict[str, Any], dict[str, Any]]:
+        async def talk() -> tuple[dict[str, Any], dict[str, Any], list[str]]:
             from websockets.asyncio.client import connect
 
-            async with connect(srv.url.replace("http", "ws") + "ws") as ws:
+            refused: list[str] = []
+            async with connect(srv.ws_url) as ws:
                 hello = json.loads(await ws.recv())
                 await ws.send("not json")
                 await ws.send(json.dumps({"type": "speed", "speed": 1000}))
@@ -212,11 +216,23 @@ def test_server_serves_the_page_and_the_stream() -> None:
                 msg: dict[str, Any] = {}
                 for _ in range(300):
                     msg = json.loads(await ws.recv())
-                    if msg["state"]["outcome"] == "done":
+                    if msg["type"] == "refused":
+                        refused.append(msg["why"])
+                    elif msg["state"]["outcome"] == "done":
                         break
-                return hello, msg
+                return hello, msg, refused
 
-        hello, msg = asyncio.run(talk())
+        hello, msg, refused = asyncio.run(talk())
+        assert refused == [
+            "not JSON: 'not json': JSONDecodeError",
+            "speed 1000 is not within 1..50",
+            "goto takes x, y; got ['type', 'x']",
+        ]
+        assert hello["access"] == {
+            "commands": True,
+            "drive": True,
+            "mode": "driving the simulator: a click sends a GOTO",
+        }
         info = hello["info"]
         assert info["kind"] == "sim" and info["fields"] == list(log.LOG_FIELDS)
         assert info["field"]["length_mm"] == src.field.length_mm

@@ -54,11 +54,25 @@ def serve() -> Iterator[Callable[[view.Source], view.ViewServer]]:
         s.stop()
 
 
-def _open(browser: Browser, srv: view.ViewServer) -> Page:
+def _open(browser: Browser, srv: view.ViewServer, url: str | None = None) -> Page:
+    """The page at ``url`` (by default the address asserv view prints, with the token); every
+    answer of the server that is an error is kept in ``page.failed``."""
     page = browser.new_page(viewport={"width": 1400, "height": 1000})
-    page.goto(srv.url)
+    failed: list[str] = []
+    page.on("response", lambda r: failed.append(f"{r.status} {r.url}") if r.status >= 400 else 0)
+    page.failed = failed  # type: ignore[attr-defined]
+    page.goto(url or srv.url)
     page.wait_for_function("window.asserv && window.asserv.info && window.asserv.frames > 0")
     return page
+
+
+def _click(page: Page, x_mm: float, y_mm: float) -> None:
+    """A click on the field at a field point."""
+    px, py = page.evaluate("([x, y]) => window.asserv.toCanvas(x, y)", [x_mm, y_mm])
+    box = page.locator("#field").bounding_box()
+    assert box is not None
+    scale = box["width"] / page.evaluate("document.getElementById('field').width")
+    page.mouse.click(box["x"] + px * scale, box["y"] + py * scale)
 
 
 def _pixel(page: Page, x_mm: float, y_mm: float) -> list[int]:
@@ -168,14 +182,10 @@ def test_a_click_sends_a_goto_the_board_executes(browser: Browser, serve: Any) -
     src = view.SimSource()
     srv = serve(src)
     page = _open(browser, srv)
+    assert page.inner_text("#mode") == "driving the simulator: a click sends a GOTO"
     page.click("button.speed[data-speed='20']")
     target = (600.0, 300.0)
-    px, py = page.evaluate("([x, y]) => window.asserv.toCanvas(x, y)", list(target))
-    box = page.locator("#field").bounding_box()
-    assert box is not None
-    cw = page.evaluate("document.getElementById('field').width")
-    scale = box["width"] / cw
-    page.mouse.click(box["x"] + px * scale, box["y"] + py * scale)
+    _click(page, *target)
     # The target as the page first had it (it clears once the order is done: at x20 that can
     # come before a second look).
     sent = page.wait_for_function("window.asserv.state.target").json_value()
@@ -188,6 +198,7 @@ def test_a_click_sends_a_goto_the_board_executes(browser: Browser, serve: Any) -
     assert math.hypot(truth.x_mm - sent[0], truth.y_mm - sent[1]) < 15
     last = _last(page)
     assert math.hypot(last["est_x_mm"] - sent[0], last["est_y_mm"] - sent[1]) < 3
+    assert page.failed == []  # type: ignore[attr-defined]
     _shot(page, "view-goto.png")
 
 
@@ -222,3 +233,155 @@ def test_a_replay_shows_the_logged_poses(browser: Browser, serve: Any, tmp_path:
     assert r > 150 and g < 120 and b < 120
     assert "end of the log" in page.inner_text("#message")
     _shot(page, "view-replay.png")
+
+
+# ---- what the page may do (issue 33) ------------------------------------------------------------
+
+
+def test_the_page_without_the_token_watches_and_sends_nothing(browser: Browser, serve: Any) -> None:
+    src = view.SimSource()
+    srv = serve(src)
+    page = _open(browser, srv, srv.base_url)  # the address without its token
+    assert page.inner_text("#mode").startswith("watching only: this address has no token")
+    assert page.inner_text("#hint") == "clicks on the field send nothing here"
+    assert page.locator("#play").is_disabled()
+    assert page.locator("button.speed[data-speed='20']").is_disabled()
+    page.wait_for_function("window.asserv.received > 100")  # it watches: the simulator runs
+    _click(page, 600, 300)
+    page.wait_for_timeout(500)
+    assert page.evaluate("window.asserv.sent") == []
+    assert src.target is None and src.outcome.orders == 0
+    truth = src.sim.true_pose()
+    assert math.hypot(truth.x_mm, truth.y_mm + 850) < 1  # where it started
+
+
+class _OtherSite:
+    """Another web site on this machine (another port: another origin), serving one page."""
+
+    def __init__(self, html: str) -> None:
+        import http.server
+        import threading
+
+        body = html.encode()
+
+        class Page(http.server.BaseHTTPRequestHandler):
+            def do_GET(self) -> None:
+                self.send_response(200)
+                self.send_header("Content-Type", "text/html")
+                self.send_header("Content-Length", str(len(body)))
+                self.end_headers()
+                self.wfile.write(body)
+
+            def log_message(self, *args: Any) -> None:
+                pass
+
+        self.http = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Page)
+        threading.Thread(target=self.http.serve_forever, daemon=True).start()
+        self.origin = f"http://127.0.0.1:{self.http.server_address[1]}"
+
+    def close(self) -> None:
+        self.http.shutdown()
+        self.http.server_close()
+
+
+@pytest.mark.parametrize("site", ["loopback", "http://evil.example/"])
+def test_a_page_of_another_site_cannot_connect(browser: Browser, site: str) -> None:
+    """The attack of issue 33 in a real browser: a page of another site opens the view's
+    socket (even knowing the token) and sends a GOTO; the robot does not move. From another
+    port of this machine the handshake reaches the view, which refuses its Origin (403) and
+    logs it; chromium does not even let a public site's page reach a loopback address."""
+    logged: list[str] = []
+    src = view.SimSource()
+    srv = view.ViewServer(src, "127.0.0.1", 0, log=logged.append)
+    srv.start_thread()
+    evil = f"""<!doctype html><script>
+        window.events = [];
+        const ws = new WebSocket("{srv.ws_url}");
+        ws.onopen = () => {{
+            window.events.push("open");
+            ws.send(JSON.stringify({{type: "goto", x: 500, y: 300}}));
+        }};
+        ws.onerror = () => window.events.push("error");
+        ws.onclose = () => window.events.push("close");
+    </script>"""
+    other = _OtherSite(evil)
+    try:
+        page = browser.new_page()
+        if site == "loopback":
+            page.goto(other.origin + "/")
+        else:
+            page.route(site, lambda r: r.fulfill(status=200, content_type="text/html", body=evil))
+            page.goto(site)
+        page.wait_for_function("window.events.includes('close')")
+        assert "open" not in page.evaluate("window.events")
+        page.wait_for_timeout(300)
+        assert src.target is None and src.outcome.orders == 0
+        if site == "loopback":
+            assert len(logged) == 1, logged
+            assert f"with Origin {other.origin}: only the page that this view serves" in logged[0]
+    finally:
+        other.close()
+        srv.stop()
+
+
+def test_the_order_count_and_the_icon(browser: Browser, serve: Any) -> None:
+    """Issue 30: "none yet (1 orders)" while the first order runs, and a favicon 404."""
+    src = view.SimSource()
+    page = _open(browser, serve(src))
+    assert page.inner_text("#outcome") == "none yet" and page.inner_text("#orders") == ""
+    _click(page, 300, -850)
+    page.wait_for_function("window.asserv.state.orders === 1")
+    if not page.evaluate("window.asserv.state.outcome"):  # the order still runs (x1: ~2 s)
+        page.wait_for_timeout(100)
+        assert page.inner_text("#outcome") == "under way"
+        assert page.inner_text("#orders") == "(1 order so far)"
+    page.wait_for_function("window.asserv.state.outcome === 'done'", timeout=30000)
+    page.wait_for_timeout(100)
+    assert page.inner_text("#outcome") == "done"
+    assert page.inner_text("#orders") == "(1 order so far)"
+    icon = page.evaluate("document.querySelector('link[rel=icon]').href")
+    assert icon.endswith("/favicon.svg")
+    assert page.request.get(icon).status == 200
+    assert page.failed == []  # type: ignore[attr-defined]
+
+
+def test_both_wheels_show_when_they_agree(browser: Browser, serve: Any) -> None:
+    """Issue 30: driving straight, the left and right duties (and currents) are the same, and
+    one trace hid the other. Both colours are drawn now."""
+    src = view.SimSource()
+    page = _open(browser, serve(src))
+    page.click("button.speed[data-speed='5']")
+    src.goto(600, -850)  # straight ahead of the start pose (0, -850, heading 0): no turn
+    page.wait_for_function("window.asserv.state.outcome === 'done'", timeout=30000)
+    page.click("#play")
+    page.wait_for_function("window.asserv.state.paused === true")
+    page.wait_for_timeout(200)
+    rows = page.evaluate("window.asserv.rows")
+    ix = page.evaluate("window.asserv.ix")
+    moving = [r for r in rows if abs(r[ix["duty_left"]]) > 0.05]
+    assert len(moving) > 20
+    assert all(abs(r[ix["duty_left"]] - r[ix["duty_right"]]) < 0.02 for r in moving)
+    for canvas in ("p_duty", "p_cur"):
+        series = PLOT_SERIES[canvas]
+        counts = _drawn(page, canvas, list(series.values()))
+        assert all(n > 40 for n in counts), (canvas, dict(zip(series, counts, strict=True)))
+
+
+@pytest.mark.parametrize("control", [False, True])
+def test_a_board_is_driven_from_the_page_only_with_control(
+    browser: Browser, serve: Any, control: bool
+) -> None:
+    sim = Simulator()
+    src = view.BoardSource(Board(sim.bus), hz=50, control=control)
+    page = _open(browser, serve(src))
+    mode = page.inner_text("#mode")
+    _click(page, 300, -850)
+    if not control:
+        assert mode.startswith("watching: the board is watched, not driven")
+        page.wait_for_timeout(500)
+        assert page.evaluate("window.asserv.sent") == [] and src.target is None
+        assert math.hypot(sim.true_pose().x_mm, sim.true_pose().y_mm + 850) < 1
+        return
+    assert mode == "driving the board: a click sends a GOTO"
+    page.wait_for_function("window.asserv.state.outcome === 'done'", timeout=30000)
+    assert sim.true_pose().x_mm == pytest.approx(300, abs=15)

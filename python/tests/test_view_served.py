@@ -44,7 +44,8 @@ async def _watch(url: str, until: threading.Event) -> tuple[dict[str, Any], list
     from websockets.asyncio.client import connect
 
     rows: list[list[Any]] = []
-    async with connect(url.replace("http", "ws") + "ws") as ws:
+    page, _, query = url.partition("?")  # the page's address, its token
+    async with connect(f"{page.replace('http', 'ws', 1)}ws?{query}") as ws:
         hello = json.loads(await ws.recv())
         while not until.is_set():
             msg = json.loads(await asyncio.wait_for(ws.recv(), 5))

@@ -96,6 +96,8 @@ void SysTick_Handler(void)
 	stm32_adc_sample();
 	port_control_tick(&asserv_board);
 	port_slow(&asserv_board);
+	if (asserv_board.planner.boot_request)
+		stm32_boot_enter(); /* BOOTLOADER (boot_enter.c): does not return */
 	IWDG_KR = IWDG_KR_RELOAD;
 	GPIO_BSRR(PIN_TICK_PORT) = 1u << (PIN_TICK + 16u);
 }

@@ -45,6 +45,10 @@ void stm32_idle(void);
 #define STM32_WDG_ERASE_RLR 1249u
 void stm32_watchdog_set(uint32_t pr, uint32_t rlr);
 
+/* BOOTLOADER accepted: the motors off, then a reset into the bootloader (boot_enter.c,
+ * docs/update.md). Does not return. */
+void stm32_boot_enter(void);
+
 /* TIM1 compare counts for a duty [2^-15]: |duty| * (ARR + 1) / 32768, rounded; ARR + 1 is full
  * on (PWM mode 1 keeps the output high while CNT < CCR). */
 static inline uint32_t stm32_pwm_counts(int16_t duty_q15)

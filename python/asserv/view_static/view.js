@@ -19,6 +19,10 @@ const view = {
   pendingTarget: null,
   sent: [], // commands sent (tests)
   frames: 0, // field drawings
+  access: { commands: false, drive: false, mode: "" }, // what the server lets this page do
+  refused: [], // why the server refused this page's messages
+  notice: "", // a refusal, shown for a few seconds
+  noticeUntil: 0,
 };
 window.asserv = view;
 
@@ -197,9 +201,13 @@ function drawScene() {
 }
 
 // ---- the plots ----------------------------------------------------------------------------
+// Each plot's series, drawn in this order: the first wide and solid, the second thin and dashed
+// over it, so that where the two agree (a set point met, both wheels alike) both still show.
+const UNDER = { width: 3, dash: [] };
+const OVER = { width: 1.3, dash: [5, 4] };
 const PLOTS = [
-  { id: "p_speed", title: "speed [mm/s]", series: [["v_set_mm_s", "#000", "set point"], ["v_mm_s", "#1565c0", "measured"]] },
-  { id: "p_turn", title: "turn rate [deg/s]", series: [["omega_set_deg_s", "#000", "set point"], ["omega_deg_s", "#1565c0", "measured"]] },
+  { id: "p_speed", title: "speed [mm/s]", series: [["v_mm_s", "#1565c0", "measured"], ["v_set_mm_s", "#000", "set point"]] },
+  { id: "p_turn", title: "turn rate [deg/s]", series: [["omega_deg_s", "#1565c0", "measured"], ["omega_set_deg_s", "#000", "set point"]] },
   { id: "p_err", title: "following error [mm at the wheels]", series: [["dist_err_mm", "#2e7d32", "distance"], ["angle_err_mm", "#6a1b9a", "angle"]] },
   { id: "p_duty", title: "duty [-1..1]", series: [["duty_left", "#ef6c00", "left"], ["duty_right", "#00838f", "right"]] },
   { id: "p_cur", title: "current [A]", series: [["current_left_A", "#ef6c00", "left"], ["current_right_A", "#00838f", "right"]] },
@@ -237,13 +245,13 @@ function drawPlot(p) {
   g.fillStyle = "#555"; g.font = "10px sans-serif";
   g.fillText(hi.toPrecision(3), 2, T + 8); g.fillText(lo.toPrecision(3), 2, H - B);
   g.fillText(`${t0.toFixed(1)} s`, L, H - 4); g.fillText(`${tEnd.toFixed(1)} s`, W - R - 40, H - 4);
-  // The measured value first, and the set point dashed over it: where they agree, both show.
-  for (const [key, color, label] of [...p.series].reverse()) {
+  p.series.forEach(([key, color], i) => {
     const k = view.ix[key];
+    const style = i === 0 ? UNDER : OVER;
     g.save();
     g.beginPath(); g.rect(L, T, W - L - R, H - T - B); g.clip();
-    g.strokeStyle = color; g.lineWidth = 1.3;
-    g.setLineDash(label === "set point" ? [5, 4] : []);
+    g.strokeStyle = color; g.lineWidth = style.width;
+    g.setLineDash(style.dash);
     g.beginPath();
     let started = false;
     for (const r of shown) {
@@ -253,7 +261,7 @@ function drawPlot(p) {
     }
     g.stroke();
     g.restore();
-  }
+  });
   let lx = W - R - 10;
   for (const [, color, label] of [...p.series].reverse()) {
     g.fillStyle = color; g.font = "11px sans-serif";
@@ -282,9 +290,10 @@ function updatePanel() {
       el.classList.toggle("on", (status & bit) !== 0);
     }
   }
-  text("outcome", st.outcome || "none yet");
-  text("orders", st.orders ? `(${st.orders} orders)` : "");
-  text("message", st.message || "");
+  // The last order that ended; before the first one ends, whether one is under way.
+  text("outcome", st.outcome || (st.orders ? "under way" : "none yet"));
+  text("orders", st.orders ? `(${st.orders} ${st.orders === 1 ? "order" : "orders"} so far)` : "");
+  text("message", performance.now() < view.noticeUntil ? view.notice : (st.message || ""));
   const m = st.match;
   text("match", !m ? "-" : `${m.paused ? "PAUSED" : "running"}, ${m.pending} pending,` +
     ` braking ${m.braking_mm} mm, scale ${m.scale_percent} %, ${m.lidar.length} lidar hits`);
@@ -296,13 +305,18 @@ function updatePanel() {
   }
 }
 
-function setup(info) {
+function setup(info, access) {
   view.info = info;
+  view.access = access;
   info.fields.forEach((n, i) => { view.ix[n] = i; });
   text("kind", { sim: "simulator", board: "board", replay: "replay" }[info.kind] || info.kind);
+  text("mode", access.mode);
+  document.getElementById("mode").classList.toggle("drive", access.drive);
+  fieldCanvas.classList.toggle("drive", access.drive);
+  document.getElementById("play").disabled = !access.commands;
   document.getElementById("truerow").style.display = info.truth ? "" : "none";
-  document.getElementById("hint").textContent = info.can_goto ?
-    "click on the field: GOTO there" : "replay: no GOTO";
+  document.getElementById("hint").textContent = access.drive ?
+    "click on the field: GOTO there" : "clicks on the field send nothing here";
   const bits = document.getElementById("bits");
   bits.innerHTML = "";
   for (const [name] of info.status_bits) {
@@ -318,6 +332,7 @@ function setup(info) {
     const b = document.createElement("button");
     b.type = "button"; b.className = "speed"; b.dataset.speed = s; b.textContent = `x${s}`;
     b.onclick = () => send({ type: "speed", speed: s });
+    b.disabled = !access.commands;
     sp.appendChild(b);
   }
   drawScene();
@@ -350,7 +365,7 @@ function send(msg) {
 }
 
 fieldCanvas.addEventListener("click", (ev) => {
-  if (!view.info || !view.info.can_goto) return;
+  if (!view.info || !view.access.drive) return;
   const rect = fieldCanvas.getBoundingClientRect();
   const px = (ev.clientX - rect.left) * fieldCanvas.width / rect.width;
   const py = (ev.clientY - rect.top) * fieldCanvas.height / rect.height;
@@ -361,12 +376,21 @@ fieldCanvas.addEventListener("click", (ev) => {
 
 document.getElementById("play").onclick = () => send({ type: "pause", paused: !view.state.paused });
 
+// The token of this run comes in the page's address (asserv view prints it) and goes with the
+// stream's: without it the server lets the page watch, on loopback only, and send nothing.
 function connect() {
-  ws = new WebSocket(`ws://${location.host}/ws`);
+  const token = new URLSearchParams(location.search).get("token");
+  const query = token === null ? "" : `?token=${encodeURIComponent(token)}`;
+  ws = new WebSocket(`ws://${location.host}/ws${query}`);
   ws.onmessage = (ev) => {
     const msg = JSON.parse(ev.data);
-    if (msg.type === "hello") setup(msg.info);
+    if (msg.type === "hello") setup(msg.info, msg.access);
     else if (msg.type === "rows") onRows(msg);
+    else if (msg.type === "refused") {
+      view.refused.push(msg.why);
+      view.notice = `refused: ${msg.why}`;
+      view.noticeUntil = performance.now() + 5000;
+    }
   };
   ws.onclose = () => { text("kind", "disconnected: is asserv view still running?"); };
 }

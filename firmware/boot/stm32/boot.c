@@ -1,0 +1,559 @@
+/* The bootloader of the STM32F446 asserv board (docs/update.md): in flash sector 0, it starts the
+ * application of the run slot when its header and CRC are right, copies a checked update from
+ * the download slot first, and otherwise (no valid application, or the application asked for
+ * it) serves the update protocol as an I2C slave at address 2.
+ *
+ * Everything but the reset handler runs from RAM (the vector table too): while the flash erases
+ * or programs, a fetch from it would stall the CPU (RM0390 3.5), and the bus would wait for the
+ * whole erase, up to 2 s for a 128 KiB sector. From RAM the I2C interrupt keeps answering
+ * "busy, poll again" and the main loop keeps feeding the watchdog. The clock stays the HSI's
+ * 16 MHz (RM0390 6.2): the application's clock set-up finds the RCC as it is after a reset. */
+#include <stddef.h>
+#include <stdint.h>
+
+#include "boot_layout.h"
+#include "boot_proto.h"
+#include "stm32f4_regs.h"
+
+/* Registers the application does not use (RM0390, PM0214), so not in stm32f4_regs.h. */
+#define SCB_AIRCR STM32_REG(0xE000ED0Cu) /* PM0214 4.4.5 */
+#define SCB_AIRCR_SYSRESET (0x05FAu << 16 | 1u << 2)
+#define NVIC_ICER(n) STM32_REG(0xE000E180u + 4u * (n)) /* PM0214 4.2.3 */
+#define FLASH_CR_EOPIE (1u << 24)                      /* RM0390 3.8.5 */
+#define IRQ_FLASH 4u                                   /* RM0390 Table 38 */
+#define HSI_HZ 16000000u
+#define BOOT_WDG_PR 3u    /* LSI / 32 */
+#define BOOT_WDG_RLR 999u /* 1000 counts: 1 s at 32 kHz (0.68..1.9 s with the LSI's spread) */
+
+extern uint32_t _sidata[], _sdata[], _edata[], _sbss[], _ebss[];
+extern void _estack(void); /* a function, so that the table of them holds it (startup.c) */
+void Reset_Handler(void);
+void boot_main(void);
+void boot_idle(void);
+
+/* In flash, for the reset only: the stack and the reset handler (PM0214 2.3.4). */
+__attribute__((section(".isr_vector"), used)) void (*const boot_reset_vectors[2])(void) = {
+	_estack, Reset_Handler};
+
+/* Runs from flash: copies the code and data into RAM (plain loops through volatile pointers, so
+ * that the compiler makes no call to memcpy, which is not in RAM yet), then calls into RAM. */
+__attribute__((section(".boot_reset"), used)) void Reset_Handler(void)
+{
+	volatile uint32_t *src = _sidata;
+	volatile uint32_t *dst = _sdata;
+	void (*volatile entry)(void) = boot_main;
+
+	while (dst < _edata)
+		*dst++ = *src++;
+	for (dst = _sbss; dst < _ebss;)
+		*dst++ = 0;
+	entry();
+	for (;;)
+		;
+}
+
+/* ---- CRC-32 (IEEE 802.3, reflected 0xEDB88320), table in RAM ---- */
+static uint32_t crc_table[256];
+
+static void crc_init(void)
+{
+	for (uint32_t i = 0; i < 256u; i++) {
+		uint32_t c = i;
+
+		for (int k = 0; k < 8; k++)
+			c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+		crc_table[i] = c;
+	}
+}
+
+static uint32_t crc32_update(uint32_t crc, const uint8_t *p, uint32_t n)
+{
+	crc = ~crc;
+	while (n--)
+		crc = crc_table[(crc ^ *p++) & 0xFFu] ^ (crc >> 8);
+	return ~crc;
+}
+
+/* ---- Slots ---- */
+static const struct boot_header *header_at(uint32_t slot)
+{
+	return (const struct boot_header *)(uintptr_t)slot;
+}
+
+static const uint8_t *image_at(uint32_t slot)
+{
+	return (const uint8_t *)(uintptr_t)(slot + BOOT_HEADER_SIZE);
+}
+
+/* 1 when the slot's header is whole and its image's CRC right. */
+static int slot_valid(uint32_t slot)
+{
+	const struct boot_header *h = header_at(slot);
+
+	if (h->magic != BOOT_HEADER_MAGIC ||
+	    crc32_update(0, (const uint8_t *)h, offsetof(struct boot_header, header_crc)) !=
+		    h->header_crc)
+		return 0;
+	if (h->length == 0 || h->length > BOOT_IMAGE_MAX || h->length % 4u != 0 ||
+	    (h->board_id & 0xFFFFu) != BOOT_BOARD_ID)
+		return 0;
+	return crc32_update(0, image_at(slot), h->length) == h->crc32;
+}
+
+static int same_header(void)
+{
+	const uint32_t *a = (const uint32_t *)(uintptr_t)BOOT_RUN_BASE;
+	const uint32_t *b = (const uint32_t *)(uintptr_t)BOOT_STAGE_BASE;
+
+	for (uint32_t i = 0; i < BOOT_HEADER_WORDS; i++)
+		if (a[i] != b[i])
+			return 0;
+	return 1;
+}
+
+/* The application's stack pointer and reset handler, from its vector table (PM0214 2.3.4). */
+__attribute__((noreturn)) static void start_application(void)
+{
+	const uint32_t *vectors = (const uint32_t *)(uintptr_t)(BOOT_RUN_BASE + BOOT_HEADER_SIZE);
+
+	__asm__ volatile("msr msp, %0\n\tbx %1\n" ::"r"(vectors[0]), "r"(vectors[1] | 1u));
+	__builtin_unreachable();
+}
+
+/* ---- The flash interface (RM0390 3.5): one operation at a time, its end an interrupt ---- */
+static void flash_unlock(void)
+{
+	if (FLASH_CR & FLASH_CR_LOCK) {
+		FLASH_KEYR = FLASH_KEY1;
+		FLASH_KEYR = FLASH_KEY2;
+	}
+}
+
+static void flash_erase_start(uint32_t sector)
+{
+	flash_unlock();
+	FLASH_SR = FLASH_SR_ERRORS | FLASH_SR_EOP;
+	FLASH_CR = FLASH_CR_PSIZE_X32 | FLASH_CR_EOPIE | FLASH_CR_SER | sector << FLASH_CR_SNB_POS;
+	FLASH_CR |= FLASH_CR_STRT;
+}
+
+static void flash_program_start(uint32_t addr, uint32_t word)
+{
+	flash_unlock();
+	FLASH_SR = FLASH_SR_ERRORS | FLASH_SR_EOP;
+	FLASH_CR = FLASH_CR_PSIZE_X32 | FLASH_CR_EOPIE | FLASH_CR_PG;
+	*(volatile uint32_t *)(uintptr_t)addr = word;
+}
+
+static int flash_busy(void)
+{
+	return (FLASH_SR & FLASH_SR_BSY) != 0;
+}
+
+/* After BSY clears: the errors, then PG/SER off and the lock back on. */
+static uint32_t flash_finish(void)
+{
+	uint32_t err = FLASH_SR & FLASH_SR_ERRORS;
+
+	FLASH_SR = err | FLASH_SR_EOP;
+	FLASH_CR = FLASH_CR_LOCK;
+	return err;
+}
+
+void FLASH_IRQHandler(void)
+{
+	FLASH_SR = FLASH_SR_EOP; /* the end wakes the main loop, which finishes the operation */
+}
+
+/* ---- The work of the main loop: a list of flash operations ---- */
+struct boot_job {
+	uint8_t sectors[4]; /* to erase, in order */
+	uint8_t n_sectors;
+	uint32_t dst;       /* then words to program from src */
+	const uint8_t *src; /* RAM or flash */
+	uint32_t n_words;
+	uint8_t op; /* 1 while an operation runs */
+	uint8_t err;
+};
+
+static struct boot_job job;
+struct boot_state boot;
+
+static uint32_t word_of(const uint8_t *p)
+{
+	return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+/* One step: finish the operation that ended, start the next. Returns 1 while work is left. */
+static int job_step(void)
+{
+	if (job.op) {
+		if (flash_busy())
+			return 1;
+		job.err |= flash_finish() != 0;
+		job.op = 0;
+	}
+	if (job.n_sectors) {
+		flash_erase_start(job.sectors[0]);
+		for (uint8_t i = 1; i < job.n_sectors; i++)
+			job.sectors[i - 1] = job.sectors[i];
+		job.n_sectors--;
+		job.op = 1;
+		return 1;
+	}
+	if (job.n_words) {
+		uint32_t w = word_of(job.src);
+
+		/* An erased word stays erased: skipped, as programming 0xFFFFFFFF changes nothing.
+		 */
+		if (w != 0xFFFFFFFFu) {
+			flash_program_start(job.dst, w);
+			job.op = 1;
+		}
+		job.dst += 4u;
+		job.src += 4u;
+		job.n_words--;
+		return 1;
+	}
+	return 0;
+}
+
+/* ---- The update (boot_proto.h) ---- */
+static uint8_t chunk[BOOT_CHUNK_MAX];
+static uint32_t hdr_words[BOOT_HEADER_WORDS];
+
+static void set_state(uint8_t state, uint8_t result)
+{
+	__asm__ volatile("cpsid i" ::: "memory");
+	boot.state = state;
+	boot.result = result;
+	__asm__ volatile("cpsie i" ::: "memory");
+}
+
+static uint32_t be32(const uint8_t *p)
+{
+	return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3];
+}
+
+static void make_header(uint32_t *w, uint32_t length, uint32_t crc, uint32_t version)
+{
+	struct boot_header h;
+
+	h.magic = BOOT_HEADER_MAGIC;
+	h.length = length;
+	h.crc32 = crc;
+	h.version = version;
+	h.board_id = BOOT_BOARD_ID;
+	h.reserved[0] = 0xFFFFFFFFu;
+	h.reserved[1] = 0xFFFFFFFFu;
+	h.header_crc =
+		crc32_update(0, (const uint8_t *)&h, offsetof(struct boot_header, header_crc));
+	__builtin_memcpy(w, &h, sizeof(h));
+}
+
+static void cmd_begin(const uint8_t *a)
+{
+	uint32_t length = be32(a), crc = be32(a + 4), version = be32(a + 8);
+	uint32_t board = (uint32_t)a[12] << 8 | a[13];
+
+	if (board != BOOT_BOARD_ID) {
+		set_state(boot.state, BOOT_R_WRONG_BOARD);
+		return;
+	}
+	if (length == 0 || length > BOOT_IMAGE_MAX || length % 4u != 0) {
+		set_state(boot.state, BOOT_R_TOO_LARGE);
+		return;
+	}
+	boot.length = length;
+	boot.crc = crc;
+	boot.version = version;
+	boot.next = 0;
+	job.sectors[0] = BOOT_STAGE_SECTOR;
+	job.n_sectors = 1;
+	set_state(BOOT_S_ERASING, BOOT_R_OK);
+}
+
+static void cmd_data(const uint8_t *a, uint32_t n)
+{
+	uint32_t off = be32(a);
+	const uint8_t *dst = image_at(BOOT_STAGE_BASE) + off;
+	uint32_t i;
+
+	if (boot.state != BOOT_S_RECEIVING) {
+		set_state(boot.state, BOOT_R_NOT_BEGUN);
+		return;
+	}
+	if (n == 0 || n % 4u != 0 || off % 4u != 0 || off > boot.next || off + n > boot.length) {
+		set_state(boot.state, BOOT_R_BAD_OFFSET);
+		return;
+	}
+	if (off < boot.next) {
+		/* Sent again (its reply was lost): what is in flash must be this chunk. */
+		uint32_t have = boot.next - off < n ? boot.next - off : n;
+
+		for (i = 0; i < have; i++)
+			if (dst[i] != a[4 + i]) {
+				set_state(boot.state, BOOT_R_MISMATCH);
+				return;
+			}
+		if (have == n) {
+			set_state(boot.state, BOOT_R_OK);
+			return;
+		}
+		a += have;
+		off += have;
+		n -= have;
+	}
+	for (i = 0; i < n; i++)
+		chunk[i] = a[4 + i];
+	job.dst = (uint32_t)(uintptr_t)(image_at(BOOT_STAGE_BASE) + off);
+	job.src = chunk;
+	job.n_words = n / 4u;
+	job.err = 0;
+	boot.pending_next = off + n;
+	set_state(BOOT_S_PROGRAMMING, BOOT_R_OK);
+}
+
+/* The image read back: its CRC, and its own record of board and version. */
+static uint8_t check_stage(void)
+{
+	const uint8_t *img = image_at(BOOT_STAGE_BASE);
+	const struct boot_app_info *info;
+
+	if (boot.next != boot.length)
+		return BOOT_R_INCOMPLETE;
+	if (crc32_update(0, img, boot.length) != boot.crc)
+		return BOOT_R_BAD_CRC;
+	if (boot.length < BOOT_APP_INFO_OFFSET + sizeof(*info))
+		return BOOT_R_WRONG_BOARD; /* too short to hold its record */
+	info = (const struct boot_app_info *)(const void *)(img + BOOT_APP_INFO_OFFSET);
+	if (info->magic != BOOT_APP_INFO_MAGIC || (info->board_id & 0xFFFFu) != BOOT_BOARD_ID)
+		return BOOT_R_WRONG_BOARD;
+	if (info->version != boot.version)
+		return BOOT_R_BAD_VERSION;
+	return BOOT_R_OK;
+}
+
+static void cmd_end(void)
+{
+	uint8_t r;
+
+	if (boot.state != BOOT_S_RECEIVING) {
+		set_state(boot.state, boot.state == BOOT_S_READY ? BOOT_R_OK : BOOT_R_NOT_BEGUN);
+		return;
+	}
+	set_state(BOOT_S_CHECKING, BOOT_R_OK);
+	r = check_stage();
+	if (r != BOOT_R_OK) {
+		set_state(BOOT_S_RECEIVING, r);
+		return;
+	}
+	make_header(hdr_words, boot.length, boot.crc, boot.version);
+	job.dst = BOOT_STAGE_BASE;
+	job.src = (const uint8_t *)hdr_words;
+	job.n_words = BOOT_HEADER_WORDS;
+	job.err = 0;
+	set_state(BOOT_S_WRITING_HEADER, BOOT_R_OK);
+}
+
+static void system_reset(void)
+{
+	__asm__ volatile("dsb" ::: "memory");
+	SCB_AIRCR = SCB_AIRCR_SYSRESET;
+	for (;;)
+		;
+}
+
+/* A frame the I2C interrupt took (boot_i2c.c): its PEC and length already checked. */
+static void run_command(const uint8_t *f, uint8_t n)
+{
+	if (boot_busy(boot.state)) {
+		set_state(boot.state, BOOT_R_BUSY); /* not applied: poll, then send it again */
+		return;
+	}
+	switch (f[0]) {
+	case BOOT_CMD_BEGIN:
+		if (n != BOOT_LEN_BEGIN)
+			set_state(boot.state, BOOT_R_BAD_LENGTH);
+		else
+			cmd_begin(f + 1);
+		break;
+	case BOOT_CMD_DATA:
+		if (n < 1u + 4u + 4u)
+			set_state(boot.state, BOOT_R_BAD_LENGTH);
+		else
+			cmd_data(f + 1, (uint32_t)n - 5u);
+		break;
+	case BOOT_CMD_END:
+		cmd_end();
+		break;
+	case BOOT_CMD_START:
+		if (boot.state == BOOT_S_READY || slot_valid(BOOT_RUN_BASE))
+			system_reset(); /* the start-up copies a newer download, then starts it */
+		set_state(boot.state, BOOT_R_NO_APPLICATION);
+		break;
+	default:
+		set_state(boot.state, BOOT_R_UNKNOWN);
+		break;
+	}
+}
+
+/* The end of the job the state started. */
+static void job_done(void)
+{
+	switch (boot.state) {
+	case BOOT_S_ERASING:
+		set_state(job.err ? BOOT_S_IDLE : BOOT_S_RECEIVING,
+			  job.err ? BOOT_R_FLASH_ERROR : BOOT_R_OK);
+		break;
+	case BOOT_S_PROGRAMMING: {
+		uint32_t from = boot.next;
+		int ok = !job.err;
+
+		/* Read back: a word that did not take (not blank, a flash error) spoils the slot.
+		 */
+		for (uint32_t i = from; ok && i < boot.pending_next; i++)
+			ok = image_at(BOOT_STAGE_BASE)[i] == chunk[i - from];
+		__asm__ volatile("cpsid i" ::: "memory");
+		if (ok)
+			boot.next = boot.pending_next;
+		boot.state = ok ? BOOT_S_RECEIVING : BOOT_S_IDLE;
+		boot.result = ok ? BOOT_R_OK : BOOT_R_FLASH_ERROR; /* a bad word: begin again */
+		__asm__ volatile("cpsie i" ::: "memory");
+		break;
+	}
+	case BOOT_S_WRITING_HEADER:
+		set_state(job.err || !slot_valid(BOOT_STAGE_BASE) ? BOOT_S_IDLE : BOOT_S_READY,
+			  job.err ? BOOT_R_FLASH_ERROR : BOOT_R_OK);
+		break;
+	case BOOT_S_COPYING:
+		/* The copy read back, then its header, last (the download's, word for word). */
+		if (!job.err && boot.copy_stage == 0) {
+			const struct boot_header *h = header_at(BOOT_STAGE_BASE);
+
+			if (crc32_update(0, image_at(BOOT_RUN_BASE), h->length) == h->crc32) {
+				job.dst = BOOT_RUN_BASE;
+				job.src = (const uint8_t *)(uintptr_t)BOOT_STAGE_BASE;
+				job.n_words = BOOT_HEADER_WORDS;
+				boot.copy_stage = 1;
+				break;
+			}
+			job.err = 1;
+		}
+		system_reset(); /* copied (the next start-up starts it), or tried again */
+		break;
+	default:
+		break;
+	}
+}
+
+/* The copy of a checked download into the run slot: the run slot's sectors erased (the header's
+ * sector first: a cut from then on leaves the run slot invalid, and the start-up copies again),
+ * the image programmed, read back, and the header last. */
+static void copy_start(void)
+{
+	const struct boot_header *h = header_at(BOOT_STAGE_BASE);
+	uint32_t end = BOOT_RUN_BASE + BOOT_HEADER_SIZE + h->length;
+
+	job.sectors[0] = 2u;
+	job.n_sectors = 1;
+	if (end > 0x0800C000u)
+		job.sectors[job.n_sectors++] = 3u;
+	if (end > 0x08010000u)
+		job.sectors[job.n_sectors++] = 4u;
+	job.dst = BOOT_RUN_BASE + BOOT_HEADER_SIZE;
+	job.src = image_at(BOOT_STAGE_BASE);
+	job.n_words = h->length / 4u;
+	job.err = 0;
+	boot.copy_stage = 0;
+	set_state(BOOT_S_COPYING, BOOT_R_OK);
+}
+
+static void watchdog_start(void)
+{
+	IWDG_KR = IWDG_KR_START;
+	IWDG_KR = IWDG_KR_ACCESS;
+	IWDG_PR = BOOT_WDG_PR;
+	IWDG_RLR = BOOT_WDG_RLR;
+	while (IWDG_SR != 0)
+		;
+	IWDG_KR = IWDG_KR_RELOAD;
+}
+
+/* The vector table in RAM: 16 + 97 entries, aligned to 512 bytes (PM0214 4.4.4). */
+static void (*ram_vectors[128])(void) __attribute__((aligned(512)));
+
+void SysTick_Handler(void)
+{
+	/* Wakes the main loop each millisecond: it feeds the watchdog. */
+}
+
+static void unused_handler(void)
+{
+	for (;;)
+		; /* the watchdog resets the chip */
+}
+
+void boot_main(void)
+{
+	volatile uint32_t *request = (volatile uint32_t *)(uintptr_t)BOOT_REQUEST_ADDR;
+	int asked = request[0] == BOOT_REQUEST_MAGIC && request[1] == ~BOOT_REQUEST_MAGIC;
+	int run_ok, stage_ok;
+
+	request[0] = 0;
+	request[1] = 0;
+	watchdog_start();
+	crc_init();
+	run_ok = slot_valid(BOOT_RUN_BASE);
+	stage_ok = !(run_ok && same_header()) && slot_valid(BOOT_STAGE_BASE);
+	if (run_ok && !stage_ok && !asked)
+		start_application();
+
+	for (uint32_t i = 0; i < 128u; i++)
+		ram_vectors[i] = unused_handler;
+	ram_vectors[15] = SysTick_Handler;
+	ram_vectors[16 + IRQ_FLASH] = FLASH_IRQHandler;
+	ram_vectors[16 + IRQ_I2C1_EV] = I2C1_EV_IRQHandler;
+	ram_vectors[16 + IRQ_I2C1_ER] = I2C1_ER_IRQHandler;
+	SCB_VTOR = (uint32_t)(uintptr_t)ram_vectors;
+
+	boot.state = BOOT_S_IDLE;
+	boot.result = BOOT_R_OK;
+	boot.run_valid = (uint8_t)run_ok;
+	if (run_ok) {
+		/* Kept in RAM: the I2C interrupt must not read the flash while it erases. */
+		boot.run_version = header_at(BOOT_RUN_BASE)->version;
+		boot.run_length = header_at(BOOT_RUN_BASE)->length;
+		boot.run_crc = header_at(BOOT_RUN_BASE)->crc32;
+	}
+	if (stage_ok)
+		copy_start(); /* a checked download newer than what runs, or nothing runs */
+	boot_i2c_init();
+	NVIC_IPR_BYTE(IRQ_FLASH) = 0x80u;
+	NVIC_ISER(IRQ_FLASH / 32u) = 1u << (IRQ_FLASH % 32u);
+	SCB_SHPR3 = (SCB_SHPR3 & 0x00FFFFFFu) | 0xF0u << 24;
+	SYST_RVR = HSI_HZ / 1000u - 1u;
+	SYST_CVR = 0;
+	SYST_CSR = SYST_CSR_ENABLE | SYST_CSR_TICKINT | SYST_CSR_CLKSOURCE;
+
+	for (;;) {
+		uint8_t n;
+
+		if (!job_step() && boot.state != BOOT_S_IDLE && boot.state != BOOT_S_RECEIVING &&
+		    boot.state != BOOT_S_READY && boot.state != BOOT_S_CHECKING)
+			job_done();
+		n = boot_i2c_take(boot.frame);
+		if (n)
+			run_command(boot.frame, n);
+		IWDG_KR = IWDG_KR_RELOAD;
+		if (!job.op && (job.n_sectors || job.n_words))
+			continue; /* an erased word skipped: the next one at once */
+		boot_idle();
+	}
+}
+
+/* One sleep of the main loop: the harness knows the CPU asleep at this wfi (as stm32_idle). */
+__attribute__((naked)) void boot_idle(void)
+{
+	__asm__ volatile("wfi\n\tbx lr\n");
+}

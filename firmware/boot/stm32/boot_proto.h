@@ -1,0 +1,87 @@
+/* The update protocol the bootloader speaks at I2C address 2 (docs/update.md, "The protocol"):
+ * designations, lengths, states and results, and what boot.c and boot_i2c.c share. Every write
+ * ends with its SMBus PEC (CRC-8 of every byte since the START, the address included: the
+ * application's rule, docs/protocol.md section 8), which is mandatory here; every read returns
+ * the selected reply, then its PEC, then 0xFF. Numbers are big-endian on the bus. */
+#ifndef ASSERV_BOOT_PROTO_H
+#define ASSERV_BOOT_PROTO_H
+
+#include <stdint.h>
+
+#define BOOT_PROTO_VERSION 1u
+
+/* Writes: designation, parameters, PEC. */
+#define BOOT_CMD_INFO 0xB0u   /* select the INFO reply; no parameter */
+#define BOOT_CMD_BEGIN 0xB1u  /* length u32, crc32 u32, version u32, board id u16 */
+#define BOOT_CMD_DATA 0xB2u   /* offset u32, 4..64 bytes (a multiple of 4) */
+#define BOOT_CMD_END 0xB3u    /* no parameter: read back, check, header written last */
+#define BOOT_CMD_START 0xB4u  /* no parameter: reset, copy a newer download, start it */
+#define BOOT_CMD_STATUS 0xB5u /* select the STATUS reply (the default); no parameter */
+#define BOOT_LEN_BEGIN 15u    /* designation and parameters, PEC excluded */
+#define BOOT_CHUNK_MAX 64u
+#define BOOT_FRAME_MAX (1u + 4u + BOOT_CHUNK_MAX + 1u)
+/* Replies, PEC excluded. STATUS: state, result, next offset u32 (bytes of the download received
+ * and programmed, from its start). INFO: 'B' 'L', protocol version, board id u16, run slot valid,
+ * its version u32, length u32, crc32 u32, the largest image u32, state. */
+#define BOOT_STATUS_LEN 6u
+#define BOOT_INFO_LEN 23u
+
+enum boot_s {
+	BOOT_S_IDLE,           /* no download begun (or the last one failed: begin again) */
+	BOOT_S_ERASING,        /* busy: the download slot is being erased (BEGIN) */
+	BOOT_S_RECEIVING,      /* DATA and END accepted */
+	BOOT_S_PROGRAMMING,    /* busy: a chunk being programmed */
+	BOOT_S_CHECKING,       /* busy: the download read back (END) */
+	BOOT_S_WRITING_HEADER, /* busy: its header being programmed */
+	BOOT_S_READY,          /* the download is whole, checked and its header written: START */
+	BOOT_S_COPYING,        /* busy: the download being copied into the run slot (start-up) */
+	BOOT_S_QUEUED,         /* busy: a write taken, not yet handled (reported, never stored) */
+};
+
+static inline int boot_busy(uint8_t s)
+{
+	return s == BOOT_S_ERASING || s == BOOT_S_PROGRAMMING || s == BOOT_S_CHECKING ||
+	       s == BOOT_S_WRITING_HEADER || s == BOOT_S_COPYING || s == BOOT_S_QUEUED;
+}
+
+enum boot_r {
+	BOOT_R_OK,
+	BOOT_R_BAD_PEC,        /* the frame's PEC is wrong or missing: nothing done */
+	BOOT_R_BAD_LENGTH,     /* too long, or not the designation's length */
+	BOOT_R_UNKNOWN,        /* no such designation */
+	BOOT_R_BUSY,           /* the last operation is not over: poll, then send again */
+	BOOT_R_WRONG_BOARD,    /* the image is for another board (BEGIN, or its own record) */
+	BOOT_R_TOO_LARGE,      /* longer than the run slot, empty, or not a multiple of 4 */
+	BOOT_R_NOT_BEGUN,      /* DATA or END without a BEGIN */
+	BOOT_R_BAD_OFFSET,     /* a chunk past the next offset, misaligned, or past the length */
+	BOOT_R_MISMATCH,       /* a chunk sent again differs from what was programmed */
+	BOOT_R_INCOMPLETE,     /* END before every byte was received */
+	BOOT_R_BAD_CRC,        /* END: the image read back does not have the CRC of BEGIN */
+	BOOT_R_BAD_VERSION,    /* END: the image's own version is not BEGIN's */
+	BOOT_R_FLASH_ERROR,    /* a word did not program, or an erase failed: begin again */
+	BOOT_R_NO_APPLICATION, /* START with no valid application to start */
+};
+
+/* What the main loop (boot.c) and the I2C interrupt (boot_i2c.c) share. */
+struct boot_state {
+	volatile uint8_t state;  /* enum boot_s */
+	volatile uint8_t result; /* enum boot_r, of the last write */
+	volatile uint32_t next;  /* STATUS's next offset */
+	uint8_t run_valid;
+	uint32_t run_version, run_length, run_crc; /* the run slot's header, read at start */
+	uint8_t copy_stage;
+	uint32_t pending_next, length, crc, version; /* the download (BEGIN) */
+	uint8_t frame[BOOT_FRAME_MAX];               /* the frame the main loop handles */
+};
+extern struct boot_state boot;
+
+/* boot_i2c.c: the slave at BOOT_I2C_ADDRESS. */
+#define BOOT_I2C_ADDRESS 2u
+void boot_i2c_init(void);
+/* The frame the interrupt took (designation and parameters, PEC checked and removed) copied into
+ * f, and its length; 0 if none. Main loop only. */
+uint8_t boot_i2c_take(uint8_t *f);
+void I2C1_EV_IRQHandler(void);
+void I2C1_ER_IRQHandler(void);
+
+#endif

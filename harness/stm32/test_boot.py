@@ -1,0 +1,490 @@
+"""The bootloader's binary (firmware/boot/stm32) with the application's (docs/update.md): updates
+over the emulated I2C bus driven by asserv.update, power cuts at every step of an update,
+refusals, and the promises as properties (hypothesis): a power cut at any instant leaves a valid
+application that starts, and keeps the calibration; chunks lost, resent or refused on a flaky bus
+never corrupt the image."""
+
+from __future__ import annotations
+
+import ctypes
+from pathlib import Path
+from random import Random
+from typing import Any
+
+import pytest
+from board import Reference, robot
+from boot import (
+    RUN_BASE,
+    STAGE_BASE,
+    BootBoard,
+    WholeFlash,
+    factory_flash,
+    sector_of,
+    with_version,
+)
+from conftest import ROOT
+from elftools.elf.elffile import ELFFile
+from emu import FLASH_BASE, SRAM_BASE
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from smbus2 import i2c_msg
+from test_nvm import CAL, encode
+from test_sessions import assert_same_runs, play
+
+from asserv import Board, OrderRejected, Reject, Status
+from asserv.codec import crc8
+from asserv.scenario import load
+from asserv.update import (
+    IMAGE_MAX,
+    Image,
+    Result,
+    State,
+    UpdateError,
+    Updater,
+    header,
+    load_image,
+)
+
+NVM = encode(CAL)  # a calibration record in sector 1 from the factory
+
+
+def new_board(elf: Path, boot_elf: Path, image: bytes | None = None) -> BootBoard:
+    bc, sc, f = robot()
+    if image is None:
+        image = factory_flash(boot_elf, load_image(elf), NVM)
+    return BootBoard(elf, boot_elf, sc, f, bc, flash_image=image)
+
+
+def nvm_of(b: BootBoard) -> bytes:
+    return bytes(b.wflash.image[0x4000:0x8000])
+
+
+def app_runs(b: BootBoard, version: int) -> None:
+    """The application of this version runs and answers; the calibration is the factory's."""
+    assert not b.in_boot() and b.running_version() == version
+    assert Board(b.bus).check_busy() == 0
+    assert nvm_of(b)[: len(NVM)] == NVM and nvm_of(b)[len(NVM) :] == b"\xff" * (0x4000 - len(NVM))
+
+
+def test_the_bootloader_runs_from_ram_and_fits_sector_0(boot_elf: Path) -> None:
+    with boot_elf.open("rb") as f:
+        elf = ELFFile(f)
+        funcs = {
+            s.name: s["st_value"]
+            for s in elf.get_section_by_name(".symtab").iter_symbols()  # type: ignore[union-attr]
+            if s["st_info"]["type"] == "STT_FUNC"
+        }
+        flash_end = max(
+            seg["p_paddr"] + seg["p_filesz"] for seg in elf.iter_segments() if seg["p_filesz"]
+        )
+    in_flash = sorted(n for n, a in funcs.items() if a < SRAM_BASE)
+    assert in_flash == ["Reset_Handler"]
+    assert "I2C1_EV_IRQHandler" in funcs and funcs["I2C1_EV_IRQHandler"] >= SRAM_BASE
+    assert FLASH_BASE < flash_end <= FLASH_BASE + 0x4000  # sector 0 alone
+
+
+def test_power_on_without_an_application_enters_the_bootloader(elf: Path, boot_elf: Path) -> None:
+    b = new_board(elf, boot_elf, factory_flash(boot_elf, None, NVM))
+    assert b.boot_modes == ["boot"] and b.iwdg.running
+    u = Updater(b.bus)
+    info = u.info()
+    assert info.board_id == 0xF446 and not info.run_valid and info.image_max == IMAGE_MAX
+    u.start()  # nothing to start: refused with its reason
+    assert u.status().result == Result.NO_APPLICATION and b.in_boot()
+    u.update(load_image(elf))
+    u.start()
+    b.sleep(2.0)  # the copy into the run slot: 3 erases and the image
+    app_runs(b, 1)
+    assert b.boot_stalled_ns == 0  # no flash stall while the bootloader ran: the bus never held
+
+
+def test_the_application_enters_the_bootloader_only_when_no_order_runs(
+    elf: Path, boot_elf: Path
+) -> None:
+    """BOOTLOADER (protocol/messages.toml) through the driver: refused with REFUSED_BUSY while
+    an order drives the robot, which goes on; with a wrong key, OUT_OF_RANGE; accepted when the
+    robot is idle: the motors off, a system reset, the bootloader answering."""
+    b = new_board(elf, boot_elf)
+    master = Board(b.bus)
+    master.goto(500, -850)
+    b.sleep(0.2)
+    with pytest.raises(OrderRejected) as e:
+        master.bootloader()
+    assert e.value.reason == Reject.REFUSED_BUSY
+    b.sleep(0.05)
+    assert not b.in_boot() and b.duty != (0, 0) and master.check_busy() & Status.BUSY_TRAJET
+    b.bus.i2c_rdwr(i2c_msg.write(2, bytes([17, 0x12, 0x34])))
+    assert master.last_reject().reason == Reject.OUT_OF_RANGE
+    master.wait_idle(10.0)
+    b.sleep(0.05)
+    assert not b.in_boot() and b.system_resets == 0
+    master.bootloader()
+    b.sleep(0.01)
+    assert b.in_boot() and b.system_resets == 1 and b.duty == (0, 0)
+    info = Updater(b.bus).info()
+    assert info.run_valid and info.run_version == 1 and info.state == State.IDLE
+    Updater(b.bus).start()  # nothing new: the same application again
+    b.sleep(0.05)
+    app_runs(b, 1)
+
+
+def updated(elf: Path, boot_elf: Path) -> tuple[BootBoard, Image]:
+    """A board with version 1 running, updated to version 2 over the bus."""
+    b = new_board(elf, boot_elf)
+    app_runs(b, 1)
+    Board(b.bus).bootloader()  # BOOTLOADER: the application leaves for the bootloader
+    b.sleep(0.01)
+    assert b.in_boot()
+    new = with_version(load_image(elf), 2)
+    seen: list[int] = []
+    st = Updater(b.bus).update(new, progress=lambda done, total: seen.append(done))
+    assert st.state == State.READY and st.next == len(new.data)
+    assert seen[-1] == len(new.data) and seen == sorted(seen)
+    # The download slot holds the header and the image; the run slot still the old one.
+    img = b.wflash.image
+    stage = STAGE_BASE - FLASH_BASE
+    assert bytes(img[stage : stage + 32]) == header(new)
+    assert bytes(img[stage + 0x200 : stage + 0x200 + len(new.data)]) == new.data
+    Updater(b.bus).start()
+    b.sleep(2.0)
+    app_runs(b, 2)
+    run = RUN_BASE - FLASH_BASE
+    assert bytes(img[run + 0x200 : run + 0x200 + len(new.data)]) == new.data
+    assert b.boot_stalled_ns == 0 and b.watchdog_resets == 0
+    assert b.wflash.faults == []
+    return b, new
+
+
+def test_an_update_over_the_bus_then_the_annex_session_is_bit_identical(
+    elf: Path, boot_elf: Path
+) -> None:
+    b, _ = updated(elf, boot_elf)
+    # Power on with the flash the update left (its calibration aside, which the host build
+    # does not have) and play the annex against the native build.
+    image = bytearray(b.wflash.image)
+    image[0x4000:0x8000] = b"\xff" * 0x4000
+    scn = load(ROOT / "scenarios" / "annex.txt")
+    from board import of_simulator
+
+    bc, sc, f = of_simulator(scn.simulator())
+    nb = BootBoard(elf, boot_elf, sc, f, bc, flash_image=bytes(image))
+    assert nb.boot_modes == ["app"] and nb.running_version() == 2
+    r = Reference(bc, sc, f)
+    r.padding = nb.padding
+    nb.trace, r.trace = [], []
+    ends_b = play(nb, scn)
+    ends_r = play(r, scn)
+    assert_same_runs(nb, r)
+    assert nb.ticks > 3000 and ends_b == ends_r
+
+
+class WrongCrc(Image):
+    """An image announced with a CRC its bytes do not have."""
+
+    @property
+    def crc32(self) -> int:
+        return super().crc32 ^ 1
+
+
+def test_refusals_leave_the_old_application_running(elf: Path, boot_elf: Path) -> None:
+    b = new_board(elf, boot_elf)
+    b.request_bootloader()
+    u = Updater(b.bus)
+    good = with_version(load_image(elf), 2)
+
+    # Another board's image: refused by BEGIN, and by the driver before it.
+    other = Image(good.data, 0xF401, 2)
+    u.begin(other)
+    assert u.status() == (State.IDLE, Result.WRONG_BOARD, 0)
+    with pytest.raises(UpdateError, match="for board 0xf401"):
+        u.update(other)
+    # Too large.
+    big = Image(good.data + bytes(IMAGE_MAX), 0xF446, 2)
+    u.begin(big)
+    assert u.status().result == Result.TOO_LARGE
+    # An image whose own record names another board, sent as this board's: END refuses it.
+    data = bytearray(good.data)
+    data[0x204:0x208] = (0xF401).to_bytes(4, "little")
+    with pytest.raises(UpdateError, match="WRONG_BOARD"):
+        u.update(Image(bytes(data), 0xF446, 2))
+    # A wrong CRC: every chunk goes in, END reads the image back and refuses it.
+    with pytest.raises(UpdateError, match="BAD_CRC"):
+        u.update(WrongCrc(good.data, 0xF446, 2))
+    # A corrupted chunk (a byte flipped on the bus, its PEC the sent one's): not applied.
+    u.begin(good)
+    u.wait()
+    frame = bytes([0xB2]) + (0).to_bytes(4, "big") + good.data[:64]
+    pec = crc8(bytes([4]) + frame)
+    bad = bytearray(frame)
+    bad[10] ^= 0x10
+    b.bus.i2c_rdwr(i2c_msg.write(2, bytes(bad) + bytes([pec])))
+    assert u.status() == (State.RECEIVING, Result.BAD_PEC, 0)
+    assert bytes(b.wflash.image[0x20200:0x20240]) == b"\xff" * 64
+    # A chunk past the next offset, and one sent again differently.
+    u.data(64, good.data[64:128])
+    assert u.status() == (State.RECEIVING, Result.BAD_OFFSET, 0)
+    u.data(0, good.data[:64])
+    assert u.wait() == (State.RECEIVING, Result.OK, 64)
+    u.data(0, good.data[:64])  # sent again (its reply lost): the same chunk
+    assert u.wait() == (State.RECEIVING, Result.OK, 64)
+    u.data(0, bytes(64))
+    assert u.wait() == (State.RECEIVING, Result.MISMATCH, 64)
+    u.end()
+    assert u.wait().result == Result.INCOMPLETE
+    # Whatever was refused, START runs the old application, and only it.
+    u.start()
+    b.sleep(0.1)
+    app_runs(b, 1)
+    assert b.wflash.faults == []
+
+
+def test_the_watchdog_runs_in_the_bootloader(elf: Path, boot_elf: Path) -> None:
+    b = new_board(elf, boot_elf)
+    b.request_bootloader()
+    b.sleep(1.5)
+    assert b.in_boot() and b.watchdog_resets == 0  # fed by its main loop
+    b.ticks_on = False  # its main loop no longer wakes (a hung interrupt, say)
+    t0 = b.now_ns
+    while b.watchdog_resets == 0 and b.now_ns - t0 < 1_200_000_000:
+        b.sleep(0.005)
+    assert b.watchdog_resets == 1
+    assert 0.99e9 <= b.now_ns - t0 <= 1.01e9  # 1 s: (999 + 1) * 32 / 32 kHz
+    b.ticks_on = True
+    b.sleep(0.05)
+    app_runs(b, 1)  # the reset's start-up: the request is gone, the valid application runs
+
+
+class NoCpu:
+    """No CPU sees a replayed flash."""
+
+    def mem_write(self, address: int, data: bytes) -> None:
+        pass
+
+
+def test_a_power_cut_at_every_step_of_an_update_leaves_a_valid_application(
+    elf: Path, boot_elf: Path
+) -> None:
+    """The update's flash operations, recorded, then replayed to each step with a power cut in
+    it: in every erase, in one word of every chunk of the download, in every word of both
+    headers, and in a word of every 8 KiB of the bootloader's copy (each cut there costs a whole
+    copy, 7 s of the harness: test_a_power_cut_at_any_instant_then_the_update_again draws more).
+    Each time the chip boots a valid application, the old or the new, and the calibration's
+    sector is untouched."""
+    b = new_board(elf, boot_elf)
+    b.request_bootloader()
+    before = bytes(b.wflash.image)
+    n0 = len(b.wflash.log)
+    new = with_version(load_image(elf), 2)
+    u = Updater(b.bus)
+    u.update(new)
+    u.start()
+    b.sleep(2.0)
+    app_runs(b, 2)
+    log = b.wflash.log[n0:]
+    erases = [k for k, op in enumerate(log) if op[0] == "erase"]
+    assert [log[k][1] for k in erases] == [0x20000, 0x8000, 0xC000, 0x10000]
+    assert all(sector_of(op[1]) in (2, 3, 4, 5) for op in log)  # never sector 0 or 1
+    programs = [k for k, op in enumerate(log) if op[0] == "program"]
+    stage_hdr = [k for k in programs if 0x20000 <= log[k][1] < 0x20200]
+    run_hdr = [k for k in programs if 0x8000 <= log[k][1] < 0x8200]
+    # The headers' words but the two reserved ones, erased (0xFFFFFFFF is not programmed); the
+    # download's header after its image, the run slot's last of all.
+    assert len(stage_hdr) == len(run_hdr) == 6 and run_hdr[-1] == len(log) - 1
+    assert stage_hdr[0] > max(k for k in programs if log[k][1] >= 0x20200)
+    rng = Random(29)
+    chunks: dict[int, list[int]] = {}
+    for k in programs:
+        if log[k][1] >= 0x20200:
+            chunks.setdefault(log[k][1] // 64, []).append(k)
+    copy: dict[int, list[int]] = {}
+    for k in programs:
+        if 0x8200 <= log[k][1] < 0x20000:
+            copy.setdefault(log[k][1] // 8192, []).append(k)
+    cuts = set(erases + stage_hdr + run_hdr)
+    cuts |= {rng.choice(ks) for ks in chunks.values()} | {rng.choice(ks) for ks in copy.values()}
+    assert len(chunks) == -(-len(new.data) // 64)
+    f = WholeFlash(0x4002_3C00, before)  # the flash replayed, one operation at a time
+    f.uc = g_uc = NoCpu()
+    seen = []
+    for k, op in enumerate(log):
+        if k in cuts:
+            g = WholeFlash(0x4002_3C00, bytes(f.image))
+            g.uc, g.op = g_uc, op
+            g.cut(rng)
+            b.power_on(bytes(g.image))
+            if b.in_boot():
+                b.sleep(2.0)  # a checked download: copied, then started
+            assert not b.in_boot(), f"cut in step {k} ({op[:2]}): no application starts"
+            v = b.running_version()
+            assert v in (1, 2) and nvm_of(b)[: len(NVM)] == NVM, f"cut in step {k}"
+            assert b.wflash.faults == []
+            seen.append(v)
+        f.op = op
+        f.finish()
+    # Before the download's header is whole the old application runs; after, the new one.
+    assert set(seen) == {1, 2} and len(seen) == len(cuts)
+
+
+class FlakyBus:
+    """The board's bus with faults drawn for each transaction: a write lost before the board
+    sees it, a write whose acknowledge is lost after it was taken, a write delivered twice, a
+    read whose reply is corrupted on the wire. Each fault raises OSError at the master, as a
+    Raspberry Pi's controller reports a failed transfer."""
+
+    def __init__(self, bus: Any, faults: list[int]) -> None:
+        self.bus = bus
+        self.clock = bus.clock
+        self.faults = faults  # per transaction: 0 none, 1 lost, 2 ack lost, 3 twice, 4 garbled
+        self.n = 0
+
+    def i2c_rdwr(self, *msgs: Any) -> None:
+        fault = self.faults[self.n % len(self.faults)]
+        self.n += 1
+        is_read = any(int(m.flags) & 1 for m in msgs)
+        if fault == 1:
+            raise OSError("lost")
+        self.bus.i2c_rdwr(*msgs)
+        if fault == 3 and not is_read:
+            self.bus.i2c_rdwr(*msgs)
+        if fault == 2 and not is_read:
+            raise OSError("acknowledge lost")
+        if fault == 4 and is_read:  # a bit flipped: the driver's PEC check finds it
+            raw = bytearray(bytes(msgs[0]))
+            raw[0] ^= 0x01
+            ctypes.memmove(msgs[0].buf, bytes(raw), len(raw))
+
+
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(faults=st.lists(st.sampled_from([0, 0, 0, 0, 0, 0, 1, 2, 3, 4]), min_size=5, max_size=40))
+def test_lost_resent_and_garbled_frames_never_corrupt_the_image(
+    elf: Path, boot_elf: Path, faults: list[int]
+) -> None:
+    b = new_board(elf, boot_elf)
+    b.request_bootloader()
+    new = with_version(load_image(elf), 2)
+    flaky = FlakyBus(b.bus, faults)
+    u = Updater(flaky)
+    st_ = u.update(new)
+    assert st_ == (State.READY, Result.OK, len(new.data))
+    stage = STAGE_BASE - FLASH_BASE
+    assert bytes(b.wflash.image[stage + 0x200 : stage + 0x200 + len(new.data)]) == new.data
+    assert bytes(b.wflash.image[stage : stage + 32]) == header(new)
+    assert u.retries > 0 or set(faults) <= {0, 3}
+    Updater(b.bus).start()
+    b.sleep(2.0)
+    app_runs(b, 2)
+
+
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    phase=st.sampled_from(["download", "copy"]),
+    at=st.floats(0.0, 1.0),
+    seed=st.integers(0, 2**32 - 1),
+)
+def test_a_power_cut_at_any_instant_then_the_update_again(
+    elf: Path, boot_elf: Path, phase: str, at: float, seed: int
+) -> None:
+    """A power cut at a random instant of a live update (the download over the bus, or the
+    bootloader's copy after START), mid-operation included: the board then starts a valid
+    application with its calibration, and the same update, done again, gets the new one."""
+    b = new_board(elf, boot_elf)
+    b.request_bootloader()
+    new = with_version(load_image(elf), 2)
+    u = Updater(b.bus)
+    if phase == "download":
+        cut_ns = b.now_ns + int(at * 6.5e9)  # the download takes 6.8 s at 100 kHz
+
+        class CutError(Exception):
+            pass
+
+        def progress(done: int, total: int) -> None:
+            if b.now_ns >= cut_ns:
+                raise CutError
+
+        try:
+            u.update(new, progress=progress)
+            u.start()
+        except CutError:
+            pass
+    else:
+        u.update(new)
+        u.start()
+        b.sleep(at * 1.3)  # the copy: 1.05 s of erases, then 0.2 s of words, the header
+    b.power_cycle(Random(seed))
+    if b.in_boot():
+        b.sleep(2.0)
+    assert not b.in_boot()
+    assert b.running_version() in (1, 2)
+    assert nvm_of(b)[: len(NVM)] == NVM
+    assert b.wflash.faults == []
+    b.request_bootloader()
+    Updater(b.bus).update(new)
+    Updater(b.bus).start()
+    b.sleep(2.0)
+    app_runs(b, 2)
+
+
+class Unclosed:
+    """The board's bus for the CLI, which closes its bus at the end: left open here."""
+
+    def __init__(self, bus: Any) -> None:
+        self.bus = bus
+        self.clock = bus.clock
+
+    def i2c_rdwr(self, *msgs: Any) -> None:
+        self.bus.i2c_rdwr(*msgs)
+
+    def close(self) -> None:
+        pass
+
+
+def test_asserv_flash_updates_the_board_and_says_what_runs(
+    elf: Path, boot_elf: Path, tmp_path: Path, capsys: Any
+) -> None:
+    from asserv.cli import parser
+    from asserv.cli_bus import run_bus_command
+
+    b = new_board(elf, boot_elf)
+    new = with_version(load_image(elf), 3)
+    path = tmp_path / "asserv_stm32.bin"
+    path.write_bytes(new.data)
+    args = parser().parse_args(["--bus", "1", "flash", str(path)])
+    assert run_bus_command(args, bus_factory=lambda n: Unclosed(b.bus)) == 0
+    out = capsys.readouterr()
+    assert "board 0xf446: runs version 1" in out.out
+    assert "verified: the board read the 46" in out.out
+    assert "running: application version 3" in out.out and "power is cut" in out.out
+    app_runs(b, 3)
+    # The same image again: nothing written, started again.
+    writes = len(b.wflash.log)
+    assert run_bus_command(args, bus_factory=lambda n: Unclosed(b.bus)) == 0
+    assert "has this image already" in capsys.readouterr().out
+    assert len(b.wflash.log) == writes
+    app_runs(b, 3)
+    # An order runs: refused with its reason, the robot goes on.
+    Board(b.bus).goto(500, -850)
+    b.sleep(0.1)
+    assert run_bus_command(args, bus_factory=lambda n: Unclosed(b.bus)) == 1
+    err = capsys.readouterr().err
+    assert "REFUSED_BUSY" in err and "stop the robot" in err and len(err.splitlines()) == 1
+    assert not b.in_boot()
+
+
+def test_asserv_flash_refuses_bad_files_in_one_line(
+    tmp_path: Path, boot_elf: Path, capsys: Any
+) -> None:
+    from asserv.cli import main
+
+    avr = tmp_path / "asserv_avr.elf"
+    avr.write_bytes(b"\x7fELF\x01\x01\x01" + bytes(11) + b"\x53\x00" + bytes(40))
+    junk = tmp_path / "junk.bin"
+    junk.write_bytes(bytes(600))
+    for path, words in (
+        (avr, "ISP"),
+        (junk, "no application record"),
+        (boot_elf, "outside the run slot"),
+        (tmp_path / "none.elf", "No such file"),
+    ):
+        assert main(["--bus", "1", "flash", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert words in err and len(err.splitlines()) == 1 and "Traceback" not in err

@@ -1,0 +1,465 @@
+"""Firmware update over the master's I2C bus, through the STM32 board's bootloader
+(firmware/boot/stm32, docs/update.md): the image of an ELF or a .bin, its slot header, and the
+calls of the update protocol, with resumption after a bus error.
+
+The protocol's numbers are firmware/boot/stm32/boot_proto.h's and boot_layout.h's; the
+harness (harness/stm32/test_boot.py) runs this module against the bootloader's binary."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import IntEnum
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from smbus2 import i2c_msg
+
+from .bus import clock_of
+from .codec import crc8
+from .driver import AsservError
+
+__all__ = [
+    "BOARD_IDS",
+    "BootInfo",
+    "BootStatus",
+    "Image",
+    "Result",
+    "State",
+    "UpdateError",
+    "Updater",
+    "header",
+    "load_image",
+    "slot_bytes",
+]
+
+ADDRESS = 2
+RUN_BASE = 0x0800_8000
+HEADER_SIZE = 0x200
+IMAGE_BASE = RUN_BASE + HEADER_SIZE  # where the application is linked
+IMAGE_MAX = 0x18000 - HEADER_SIZE  # the run slot: sectors 2-4
+APP_INFO_OFFSET = 0x200
+APP_INFO_MAGIC = 0x4950_5041  # "APPI"
+HEADER_MAGIC = 0x544F_4F42  # "BOOT"
+CHUNK = 64
+BOARD_IDS = {
+    0xF446: "STM32F446 (Nucleo-F446RE)",
+    0xF401: "STM32F401 (Nucleo-F401RE)",
+    0x1284: "ATmega1284P",
+}
+
+CMD_INFO, CMD_BEGIN, CMD_DATA, CMD_END, CMD_START, CMD_STATUS = range(0xB0, 0xB6)
+
+
+class State(IntEnum):
+    IDLE = 0
+    ERASING = 1
+    RECEIVING = 2
+    PROGRAMMING = 3
+    CHECKING = 4
+    WRITING_HEADER = 5
+    READY = 6
+    COPYING = 7
+    QUEUED = 8
+
+    @property
+    def busy(self) -> bool:
+        return self in (
+            State.ERASING,
+            State.PROGRAMMING,
+            State.CHECKING,
+            State.WRITING_HEADER,
+            State.COPYING,
+            State.QUEUED,
+        )
+
+
+class Result(IntEnum):
+    OK = 0
+    BAD_PEC = 1
+    BAD_LENGTH = 2
+    UNKNOWN = 3
+    BUSY = 4
+    WRONG_BOARD = 5
+    TOO_LARGE = 6
+    NOT_BEGUN = 7
+    BAD_OFFSET = 8
+    MISMATCH = 9
+    INCOMPLETE = 10
+    BAD_CRC = 11
+    BAD_VERSION = 12
+    FLASH_ERROR = 13
+    NO_APPLICATION = 14
+
+
+class UpdateError(AsservError):
+    """A refusal (bad image, another board's, a board that says no) or an update that failed:
+    the message says what and what to do."""
+
+
+@dataclass(frozen=True)
+class Image:
+    """An application image: the bytes from IMAGE_BASE on, and its own record."""
+
+    data: bytes
+    board_id: int
+    version: int
+
+    @property
+    def crc32(self) -> int:
+        return zlib.crc32(self.data) & 0xFFFF_FFFF
+
+
+class BootStatus(NamedTuple):
+    state: State
+    result: Result
+    next: int  # bytes of the download received and programmed
+
+
+@dataclass(frozen=True)
+class BootInfo:
+    proto_version: int
+    board_id: int
+    run_valid: bool
+    run_version: int
+    run_length: int
+    run_crc: int
+    image_max: int
+    state: State
+
+
+def _elf_bytes(raw: bytes, name: str) -> bytes:
+    """The loadable bytes of a 32-bit little-endian ARM ELF from IMAGE_BASE on (their load
+    addresses: .data's initial values too), gaps filled with zeros as objcopy -O binary fills
+    them, so that the ELF and its .bin are the same image."""
+    if raw[18:20] == b"\x53\x00":  # EM_AVR
+        raise UpdateError(
+            f"{name}: an AVR image; the ATmega1284P board has no bootloader: flash it with an"
+            " ISP programmer (docs/update.md, 'The AVR')"
+        )
+    if raw[4:6] != b"\x01\x01":
+        raise UpdateError(f"{name}: not a 32-bit little-endian ELF")
+    (machine,) = struct.unpack_from("<H", raw, 18)
+    if machine != 40:
+        raise UpdateError(f"{name}: not an ARM ELF (e_machine {machine})")
+    (phoff,) = struct.unpack_from("<I", raw, 28)
+    phentsize, phnum = struct.unpack_from("<HH", raw, 42)
+    parts: list[tuple[int, bytes]] = []
+    for i in range(phnum):
+        p_type, p_offset, _vaddr, p_paddr, p_filesz = struct.unpack_from(
+            "<5I", raw, phoff + i * phentsize
+        )
+        if p_type != 1 or p_filesz == 0:
+            continue
+        if not IMAGE_BASE <= p_paddr < RUN_BASE + 0x18000:
+            raise UpdateError(
+                f"{name}: a segment at 0x{p_paddr:08x}, outside the run slot "
+                f"(0x{IMAGE_BASE:08x}..): not an application linked for the bootloader"
+            )
+        parts.append((p_paddr - IMAGE_BASE, raw[p_offset : p_offset + p_filesz]))
+    if not parts:
+        raise UpdateError(f"{name}: no loadable segment")
+    end = max(off + len(d) for off, d in parts)
+    out = bytearray(end)
+    for off, d in parts:
+        out[off : off + len(d)] = d
+    return bytes(out)
+
+
+def load_image(path: str | Path) -> Image:
+    """The image of an application ELF (its loadable segments) or .bin (the bytes of the run
+    slot from its vector table: objcopy -O binary of the ELF), and its record of board and
+    version. Raises UpdateError for anything else."""
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+    except OSError as e:
+        raise UpdateError(f"{p}: {e.strerror or e}") from None
+    data = _elf_bytes(raw, str(p)) if raw[:4] == b"\x7fELF" else raw
+    data += bytes(-len(data) % 4)
+    if len(data) < APP_INFO_OFFSET + 12:
+        raise UpdateError(f"{p}: {len(data)} bytes, too short to be an application image")
+    magic, board, version = struct.unpack_from("<3I", data, APP_INFO_OFFSET)
+    if magic != APP_INFO_MAGIC:
+        raise UpdateError(
+            f"{p}: no application record at offset 0x{APP_INFO_OFFSET:x} "
+            "(not an asserv application built for the bootloader)"
+        )
+    return Image(data, board & 0xFFFF, version)
+
+
+def header(image: Image) -> bytes:
+    """The slot's header (boot_layout.h's struct boot_header), as the bootloader writes it."""
+    body = struct.pack(
+        "<7I",
+        HEADER_MAGIC,
+        len(image.data),
+        image.crc32,
+        image.version,
+        image.board_id,
+        0xFFFF_FFFF,
+        0xFFFF_FFFF,
+    )
+    return body + struct.pack("<I", zlib.crc32(body) & 0xFFFF_FFFF)
+
+
+def slot_bytes(image: Image) -> bytes:
+    """The run slot as the bootloader leaves it (header, then the image): what a factory
+    flashes at 0x08008000 with an ST-LINK, beside the bootloader at 0x08000000."""
+    return header(image) + b"\xff" * (HEADER_SIZE - 32) + image.data
+
+
+class Updater:
+    """The update protocol's calls on a bus (smbus2.SMBus, asserv.VirtualBus): each write
+    carries its PEC, each read is checked against its PEC. ``update`` is the whole procedure."""
+
+    def __init__(self, bus: Any, address: int = ADDRESS, poll_s: float = 0.0002) -> None:
+        self.bus = bus
+        self.address = address
+        self.clock = clock_of(bus)
+        self.poll_s = poll_s
+        self._info_selected = True  # unknown at first: select STATUS before reading it
+        self.retries = 0  # bus errors recovered from
+
+    # ---- frames ----------------------------------------------------------------------------
+    def _write(self, frame: bytes) -> None:
+        pec = crc8(bytes([self.address << 1]) + frame)
+        self.bus.i2c_rdwr(i2c_msg.write(self.address, frame + bytes([pec])))
+
+    def _read(self, n: int) -> bytes:
+        msg = i2c_msg.read(self.address, n + 1)
+        self.bus.i2c_rdwr(msg)
+        got = bytes(msg)
+        if crc8(bytes([self.address << 1 | 1]) + got) != 0:
+            raise OSError(f"a reply from the bootloader failed its PEC: {got.hex()}")
+        return got[:n]
+
+    # ---- calls -----------------------------------------------------------------------------
+    def status(self) -> BootStatus:
+        if self._info_selected:
+            self._write(bytes([CMD_STATUS]))
+            self._info_selected = False
+        state, result, nxt = struct.unpack(">BBI", self._read(6))
+        return BootStatus(State(state), Result(result), nxt)
+
+    def info(self) -> BootInfo:
+        """The bootloader's identity and what its run slot holds. Raises UpdateError when what
+        answers at the address is not the bootloader (the application, say)."""
+        self._write(bytes([CMD_INFO]))
+        self._info_selected = True
+        raw = self._read(23)
+        if raw[:2] != b"BL":
+            raise UpdateError(
+                f"the board at 0x{self.address:02x} is not in its bootloader (it answered "
+                f"{raw[:4].hex()}); enter it first (`asserv flash` does)"
+            )
+        ver, board, valid, rver, rlen, rcrc, imax, state = struct.unpack(">BHBIIIIB", raw[2:])
+        return BootInfo(ver, board, bool(valid), rver, rlen, rcrc, imax, State(state))
+
+    def begin(self, image: Image) -> None:
+        self._write(
+            struct.pack(
+                ">BIIIH", CMD_BEGIN, len(image.data), image.crc32, image.version, image.board_id
+            )
+        )
+
+    def data(self, offset: int, chunk: bytes) -> None:
+        self._write(struct.pack(">BI", CMD_DATA, offset) + chunk)
+
+    def end(self) -> None:
+        self._write(bytes([CMD_END]))
+
+    def start(self) -> None:
+        self._write(bytes([CMD_START]))
+
+    def wait(self, timeout_s: float = 10.0) -> BootStatus:
+        """Polls STATUS until the board is no longer busy."""
+        t_end = self.clock.monotonic() + timeout_s
+        while True:
+            st: BootStatus = self._retry(self.status)
+            if not st.state.busy:
+                return st
+            if self.clock.monotonic() > t_end:
+                raise UpdateError(f"the bootloader stayed {st.state.name} for {timeout_s} s")
+            self.clock.sleep(self.poll_s)
+
+    def _retry(self, call: Callable[[], Any], tries: int = 20) -> Any:
+        """A call again after a bus error (a NACK, a PEC that fails), a little later."""
+        for k in range(tries):
+            try:
+                return call()
+            except OSError:
+                if k + 1 == tries:
+                    raise
+                self.retries += 1
+                self.clock.sleep(0.002 * (k + 1))
+        raise AssertionError("unreachable")
+
+    # ---- the procedure ---------------------------------------------------------------------
+    def update(
+        self, image: Image, progress: Callable[[int, int], None] | None = None
+    ) -> BootStatus:
+        """Begin, the chunks, end: the download whole, read back, its header written. Any
+        bus error is retried; a chunk whose reply was lost is sent again, which the board
+        takes as the same chunk. Returns the READY status; raises UpdateError on a refusal."""
+        info: BootInfo = self._retry(self.info)
+        if info.board_id != image.board_id:
+            raise UpdateError(
+                f"the image is for board 0x{image.board_id:04x} "
+                f"({BOARD_IDS.get(image.board_id, 'unknown')}), this board is "
+                f"0x{info.board_id:04x} ({BOARD_IDS.get(info.board_id, 'unknown')})"
+            )
+        if len(image.data) > info.image_max:
+            raise UpdateError(
+                f"the image is {len(image.data)} bytes; the board's slot takes {info.image_max}"
+            )
+        self._retry(lambda: self.begin(image))
+        st = self.wait()
+        if st.result != Result.OK or st.state != State.RECEIVING:
+            raise UpdateError(f"BEGIN refused: {st.result.name}")
+        total = len(image.data)
+        offset = 0
+        while offset < total:
+            chunk = image.data[offset : offset + CHUNK]
+            try:
+                self.data(offset, chunk)
+                st = self.status()
+                while st.state.busy:
+                    self.clock.sleep(self.poll_s)
+                    st = self.status()
+            except OSError:
+                self.retries += 1
+                self.clock.sleep(0.002)
+                st = self.wait()  # resume from what the board has
+            if st.state != State.RECEIVING:
+                raise UpdateError(f"the download stopped at {st.next} bytes: {st.result.name}")
+            if st.result not in (Result.OK, Result.BUSY, Result.BAD_PEC):
+                raise UpdateError(f"chunk at {offset} refused: {st.result.name}")
+            offset = st.next
+            if progress is not None:
+                progress(offset, total)
+        self._retry(self.end)
+        st = self.wait()
+        if st.state != State.READY:
+            raise UpdateError(f"END refused: {st.result.name} (the application that ran stays)")
+        return st
+
+
+class Progress:
+    """One line on a terminal, rewritten: bytes done, percent, time left (from the rate so far).
+    Quiet when the stream is not a terminal (a log, a pipe)."""
+
+    def __init__(self, stream: Any, clock: Any) -> None:
+        self.stream = stream
+        self.on = bool(getattr(stream, "isatty", lambda: False)())
+        self.clock = clock
+        self.t0 = clock.monotonic()
+
+    def __call__(self, done: int, total: int) -> None:
+        if not self.on:
+            return
+        spent = self.clock.monotonic() - self.t0
+        left = spent * (total - done) / done if done else 0.0
+        self.stream.write(
+            f"\r{done / 1024:6.1f}/{total / 1024:.1f} KiB {100 * done // total:3d} %"
+            f"  {left:4.0f} s left "
+        )
+        if done == total:
+            self.stream.write("\n")
+        self.stream.flush()
+
+
+AFTER_A_CUT = (
+    "if the power is cut during an update, the board starts the application it had (or the new "
+    "one, if its download was whole): run the same command again"
+)
+
+
+def flash(
+    board: Any, image: Image, progress: Callable[[int, int], None] | None = None
+) -> list[str]:
+    """As _flash, a bus that fails past the retries reported as an UpdateError."""
+    try:
+        return _flash(board, image, progress)
+    except OSError as e:
+        raise UpdateError(f"the bus failed ({e}); " + AFTER_A_CUT) from None
+
+
+def _flash(
+    board: Any, image: Image, progress: Callable[[int, int], None] | None = None
+) -> list[str]:
+    """``asserv flash``: the board (an asserv.Board on its bus) into its bootloader, the image
+    checked against it, downloaded, read back by the board, started; the lines to print.
+    Raises UpdateError (the board refused, or has no bootloader) and OSError (the bus)."""
+    from .driver import Board, OrderRejected
+
+    lines = [
+        f"image: {len(image.data)} bytes, version {image.version}, board 0x{image.board_id:04x}"
+        f" ({BOARD_IDS.get(image.board_id, 'unknown')}), CRC-32 0x{image.crc32:08x}"
+    ]
+    clock = clock_of(board.bus)
+    u = Updater(board.bus, board.address)
+    try:
+        u.info()
+        lines.append("the board is in its bootloader already")
+    except (UpdateError, OSError):
+        try:
+            board.bootloader()
+        except OrderRejected as e:
+            raise UpdateError(
+                f"the board refused to leave its application ({e.reason.name}): an order runs;"
+                " stop the robot (asserv stop), wait, and flash again"
+            ) from None
+        clock.sleep(0.05)
+    try:
+        info: BootInfo = u._retry(u.info, tries=5)
+    except (UpdateError, OSError):
+        raise UpdateError(
+            "the board took BOOTLOADER but no bootloader answers: a board without one (the AVR"
+            " board has none: docs/update.md gives its ISP route), or its bootloader is not flashed"
+        ) from None
+    if info.board_id != image.board_id:
+        raise UpdateError(
+            f"this board is 0x{info.board_id:04x} ({BOARD_IDS.get(info.board_id, 'unknown')}),"
+            f" the image is for 0x{image.board_id:04x}: nothing written; the board stays in its"
+            " bootloader until it is reset or sent `asserv flash` with its own image"
+        )
+    lines.append(
+        f"board 0x{info.board_id:04x}: runs "
+        + (f"version {info.run_version} ({info.run_length} bytes)" if info.run_valid else "nothing")
+    )
+    if info.run_valid and (info.run_crc, info.run_version) == (image.crc32, image.version):
+        lines.append("the board has this image already: started again, nothing written")
+    else:
+        st = u.update(image, progress)
+        lines.append(
+            f"verified: the board read the {st.next} bytes back, CRC-32 0x{image.crc32:08x},"
+            " and wrote their header"
+        )
+    u._retry(u.start)
+    # The bootloader copies the download into the run slot (up to 3 s), then starts it.
+    t_end = clock.monotonic() + 8.0
+    while True:
+        clock.sleep(0.1)
+        try:
+            # A plain read changes nothing in either: the application gives its status, its
+            # PEC, then 0xFF; the bootloader its STATUS, whose offset is never 0xFFFFFFFF.
+            msg = i2c_msg.read(board.address, 7)
+            board.bus.i2c_rdwr(msg)
+            if bytes(msg)[2:6] == b"\xff" * 4:
+                version = Board(board.bus, board.address, pec=True).version()
+                break
+        except (AsservError, OSError):
+            pass
+        if clock.monotonic() > t_end:
+            raise UpdateError(
+                "the new application did not answer within 8 s: read `asserv version`; "
+                + AFTER_A_CUT
+            )
+    lines.append(
+        f"running: application version {image.version} (protocol {version.major}.{version.minor})"
+    )
+    lines.append(AFTER_A_CUT)
+    return lines
