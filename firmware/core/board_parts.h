@@ -55,7 +55,8 @@ void board_apply(struct planner *pl, struct mailbox *mb, const struct board_conf
 void board_start_order(struct planner *pl, const struct proto_msg *msg);
 
 /* Match play (motion.c), at the planner's steps: */
-void motion_init(struct motion *mo, const struct board_config *cfg);
+void motion_init(struct motion *mo, const struct board_config *cfg, const struct orders *o,
+		 uint16_t slow_hz);
 /* step 3: an order (GOTO, GOTO_REVERSE, GOTO_PANIER, STOP, PAUSE, RESUME): numbered, queued
  * with APPEND, or run at once; one refused for PB_GRAVE ends FAULT; SET_SPEED_SCALE and
  * SET_CORNER. */

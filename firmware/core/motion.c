@@ -8,9 +8,17 @@
 #include "fixmath.h"
 #include "protocol_defs.h"
 
-void motion_init(struct motion *mo, const struct board_config *cfg)
+void motion_init(struct motion *mo, const struct board_config *cfg, const struct orders *o,
+		 uint16_t slow_hz)
 {
 	*mo = (struct motion){0};
+	mo->ms_per_tick_q8 = (uint16_t)((1000u << 8) / slow_hz);
+	for (uint8_t k = 0; k < 2; k++) { /* 1 / PAUSE's deceleration [ms per mm/s, 2^-8] */
+		uint32_t a = (uint32_t)o->grip_a_um_s2[2 + k] / 1000u;   /* at init: a division */
+		uint32_t r = ((1000u << 8) + a - 1u) / (a > 0 ? a : 1u); /* rounded up */
+
+		mo->ms_per_mm_s_q8[k] = (uint16_t)(r > 0xFFFFu ? 0xFFFFu : r);
+	}
 	mo->scale_percent = 100;
 	mo->corner_um = MOTION_CORNER_DEFAULT_MM * UM_PER_MM;
 	/* A message waits for the period's end, the planner works on it (planner_ticks), the
@@ -225,21 +233,33 @@ void motion_after(struct planner *pl)
 		run_next(pl);
 }
 
-/* Braking from v_um_s at PAUSE's deceleration a_um_s2 on a profile of n_filt ticks'
- * smoothing, with the message's latency: time [ms], and distance [mm] when dist_mm is not NULL;
- * rounded up. */
-static uint16_t braking(const struct planner *pl, const struct profile *p, int32_t v_um_s,
-			int32_t a_um_s2, uint16_t *dist_mm)
+/* Braking from v_um_s at PAUSE's deceleration on profile p of n_filt ticks' smoothing, with
+ * the message's latency: time [ms], and distance [mm] when dist_mm is not NULL; rounded up. No
+ * division but by 1000, 16 x 16-bit products (the AVR's planner runs it every period): 1 / a is
+ * the init's (motion_init()). */
+static uint16_t braking(const struct motion *mo, const struct profile *p, int32_t v_um_s,
+			uint8_t axis, uint16_t *dist_mm)
 {
-	int32_t v = (int32_t)fx_udiv1000(fx_mag32(v_um_s) + 999u); /* [mm/s] */
-	int32_t a = mm_of_um(a_um_s2);
-	int32_t lag_ms = (int32_t)(p->prm.n_filt + pl->motion.latency_ticks) * 1000 / pl->slow_hz;
-	int32_t t = (v * 1000 + a - 1) / a + lag_ms + 1;
-	int32_t d = (v * v + 2 * a - 1) / (2 * a) + (v * lag_ms + 999) / 1000 + 1;
+	uint32_t mag = fx_mag32(v_um_s);
+	uint16_t v = (uint16_t)(fx_udiv1000(mag > 4095000u ? 4095000u : mag) + 1u); /* [mm/s] */
+	uint32_t lag =
+		(fx_mul_u16((uint16_t)(p->prm.n_filt + mo->latency_ticks), mo->ms_per_tick_q8) +
+		 255u) >>
+		8;                                                                 /* [ms] */
+	uint32_t t = ((fx_mul_u16(v, mo->ms_per_mm_s_q8[axis]) + 255u) >> 8) + 1u; /* v / a */
+	uint32_t d;
 
-	if (dist_mm)
-		*dist_mm = (uint16_t)(d > 65535 ? 65535 : d);
-	return (uint16_t)(t > 65535 ? 65535 : t);
+	if (lag > 0xFFFFu)
+		lag = 0xFFFFu;
+	if (t > 0xFFFFu)
+		t = 0xFFFFu;
+	if (dist_mm) { /* v t / 2 + v lag, [mm/s x ms] */
+		d = (fx_mul_u16(v, (uint16_t)t) >> 1) + fx_mul_u16(v, (uint16_t)lag);
+		d = d >= 33553000u ? 0xFFFFu : fx_udiv1000(d) + 2u;
+		*dist_mm = (uint16_t)(d > 0xFFFFu ? 0xFFFFu : d);
+	}
+	t += lag + 1u;
+	return (uint16_t)(t > 0xFFFFu ? 0xFFFFu : t);
 }
 
 void motion_publish(const struct planner *pl, struct proto_snapshot *s)
@@ -265,9 +285,11 @@ void motion_publish(const struct planner *pl, struct proto_snapshot *s)
 		s->status |= STATUS_BUSY_TRAJET; /* waiting (paused) is busy too */
 	if (o->sp_dist.vel_um_s == 0 && o->sp_angle.vel_um_s == 0)
 		return;
-	out->braking_ms =
-		braking(pl, &o->dist, o->sp_dist.vel_um_s, o->grip_a_um_s2[2], &out->braking_mm);
-	ta = braking(pl, &o->angle, o->sp_angle.vel_um_s, o->grip_a_um_s2[3], NULL);
-	if (ta > out->braking_ms)
-		out->braking_ms = ta;
+	if (o->sp_dist.vel_um_s != 0)
+		out->braking_ms = braking(mo, &o->dist, o->sp_dist.vel_um_s, 0, &out->braking_mm);
+	if (o->sp_angle.vel_um_s != 0) {
+		ta = braking(mo, &o->angle, o->sp_angle.vel_um_s, 1, NULL);
+		if (ta > out->braking_ms)
+			out->braking_ms = ta;
+	}
 }

@@ -33,6 +33,9 @@ struct motion {
 	uint8_t appends_done;  /* APPEND orders started or dropped, wrapping (protocol.h) */
 	uint8_t latency_ticks; /* [planner periods] from a message's last byte to its set points */
 	int32_t corner_um;     /* SET_CORNER's tolerance [um] */
+	uint16_t ms_per_tick_q8; /* a planner period [ms * 2^8] */
+	/* 1 / PAUSE's deceleration of each axis [ms / (mm/s) * 2^8], exact down to 3.9 mm/s^2 */
+	uint16_t ms_per_mm_s_q8[2];
 };
 
 /* The default corner tolerance (SET_CORNER), [mm]. */

@@ -59,7 +59,7 @@ int planner_init(struct planner *pl, const struct board_config *cfg, const struc
 						      << 16) /
 						     cfg->faults.motor_um_per_count_q16);
 	pl->silent_turn_q16 = board_turn_q16(cfg, cfg->odometry.track_um);
-	motion_init(&pl->motion, cfg);
+	motion_init(&pl->motion, cfg, &pl->orders, slow_hz);
 	return 0;
 }
 
