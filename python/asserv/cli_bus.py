@@ -69,7 +69,7 @@ BUS_COMMANDS: dict[str, str] = {
     "debug": "read the DEBUG telemetry frame",
     "pause": "PAUSE: brake along the path and hold; the order and the queue are kept",
     "resume": "RESUME: go on with the paused order from where the robot stands",
-    "scale": "SET_SPEED_SCALE P: P % (0..100) of the speed limits, at once",
+    "scale": "SET_SPEED_SCALE P: P percent (0..100) of the speed limits, at once",
     "motion": "read the queue, the pause, the braking distance and the scale (MOTION)",
     "flash": "FIRMWARE.elf|bin: update the STM32 board's application over the bus (docs/update.md)",
 }

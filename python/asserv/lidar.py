@@ -21,12 +21,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, NamedTuple
+from typing import Any, NamedTuple, Protocol
 
 import numpy as np
-
-if TYPE_CHECKING:
-    from .sim import Simulator
 
 __all__ = [
     "LIDAR",
@@ -244,6 +241,22 @@ def outline_gap(
     return gap, x + nx * c - ny * s, y + nx * s + ny * c
 
 
+class _Sim(Protocol):
+    """What Yielding needs of ``asserv.sim.Simulator`` (which imports this module)."""
+
+    @property
+    def time_s(self) -> float: ...
+    @property
+    def config(self) -> Any: ...
+    def obstacles(self) -> list[tuple[float, float]]: ...
+    def drive_pose(self) -> tuple[float, float, float]: ...
+    def opponent_radius(self, i: int) -> float: ...
+    def set_opponent_path(
+        self, i: int, path: Sequence[tuple[float, float]], speed_mm_s: float = ..., loop: bool = ...
+    ) -> None: ...
+    def at(self, t_s: float, fn: Any) -> None: ...
+
+
 class Yielding:
     """An opponent that, as every Eurobot robot must, stops for what is ahead of it: while our
     robot's outline is within ``gap_mm`` of its disc, less than 90 degrees off its direction of
@@ -283,7 +296,7 @@ class Yielding:
                 return
             self.next = (self.next + 1) % n
 
-    def step(self, sim: Simulator) -> None:
+    def step(self, sim: _Sim) -> None:
         """One check (a timed event of ``sim``, which schedules the next)."""
         ox, oy = sim.obstacles()[self.index]
         if not self.standing:
