@@ -199,8 +199,6 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 	mo->last_end = END_REASON_DONE;
 	pl->status &= (uint8_t)~STATUS_END_BITS;
 	run_next(pl);
-	if (o->designation == PROTO_GOTO)
-		o->corner_window_turn32 = MOTION_CORNER_WINDOW_TURN32;
 }
 
 /* The robot at rest: an order that ended on a contact (a basket) ended at speed, held where it
@@ -212,7 +210,10 @@ static int at_rest(const struct planner *pl)
 	return fx_abs32(pl->m.dist_speed_um_s) < slow && fx_abs32(pl->m.angle_speed_um_s) < slow;
 }
 
-void motion_after(struct planner *pl)
+static void update_braking(struct motion *mo, const struct orders *o);
+
+/* An order that ended: MOTION's last ending, the next one or the queue dropped. */
+static void order_ended(struct planner *pl)
 {
 	struct motion *mo = &pl->motion;
 	uint8_t end;
@@ -231,6 +232,12 @@ void motion_after(struct planner *pl)
 	}
 	if (mo->count && at_rest(pl))
 		run_next(pl);
+}
+
+void motion_after(struct planner *pl)
+{
+	order_ended(pl);
+	update_braking(&pl->motion, &pl->orders);
 }
 
 /* Braking from v_um_s at PAUSE's deceleration on profile p of n_filt ticks' smoothing, with
@@ -267,8 +274,6 @@ void motion_publish(const struct planner *pl, struct proto_snapshot *s)
 	const struct motion *mo = &pl->motion;
 	const struct orders *o = &pl->orders;
 	struct proto_motion *out = &s->motion;
-	uint16_t ta;
-
 	out->running_seq = mo->running ? mo->running_seq : mo->seq;
 	out->pending = mo->count;
 	out->flags = (uint8_t)((mo->paused ? PROTO_MOTION_PAUSED : 0u) |
@@ -283,13 +288,34 @@ void motion_publish(const struct planner *pl, struct proto_snapshot *s)
 		s->status |= mo->stale_bits; /* CHECK_BUSY: the end bits of the last order ended */
 	if (mo->count)
 		s->status |= STATUS_BUSY_TRAJET; /* waiting (paused) is busy too */
-	if (o->sp_dist.vel_um_s == 0 && o->sp_angle.vel_um_s == 0)
+	out->braking_mm = mo->braking_mm;
+	out->braking_ms = mo->braking_ms;
+}
+
+/* MOTION's braking distance and time, at the set points' speeds: computed again only when they
+ * or the smoothing changed (a cruise costs nothing). */
+static void update_braking(struct motion *mo, const struct orders *o)
+{
+	/* Each speed rounded up to a step of 2^14 um/s (16.4 mm/s): the figures are those of the
+	 * step's top, bounds still, computed again a few times in an acceleration rather than at
+	 * each period (bench_avr). */
+	int32_t kd = (int32_t)((fx_mag32(o->sp_dist.vel_um_s) + 16383u) >> 14);
+	int32_t ka = (int32_t)((fx_mag32(o->sp_angle.vel_um_s) + 16383u) >> 14);
+	int32_t kf = o->dist.prm.n_filt + o->angle.prm.n_filt;
+	uint16_t ta;
+
+	if (kd == mo->braking_key[0] && ka == mo->braking_key[1] && kf == mo->braking_key[2])
 		return;
-	if (o->sp_dist.vel_um_s != 0)
-		out->braking_ms = braking(mo, &o->dist, o->sp_dist.vel_um_s, 0, &out->braking_mm);
-	if (o->sp_angle.vel_um_s != 0) {
-		ta = braking(mo, &o->angle, o->sp_angle.vel_um_s, 1, NULL);
-		if (ta > out->braking_ms)
-			out->braking_ms = ta;
+	mo->braking_key[0] = kd;
+	mo->braking_key[1] = ka;
+	mo->braking_key[2] = kf;
+	mo->braking_mm = 0;
+	mo->braking_ms = 0;
+	if (kd != 0)
+		mo->braking_ms = braking(mo, &o->dist, kd << 14, 0, &mo->braking_mm);
+	if (ka != 0) {
+		ta = braking(mo, &o->angle, ka << 14, 1, NULL);
+		if (ta > mo->braking_ms)
+			mo->braking_ms = ta;
 	}
 }

@@ -36,12 +36,12 @@ struct motion {
 	uint16_t ms_per_tick_q8; /* a planner period [ms * 2^8] */
 	/* 1 / PAUSE's deceleration of each axis [ms / (mm/s) * 2^8], exact down to 3.9 mm/s^2 */
 	uint16_t ms_per_mm_s_q8[2];
+	uint16_t braking_mm; /* MOTION's, and the set points' speeds and smoothing they are of */
+	uint16_t braking_ms;
+	int32_t braking_key[3];
 };
 
 /* The default corner tolerance (SET_CORNER), [mm]. */
 #define MOTION_CORNER_DEFAULT_MM 30
-
-/* The heading error within which the line after a corner starts (orders.h), 30 degrees. */
-#define MOTION_CORNER_WINDOW_TURN32 ((uint32_t)357913941u)
 
 #endif

@@ -196,7 +196,6 @@ static void begin(struct orders *o, uint8_t designation)
 	o->braking = 0;
 	o->paused = 0;
 	o->through_um = 0;
-	o->corner_window_turn32 = 0;
 }
 
 static void end(struct orders *o, uint8_t reason)
@@ -624,12 +623,6 @@ static uint8_t update_border(struct orders *o, const struct orders_measure *m)
 	return END_REASON_NONE;
 }
 
-/* The heading error within which a turn ends (wider after a pass-through corner). */
-static uint32_t rotate_window(const struct orders *o)
-{
-	return o->corner_window_turn32 ? o->corner_window_turn32 : o->cfg.heading_window_turn32;
-}
-
 static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 {
 	uint32_t heading_err;
@@ -656,7 +649,7 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 				? (o->bearing_valid ? o->bearing_turn32 : bearing(o, &m->pose))
 				: o->target_heading_turn32,
 			m->pose.heading_turn32);
-		if (heading_err > rotate_window(o))
+		if (heading_err > o->cfg.heading_window_turn32)
 			break;
 		if (o->designation == PROTO_GOTO_PANIER) {
 			enter(o, ORDER_STATE_PUSH);

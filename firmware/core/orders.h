@@ -169,9 +169,6 @@ struct orders {
 	uint8_t scale_percent;
 	int32_t paused_target_um[2];
 	int32_t through_um;
-	/* A GOTO that follows a pass-through corner starts its line within this heading error
-	 * (0: heading_window_turn32), the line's re-aims turning it the rest of the way. */
-	uint32_t corner_window_turn32;
 };
 
 /* Power-on: no order, holding (dist_um, angle_um); limits 10 cm/s, 40 cm/s^2 on both axes;

@@ -399,16 +399,16 @@ def decode_reply(
             end_reason=EndReason(v["end_reason"]),
         )
     if msg.name == "MOTION":
-        v = dict(zip((f.name for f in msg.reply), values, strict=True))
+        m = dict(zip((f.name for f in msg.reply), values, strict=True))
         return Motion(
-            running_seq=v["running_seq"],
-            pending=v["pending"],
-            flags=v["flags"],
-            last_seq=v["last_seq"],
-            last_end=EndReason(v["last_end"]),
-            braking_mm=v["braking_mm"],
-            braking_ms=v["braking_ms"],
-            scale_percent=v["scale_percent"],
+            running_seq=m["running_seq"],
+            pending=m["pending"],
+            flags=m["flags"],
+            last_seq=m["last_seq"],
+            last_end=EndReason(m["last_end"]),
+            braking_mm=m["braking_mm"],
+            braking_ms=m["braking_ms"],
+            scale_percent=m["scale_percent"],
         )
     raise AssertionError(f"no decoder for {msg.name}")  # the table check keeps this unreachable
 

@@ -1,0 +1,176 @@
+"""A 10-point tour, stop-and-go against pass-through corners (issue 31, item 5; docs/control.md,
+"Corners").
+
+On each of N randomized robots (50), at random accepted limits, at 1 kHz on an empty table, the
+same 10 random points are driven twice: stop-and-go (GOTO, wait for the end, the next GOTO), and
+queued at once with APPEND | PASS_THROUGH at the default corner tolerance (SET_CORNER, 30 mm).
+It prints:
+
+- the time ratio pass-through / stop-and-go, worst and mean (goal: 0.75 or less);
+- how far the path strayed from the polyline of the points around each corner point, worst
+  first (goal: within the tolerance), in the board's estimate: the estimate's own error is the
+  error radius's, checked below;
+- that every robot ended without PB_MOTEUR, without a contact, DONE, and with the truth within
+  the error radius of the estimate.
+
+    python bench/course.py [--robots N] [--first-seed K] [--tolerance MM]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import random
+from dataclasses import dataclass
+
+import numpy as np
+
+from asserv import codec, field
+from asserv._protocol import EndReason, Reject, Status
+from asserv.driver import Board, OrderRejected
+from asserv.sim import Simulator
+
+APPEND, THROUGH = 0x04, 0x08
+GOAL_RATIO = 0.75
+
+
+@dataclass
+class Tour:
+    seconds: float
+    near_mm: list[float]  # the closest to each corner point (all but the last)
+    ok: bool  # no PB, no contact, DONE, the error within the radius
+    why: str
+
+
+def _seg(
+    px: np.ndarray, py: np.ndarray, a: tuple[float, float], b: tuple[float, float]
+) -> np.ndarray:
+    """The distance of each (px, py) from the segment a-b."""
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    t = np.clip(((px - a[0]) * dx + (py - a[1]) * dy) / max(dx * dx + dy * dy, 1e-9), 0, 1)
+    return np.hypot(px - a[0] - t * dx, py - a[1] - t * dy)
+
+
+def points(rng: random.Random) -> list[tuple[int, int]]:
+    """10 points inside the table, each 300 mm or more from the last."""
+    out: list[tuple[int, int]] = []
+    last = (0, -850)
+    while len(out) < 10:
+        p = (rng.randint(-1100, 1100), rng.randint(-700, 700))
+        if math.dist(p, last) >= 300:
+            out.append(p)
+            last = p
+    return out
+
+
+def tour(
+    seed: int,
+    limits: tuple[int, int, int, int],
+    pts: list[tuple[int, int]],
+    through: bool,
+    tolerance: int,
+) -> Tour:
+    sim = Simulator(seed=seed, randomize=True, field=field.Field())
+    board = Board(sim.bus)
+    board.set_vitesse_traj(limits[0], limits[1])
+    board.set_vitesse_rot(limits[2], limits[3])
+    board._command("SET_CORNER", tolerance)
+    n, t0 = len(sim.trace), sim.time_s
+    status = Status(0)
+    if through:
+        for x, y in pts:  # 1 runs and 8 wait: the tenth waits for room
+            while True:
+                try:
+                    board._command("GOTO", x, y, APPEND | THROUGH)
+                    break
+                except OrderRejected as e:
+                    if e.reason != Reject.MOTION_QUEUE_FULL:
+                        raise
+                    sim.advance(0.01)
+        status = board.wait_idle(120)
+    else:
+        for x, y in pts:
+            board.goto(x, y)
+            status |= board.wait_idle(60)
+    seconds = sim.time_s - t0
+    tr = sim.trace[n:]
+    # In the board's estimate: its own error is the error radius's, checked at the end. How far
+    # the path strays from the polyline of the points, around each corner point (the ticks
+    # nearest to it rather than to any other point).
+    ex, ey = tr["est_x_mm"], tr["est_y_mm"]
+    poly = [(float(ex[0]), float(ey[0])), *pts]
+    off = np.min([_seg(ex, ey, poly[i], poly[i + 1]) for i in range(len(poly) - 1)], axis=0)
+    owner = np.argmin([np.hypot(ex - x, ey - y) for x, y in pts], axis=0)
+    near = [float(off[owner == i].max(initial=0.0)) for i in range(len(pts) - 1)]
+    m = board._query("MOTION", codec.Motion)
+    pos, truth = board.position(), sim.true_pose()
+    err = math.hypot(pos.x_mm - truth.x_mm, pos.y_mm - truth.y_mm)
+    contact = float(tr["contact_force_N"].max())
+    bad = status & (Status.PB_MOTEUR | Status.PB_GRAVE) or np.any(
+        tr["status"].astype(int) & int(Status.PB_MOTEUR | Status.PB_GRAVE)
+    )
+    ok = not bad and contact == 0 and m.last_end == EndReason.DONE and err <= pos.radius_mm + 1
+    why = f"status {int(status)}, contact {contact:.0f} N, {m.last_end.name}, error {err:.1f} mm"
+    return Tour(seconds, near, ok, why + f" / radius {pos.radius_mm} mm")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robots", type=int, default=50, help="randomized robots (50)")
+    ap.add_argument("--first-seed", type=int, default=0, help="seed of the first robot (0)")
+    ap.add_argument("--tolerance", type=int, default=30, help="SET_CORNER [mm] (30)")
+    args = ap.parse_args()
+    rng = random.Random(args.first_seed)
+    ratios, nears, bad = [], [], []
+    for seed in range(args.first_seed, args.first_seed + args.robots):
+        limits = (
+            rng.randint(50, 150),
+            rng.randint(50, 200),
+            rng.randint(30, 100),
+            rng.randint(50, 200),
+        )
+        pts = points(rng)
+        stop = tour(seed, limits, pts, False, args.tolerance)
+        thru = tour(seed, limits, pts, True, args.tolerance)
+        ratios.append((thru.seconds / stop.seconds, seed, stop.seconds, thru.seconds))
+        nears += [(d, seed, i) for i, d in enumerate(thru.near_mm)]
+        bad += [
+            (seed, kind, t.why)
+            for kind, t in (("stop-and-go", stop), ("through", thru))
+            if not t.ok
+        ]
+    print(
+        f"10-point tours: {args.robots} randomized robots, 1 kHz,"
+        f" corner tolerance {args.tolerance} mm"
+    )
+    print("time pass-through / stop-and-go, worst first (goal: 0.75 or less):")
+    print("  seed  stop-and-go s  through s  ratio")
+    for r, seed, a, b in sorted(ratios, reverse=True)[:8]:
+        print(f"  {seed:4d}  {a:13.2f}  {b:9.2f}  {r:5.3f}")
+    worst_ratio = max(r[0] for r in ratios)
+    mean_ratio = sum(r[0] for r in ratios) / len(ratios)
+    print(
+        "the path's distance from the polyline at each corner, worst first (goal: the tolerance):"
+    )
+    for d, seed, i in sorted(nears, reverse=True)[:8]:
+        print(f"  seed {seed:4d} corner {i + 1}: {d:.1f} mm")
+    for seed, kind, why in bad:
+        print(f"  seed {seed} {kind}: {why}")
+    worst_near = max(d for d, _, _ in nears)
+    ok_ratio = worst_ratio <= GOAL_RATIO
+    ok_near = worst_near <= args.tolerance
+    ok_clean = not bad
+    print(
+        f"ratio: worst {worst_ratio:.3f}, mean {mean_ratio:.3f}: {'met' if ok_ratio else 'MISSED'}"
+    )
+    print(f"corners: worst {worst_near:.1f} mm: {'met' if ok_near else 'MISSED'}")
+    print(
+        f"no PB, no contact, DONE, error within the radius: {2 * args.robots - len(bad)} of"
+        f" {2 * args.robots} tours: {'met' if ok_clean else 'MISSED'}"
+    )
+    met = sum((ok_ratio, ok_near, ok_clean))
+    print(f"summary: {met} of 3 goals met over {args.robots} robots")
+
+
+if __name__ == "__main__":
+    main()
