@@ -221,7 +221,7 @@ def _add_sim(sub: Subparsers) -> None:
     p.set_defaults(func=_sim_run)
     from . import server
 
-    server.register(simsub)  # asserv sim serve (python/asserv/server.py): sets sim_handler
+    server.register(simsub)  # asserv sim serve (python/asserv/server.py)
 
 
 # calibrate -----------------------------------------------------------------------------------
@@ -261,10 +261,10 @@ def _calibrate(args: argparse.Namespace) -> int:
         before = sim.odometry_errors()
         bus: Any = sim.bus
     else:
-        import smbus2
+        from .backends import open_bus
 
         try:
-            bus = smbus2.SMBus(number)
+            bus = open_bus("smbus2", number)
         except OSError as e:
             print(f"{prog}: {cli_bus.open_error(number, e)}", file=sys.stderr)
             return 1
@@ -466,8 +466,8 @@ def _add_optional(
     return add
 
 
-#: The subcommands: each adds its parser and sets ``func`` (see cli_args for the convention);
-#: those of log, tune and view set ``run`` from their own module.
+#: The subcommands: each adds its parser and sets ``func``, the one dispatch key (see cli_args
+#: for the convention), those of log, tune, view and sim serve from their own module.
 REGISTER: list[Callable[[Subparsers], None]] = [
     _add_demo,
     _add_sim,
@@ -624,7 +624,9 @@ def main(argv: list[str] | None = None) -> int:
     failed, or an extra is not installed, 2 bad usage or input (one line on stderr), 130
     interrupted by Ctrl-C (one line on stderr that says what it left: INTERRUPTED)."""
     try:
-        return _main(argv)
+        code = _main(argv)
+        sys.stdout.flush()  # here, so that a closed pipe is met while it can be handled
+        return code
     except BrokenPipeError:  # asserv demo | head: the reader has gone, so has the output
         with contextlib.suppress(OSError):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
@@ -659,11 +661,9 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _run(args: argparse.Namespace, prog: str) -> int:
-    if cli_bus.is_bus_command(args):
-        return cli_bus.run_bus_command(args)
     try:
-        handler = getattr(args, "func", None) or getattr(args, "run", None) or args.sim_handler
-        code: int = handler(args)
+        # Every subcommand sets one key, func: its handler (cli_args.py, "adding a subcommand").
+        code: int = args.func(args)
     except UsageError as e:
         print(cli_args.one_line(f"{prog}: {e}"), file=sys.stderr)
         return 2

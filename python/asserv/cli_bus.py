@@ -21,10 +21,9 @@ import sys
 from collections.abc import Callable
 from typing import Protocol
 
-import smbus2
-
 from . import codec
 from ._protocol import ADDRESS, Filtre, Status
+from .backends import open_bus
 from .cli_args import UsageError as _UsageError
 from .cli_args import one_line
 from .driver import AsservError, Board, GotoOption, SMBusLike, _flag_names
@@ -129,7 +128,7 @@ def add_bus_arguments(
 
     def add(name: str) -> argparse.ArgumentParser:
         p = subparsers.add_parser(name, parents=[common], help=BUS_COMMANDS[name])
-        p.set_defaults(bus_command=name)
+        p.set_defaults(bus_command=name, func=run_bus_command)
         return p
 
     for name in (
@@ -437,8 +436,8 @@ def _opened(bus: ClosableBus) -> BusFactory:
 
 def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = None) -> int:
     """Run a parsed bus command; return the exit code (0 done, 1 bus or board error, 2 bad
-    arguments). ``bus_factory(N)`` opens bus N: ``smbus2.SMBus`` (looked up at each call), or a
-    VirtualBus in tests."""
+    arguments). ``bus_factory(N)`` opens bus N: the registry's (``asserv.bus.BACKENDS``) by
+    default, or a VirtualBus in tests."""
     cmd = getattr(args, "bus_command", None) or "?"
     prog = f"asserv {cmd}"
 
@@ -473,15 +472,13 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = N
         return fail(2, str(e))
 
     if remote is not None:
-        from .server import RemoteBus
-
         try:
-            bus: ClosableBus = RemoteBus(host, port)
+            bus: ClosableBus = open_bus("sim", (host, port))
         except OSError as e:
             return fail(1, e.strerror or str(e))
         bus_factory = _opened(bus)
     try:
-        bus = (bus_factory or smbus2.SMBus)(number)
+        bus = bus_factory(number) if bus_factory else open_bus("smbus2", number)
     except OSError as e:
         return fail(1, open_error(number, e))
     try:

@@ -524,7 +524,7 @@ def register(simsub: Any) -> None:
         help="a scenario file without bus commands: robot, field, start, opponents, 'at' events",
     )
     p.add_argument("--duration", default=None, help="stop after this many wall seconds")
-    p.set_defaults(sim_handler=serve_main)
+    p.set_defaults(func=serve_main)
 
 
 def serve_main(args: argparse.Namespace) -> int:

@@ -459,4 +459,4 @@ def register(sub: Any) -> None:
     p.add_argument("--seed", type=natural, default=0, help="the simulated robot (default 0)")
     p.add_argument("--png", help="plot of the best responses")
     p.add_argument("--apply", action="store_true", help="write the best set (SET_FILTRE_RAW)")
-    p.set_defaults(run=_command)
+    p.set_defaults(func=_command)

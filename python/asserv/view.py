@@ -1045,4 +1045,4 @@ def register(sub: Any) -> None:
         help="let the page's clicks send GOTOs to the board of --bus N or --sim HOST:PORT"
         " (without it the board is watched, not driven)",
     )
-    p.set_defaults(run=_command)
+    p.set_defaults(func=_command)

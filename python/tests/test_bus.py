@@ -268,3 +268,18 @@ def test_the_bus_gives_the_c_layer_what_a_direct_call_gives(
     assert bytes(r) == twin.read(n)
     assert dev.layer.tick() == twin.tick()
     assert bus.read_byte(2) == twin.read(1)[0]
+
+
+def test_the_bus_registry_opens_by_kind(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One registry (asserv.bus.BACKENDS) opens every bus a command names: --bus N, --sim."""
+    from asserv import backends as bus_mod
+
+    assert set(bus_mod.BACKENDS) == {"smbus2", "sim"}
+    opened: list[object] = []
+    monkeypatch.setitem(bus_mod.BACKENDS, "smbus2", lambda n: opened.append(n) or "bus")
+    assert bus_mod.open_bus("smbus2", 3) == "bus" and opened == [3]
+    with pytest.raises(ValueError, match="no bus of kind 'can'"):
+        bus_mod.open_bus("can", 0)
+    # A served simulator that is not there: the OSError a command reports as a bus error.
+    with pytest.raises(OSError):
+        bus_mod.open_bus("sim", ("127.0.0.1", 9))

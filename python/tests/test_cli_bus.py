@@ -63,7 +63,7 @@ def test_every_command_is_parsed(capsys: pytest.CaptureFixture[str]) -> None:
             "set-timeout": ["500"],
             "set-odometrie": ["1", "280", "3"],
             "scale": ["50"],
-            "flash": ["firmware.bin"],
+            "flash": ["fw.bin"],
         }.get(name, [])
         args = ap.parse_args(["--bus", "1", name, *argv])
         assert args.bus_command == name

@@ -13,17 +13,20 @@ PKG = Path(__file__).resolve().parents[1] / "asserv"
 
 
 def graph(pkg: Path) -> dict[str, set[str]]:
-    mods = {p.stem for p in pkg.glob("*.py")}
-    out: dict[str, set[str]] = {}
-    for m in sorted(mods):
-        deps: set[str] = set()
-        for node in ast.walk(ast.parse((pkg / f"{m}.py").read_text())):
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
-                if node.module:
-                    deps.add(node.module.split(".")[0])
-                else:
-                    deps.update(a.name for a in node.names)
-        out[m] = (deps & mods) - {m}
+    """Who imports whom among the package's modules; a subpackage (``log/``) is one node."""
+    nodes = {p.stem for p in pkg.glob("*.py")} | {
+        p.name for p in pkg.iterdir() if (p / "__init__.py").is_file()
+    }
+    out: dict[str, set[str]] = {n: set() for n in nodes}
+    for path in pkg.rglob("*.py"):
+        rel = path.relative_to(pkg)
+        node = rel.parts[0] if len(rel.parts) > 1 else path.stem
+        depth = len(rel.parts) - 1  # 0: a top module, 1: a subpackage's
+        for n in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(n, ast.ImportFrom) or n.level != depth + 1:
+                continue  # absolute, or within the subpackage
+            targets = [n.module.split(".")[0]] if n.module else [a.name for a in n.names]
+            out[node] |= {t for t in targets if t in nodes and t != node}
     return out
 
 

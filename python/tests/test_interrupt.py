@@ -135,3 +135,21 @@ def _rows(path: Path) -> int:
         return len(path.read_text().splitlines()) - 1
     except OSError:
         return 0
+
+
+def test_a_reader_that_goes_away_is_no_traceback(tmp_path: Path) -> None:
+    """asserv demo | head -1: the demo's output meets a closed pipe; it ends quietly (141, as
+    a shell reports a process ended by SIGPIPE), not with a BrokenPipeError traceback."""
+    p = subprocess.Popen(
+        [*ASSERV, "demo", "--no-png"],
+        cwd=tmp_path,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    assert p.stdout is not None and p.stderr is not None
+    p.stdout.close()  # before it prints anything: whatever it prints meets a closed pipe
+    code = p.wait(LIMIT_S)
+    err = p.stderr.read()
+    assert code == 141 and "Traceback" not in err, (code, err)

@@ -13,6 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from asserv import backends as bus_mod
 from asserv import cli, log, scenario
 from asserv.driver import Board
 from asserv.sim import Simulator
@@ -267,7 +268,7 @@ def test_log_a_board(
     estimate and its DEBUG values, the truth unknown."""
     sim = Simulator()
     Board(sim.bus).goto(400, -850)
-    monkeypatch.setattr(log, "BUS_FACTORY", lambda n: sim.bus)
+    monkeypatch.setitem(bus_mod.BACKENDS, "smbus2", lambda n: sim.bus)
     m, c = tmp_path / "b.mcap", tmp_path / "b.csv"
     before = time.time_ns()
     code = cli.main(["--bus", "1", "log", "--mcap", str(m), "--csv", str(c), "--duration", "2"])
@@ -305,7 +306,7 @@ def test_log_bad_arguments(
     def no_bus(n: int) -> None:
         raise AssertionError("the bus must not be opened")
 
-    monkeypatch.setattr(log, "BUS_FACTORY", no_bus)
+    monkeypatch.setitem(bus_mod.BACKENDS, "smbus2", no_bus)
     assert cli.main(argv) == 2
     assert "asserv log:" in capsys.readouterr().err
 

@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from asserv import cli, log, tune
+from asserv import backends as bus_mod
+from asserv import cli, tune
 from asserv.sim import Simulator
 
 DT = 1e-4
@@ -126,7 +127,7 @@ def test_tune_cli_sweeps_and_applies_on_a_board(
 ) -> None:
     """On a board behind a bus (a simulated one here): the sweep, the table, --apply."""
     sim = Simulator({"start": (-300.0, 0.0, 0.0)})
-    monkeypatch.setattr(log, "BUS_FACTORY", lambda n: sim.bus)
+    monkeypatch.setitem(bus_mod.BACKENDS, "smbus2", lambda n: sim.bus)
     png = tmp_path / "tune.png"
     argv = ["--bus", "1", "tune", "--axis", "distance", "--p", "50,400", "--i", "0", "--d", "160"]
     code = cli.main([*argv, "--window", "1.5", "--apply", "--png", str(png)])
