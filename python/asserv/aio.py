@@ -19,9 +19,9 @@ import asyncio
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from ._protocol import Filtre, Status
+from ._protocol import Capability, Filtre, Status
 from .bus import SystemClock
-from .codec import Debug, FixInfo, LastReject, Pose, ResetInfo, Version
+from .codec import Debug, FixInfo, LastReject, Motion, Pose, ResetInfo, Version
 from .driver import Board, GotoOption, Outcome
 
 __all__ = ["AsyncBoard"]
@@ -77,14 +77,36 @@ class AsyncBoard:
         )
 
     # Orders and settings.
-    async def goto(self, x_mm: int, y_mm: int, options: GotoOption | int = 0) -> None:
-        await self._call(self.board.goto, x_mm, y_mm, options)
+    async def goto(
+        self,
+        x_mm: int,
+        y_mm: int,
+        options: GotoOption | int = 0,
+        *,
+        append: bool = False,
+        through: bool = False,
+    ) -> None:
+        await asyncio.to_thread(
+            self.board.goto, x_mm, y_mm, options, append=append, through=through
+        )
 
-    async def goto_reverse(self, distance_mm: int) -> None:
-        await self._call(self.board.goto_reverse, distance_mm)
+    async def goto_reverse(self, distance_mm: int, *, append: bool = False) -> None:
+        await asyncio.to_thread(self.board.goto_reverse, distance_mm, append=append)
 
-    async def goto_panier(self, angle_deg: float) -> None:
-        await self._call(self.board.goto_panier, angle_deg)
+    async def goto_panier(self, angle_deg: float, *, append: bool = False) -> None:
+        await asyncio.to_thread(self.board.goto_panier, angle_deg, append=append)
+
+    async def pause(self) -> None:
+        await self._call(self.board.pause)
+
+    async def resume(self) -> None:
+        await self._call(self.board.resume)
+
+    async def set_speed_scale(self, percent: int) -> None:
+        await self._call(self.board.set_speed_scale, percent)
+
+    async def set_corner(self, tolerance_mm: int) -> None:
+        await self._call(self.board.set_corner, tolerance_mm)
 
     async def stop(self) -> None:
         await self._call(self.board.stop)
@@ -145,3 +167,9 @@ class AsyncBoard:
 
     async def reset_info(self) -> ResetInfo:
         return await self._call(self.board.reset_info)
+
+    async def motion(self) -> Motion:
+        return await self._call(self.board.motion)
+
+    async def capabilities(self, *, refresh: bool = False) -> Capability:
+        return await asyncio.to_thread(self.board.capabilities, refresh=refresh)

@@ -78,6 +78,7 @@ class Arena:
                         half_y_mm=cfg.outline_width_mm / 2,
                         heading_deg=self._outline_centre(o)[2],
                     )
+                    s.lidar_targets.add(mine[j])  # its lidar sees the others
             self._others.append(mine)
         for i, s in enumerate(self.sims):
             s.bus.clock = _ArenaClock(self, i)

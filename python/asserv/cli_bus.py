@@ -66,6 +66,10 @@ BUS_COMMANDS: dict[str, str] = {
     "set-odometrie": "SET_ODOMETRIE RATIO_PPM TRACK_MM SCALE_PPM: odometry calibration",
     "wait": "poll the status until the trajectory is over (the annex's while (BUSY_TRAJET))",
     "debug": "read the DEBUG telemetry frame",
+    "pause": "PAUSE: brake along the path and hold; the order and the queue are kept",
+    "resume": "RESUME: go on with the paused order from where the robot stands",
+    "scale": "SET_SPEED_SCALE P: P percent (0..100) of the speed limits, at once",
+    "motion": "read the queue, the pause, the braking distance and the scale (MOTION)",
     "flash": "FIRMWARE.elf|bin: update the STM32 board's application over the bus (docs/update.md)",
 }
 
@@ -127,8 +131,21 @@ def add_bus_arguments(
         p.set_defaults(bus_command=name, func=run_bus_command)
         return p
 
-    for name in ("status", "position", "info-choc", "stop", "version", "last-reject", "debug"):
+    for name in (
+        "status",
+        "position",
+        "info-choc",
+        "stop",
+        "version",
+        "last-reject",
+        "debug",
+        "pause",
+        "resume",
+        "motion",
+    ):
         add(name)
+    add("scale").add_argument("percent", metavar="P", help="percent of the limits (0..100)")
+    append_help = "queue it behind the running order instead of replacing it (QUEUE)"
     p = add("goto")
     p.add_argument("x", metavar="X", help="target X, mm (-32000..32000)")
     p.add_argument("y", metavar="Y", help="target Y, mm (-32000..32000)")
@@ -137,10 +154,17 @@ def add_bus_arguments(
         default="0",
         help="recalibration: ligne (1), bord (2), ligne+bord (3), or the number",
     )
-    add("goto-reverse").add_argument("distance", metavar="D", help="distance, mm (0..255)")
+    p.add_argument("--append", action="store_true", help=append_help)
+    p.add_argument(
+        "--through", action="store_true", help="do not stop at the point if another order waits"
+    )
+    p = add("goto-reverse")
+    p.add_argument("distance", metavar="D", help="distance, mm (0..255)")
+    p.add_argument("--append", action="store_true", help=append_help)
     p = add("goto-panier")
     p.add_argument("angle", metavar="ANGLE", help="heading, degrees (-180..180)")
     p.add_argument("--raw", action="store_true", help="ANGLE in raw 2-degree steps (-90..90)")
+    p.add_argument("--append", action="store_true", help=append_help)
     for name in ("set-vitesse-traj", "set-vitesse-rot"):
         p = add(name)
         p.add_argument("speed", metavar="SPEED", help="cm/s (1..255)")
@@ -258,20 +282,50 @@ def _action(args: argparse.Namespace) -> Action:
             opts = GotoOption.parse(args.options)  # the scenario files' names too
         except ValueError as e:
             raise _UsageError(f"--options {e}") from None
-        _checked("GOTO", x, y, opts)
-        return order(lambda b: b.goto(x, y, opts), f"GOTO ({x}, {y}) options {opts}")
+        app, thr = bool(args.append), bool(args.through)
+        _checked("GOTO", x, y, opts | (4 if app else 0) | (8 if thr else 0))
+        label = f"GOTO ({x}, {y}) options {opts}" + (" append" if app else "")
+        label += " through" if thr else ""
+        return order(lambda b: b.goto(x, y, opts, append=app, through=thr), label)
     if cmd == "goto-reverse":
         d = _int("D", args.distance)
-        _checked("GOTO_REVERSE", d)
-        return order(lambda b: b.goto_reverse(d), f"GOTO_REVERSE {d} mm")
+        app = bool(args.append)
+        _checked("GOTO_REVERSE", d, *((4,) if app else ()))
+        label = f"GOTO_REVERSE {d} mm" + (" append" if app else "")
+        return order(lambda b: b.goto_reverse(d, append=app), label)
     if cmd == "goto-panier":
+        app = bool(args.append)
+        more = (4,) if app else ()
+        tail = " append" if app else ""
         if args.raw:
             steps = _int("ANGLE", args.angle)
-            _checked("GOTO_PANIER", steps)
-            return order(lambda b: b.goto_panier(2 * steps), f"GOTO_PANIER {2 * steps} deg")
+            _checked("GOTO_PANIER", steps, *more)
+            return order(
+                lambda b: b.goto_panier(2 * steps, append=app), f"GOTO_PANIER {2 * steps} deg{tail}"
+            )
         a = _float("ANGLE", args.angle)
-        codec.encode_deg("GOTO_PANIER", a)
-        return order(lambda b: b.goto_panier(a), f"GOTO_PANIER {a:g} deg")
+        codec.encode_deg("GOTO_PANIER", a, *more)
+        return order(lambda b: b.goto_panier(a, append=app), f"GOTO_PANIER {a:g} deg{tail}")
+    if cmd == "pause":
+        return order(lambda b: b.pause(), "PAUSE")
+    if cmd == "resume":
+        return order(lambda b: b.resume(), "RESUME")
+    if cmd == "scale":
+        pc = _int("P", args.percent)
+        _checked("SET_SPEED_SCALE", pc)
+        return order(lambda b: b.set_speed_scale(pc), f"SET_SPEED_SCALE {pc} %")
+    if cmd == "motion":
+
+        def motion(b: Board) -> list[str]:
+            m = b.motion()
+            state = "paused" if m.paused else ("running" if m.running else "idle")
+            return [
+                f"{state}: order {m.running_seq} runs, {m.pending} pending;"
+                f" last ended {m.last_seq}: {m.last_end.name}",
+                f"braking {m.braking_mm} mm in {m.braking_ms} ms; speed scale {m.scale_percent} %",
+            ]
+
+        return motion
     if cmd == "stop":
         return order(lambda b: b.stop(), "STOP")
     if cmd in ("set-vitesse-traj", "set-vitesse-rot"):

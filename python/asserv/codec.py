@@ -10,7 +10,7 @@ from __future__ import annotations
 import difflib
 import math
 from dataclasses import dataclass, fields
-from typing import Final
+from typing import Final, NamedTuple
 
 from ._protocol import (
     ADDRESS,
@@ -313,18 +313,18 @@ class Debug:
     end_reason: EndReason
 
 
-@dataclass(frozen=True)
-class Motion:
-    """MOTION (extension, issue 31): the queue, the pause, the braking distance, the scale."""
+class Motion(NamedTuple):
+    """MOTION (extension, docs/protocol.md): the queue, the pause and the braking distance, in
+    one reply a master can read every cycle."""
 
-    running_seq: int
-    pending: int
+    running_seq: int  # sequence number of the running order (8 bits, wrapping)
+    pending: int  # orders waiting behind it
     flags: int  # bit 0 paused, bit 1 an order runs
-    last_seq: int
-    last_end: EndReason
-    braking_mm: int
-    braking_ms: int
-    scale_percent: int
+    last_seq: int  # sequence number of the order that ended last
+    last_end: EndReason  # how it ended
+    braking_mm: int  # distance to rest at the present speed and limits
+    braking_ms: int  # time to rest
+    scale_percent: int  # the speed scale (SET_SPEED_SCALE)
 
     @property
     def paused(self) -> bool:
@@ -332,6 +332,7 @@ class Motion:
 
     @property
     def running(self) -> bool:
+        """An order runs (paused or not)."""
         return bool(self.flags & 2)
 
 
@@ -444,6 +445,8 @@ def decode_reply(
 
 def reply_fields(reply: Reply) -> dict[str, int]:
     """The reply's values by table field name, for printing and for comparing with the table."""
-    if isinstance(reply, Pose | Version | LastReject | Debug | Motion | FixInfo | ResetInfo):
+    if isinstance(reply, Pose | Version | LastReject | Debug | FixInfo | ResetInfo):
         return {f.name: int(getattr(reply, f.name)) for f in fields(reply)}
+    if isinstance(reply, Motion):
+        return {k: int(v) for k, v in reply._asdict().items()}
     return {"value": int(reply)}

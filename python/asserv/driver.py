@@ -35,7 +35,7 @@ from smbus2 import i2c_msg
 from . import codec
 from ._protocol import ADDRESS, Capability, EndReason, Filtre, Reject, Status
 from .bus import Clock, clock_of
-from .codec import Debug, FixInfo, LastReject, Pose, ResetInfo, Version
+from .codec import Debug, FixInfo, LastReject, Motion, Pose, ResetInfo, Version
 
 __all__ = [
     "AsservError",
@@ -69,12 +69,15 @@ class GotoOption(enum.IntFlag):
 
     RECALAGE_LIGNE = 1  # recalibration on floor lines
     RECALAGE_BORD = 2  # recalibration by contact with the field border
+    APPEND = 4  # queue behind the running order instead of replacing it (capability QUEUE)
+    PASS_THROUGH = 8  # do not stop at the point when another order waits (capability CORNERS)
 
     @classmethod
     def parse(cls, text: str) -> int:
         """GOTO's options as the CLI and the scenario files write them: a number (``3``,
         ``0x2``), or names joined by ``+`` or ``|``: ``ligne``, ``bord``, ``ligne+bord``,
-        ``RECALAGE_BORD``, in any case. ValueError names what is not an option."""
+        ``RECALAGE_BORD``, ``append``, ``through`` (PASS_THROUGH), in any case. ValueError names
+        what is not an option."""
         try:
             return int(text, 0)
         except ValueError:
@@ -82,12 +85,18 @@ class GotoOption(enum.IntFlag):
         value = 0
         for part in text.replace("|", "+").split("+"):
             name = part.strip().upper()
-            name = {"LIGNE": "RECALAGE_LIGNE", "BORD": "RECALAGE_BORD"}.get(name, name)
+            aliases = {
+                "LIGNE": "RECALAGE_LIGNE",
+                "BORD": "RECALAGE_BORD",
+                "THROUGH": "PASS_THROUGH",
+            }
+            name = aliases.get(name, name)
             try:
                 value |= cls[name]
             except KeyError:
                 raise ValueError(
-                    f"{text!r} is not GOTO options (a number, or ligne, bord, ligne+bord)"
+                    f"{text!r} is not GOTO options (a number, or ligne, bord, append, through,"
+                    " joined by +)"
                 ) from None
         return value
 
@@ -164,8 +173,13 @@ class OrderRejected(AsservError):  # noqa: N818 (names of the driver's API)
 
 
 class Unsupported(AsservError):  # noqa: N818 (names of the driver's API)
-    """The board was built without the feature a call needs (its VERSION capability bit reads
-    0), or rejected the message as UNSUPPORTED."""
+    """The board does not have this extension: its VERSION lacks the capability bit (a build
+    that compiles the feature out, or an older firmware), or it rejected the message as
+    UNSUPPORTED. Nothing was sent in the first case."""
+
+    def __init__(self, message: str, capability: str = "") -> None:
+        super().__init__(message)
+        self.capability = capability
 
 
 class BoardTimeout(AsservError):  # noqa: N818 (names of the driver's API)
@@ -271,11 +285,11 @@ class Board:
         # under the bus lock.
         self._drives = bool(getattr(self.clock, "drives_simulation", False))
         self._lock = bus_lock(bus)
-        self._caps: Capability | None = None  # VERSION's, read by the first call that needs it
         #: The end of the match on ``clock`` (``asserv.match.MatchTimer``), or None. Once
         #: passed, the next transaction or sleep sends STOP and raises MatchOver.
         self.deadline: float | None = None
         self._match_stopped = False
+        self._capabilities: Capability | None = None
 
     def __repr__(self) -> str:
         return (
@@ -329,27 +343,48 @@ class Board:
 
     # ORDRE ---------------------------------------------------------------------------------
 
-    def goto(self, x_mm: int, y_mm: int, options: GotoOption | int = 0) -> None:
+    def goto(
+        self,
+        x_mm: int,
+        y_mm: int,
+        options: GotoOption | int = 0,
+        *,
+        append: bool = False,
+        through: bool = False,
+    ) -> None:
         """GOTO: turn towards (x, y), then drive straight to it, forwards.
 
         x_mm, y_mm: -32000..32000 mm (0, 0 is the centre of the field); options: GotoOption bits.
-        """
+        ``append``: queue it behind the running order (GotoOption.APPEND, capability QUEUE)
+        instead of replacing everything; ``through``: do not stop at the point when another
+        order waits, turn through the corner (GotoOption.PASS_THROUGH, capability CORNERS).
+        A board without the capability raises ``Unsupported`` and nothing is sent."""
+        opts = _integer("options", options)
+        opts |= (GotoOption.APPEND if _flag("append", append) else 0) | (
+            GotoOption.PASS_THROUGH if _flag("through", through) else 0
+        )
         self._command(
-            "GOTO", _integer("x_mm", x_mm), _integer("y_mm", y_mm), _integer("options", options)
+            "GOTO",
+            _integer("x_mm", x_mm),
+            _integer("y_mm", y_mm),
+            opts,
+            needs=_needs(opts),
         )
 
-    def goto_reverse(self, distance_mm: int) -> None:
-        """GOTO_REVERSE: drive straight backwards over 0..255 mm."""
-        # With PEC the board needs the full form: the options byte (issue 31), 0.
-        extra = (0,) if self.pec else ()
-        self._command("GOTO_REVERSE", _integer("distance_mm", distance_mm), *extra)
+    def goto_reverse(self, distance_mm: int, *, append: bool = False) -> None:
+        """GOTO_REVERSE: drive straight backwards over 0..255 mm; ``append``: queue it
+        (capability QUEUE)."""
+        d = _integer("distance_mm", distance_mm)
+        more = self._options_byte("GOTO_REVERSE", append)
+        self._command("GOTO_REVERSE", d, *more, needs=_needs_append(append))
 
-    def goto_panier(self, angle_deg: float) -> None:
+    def goto_panier(self, angle_deg: float, *, append: bool = False) -> None:
         """GOTO_PANIER: turn to an absolute heading, drive forwards until the basket is touched.
 
         angle_deg: -180..180 degrees, sent in 2-degree steps: rounded to the nearest step, a
         half step going towards zero (45 degrees is sent as 22, that is 44, as in the 2002
-        annex). The expected ending is CHOC_PANIER in the final status."""
+        annex). The expected ending is CHOC_PANIER in the final status. ``append``: queue it
+        (capability QUEUE)."""
         if isinstance(angle_deg, bool) or not isinstance(angle_deg, int | float):
             raise TypeError(f"angle_deg must be a number of degrees, got {angle_deg!r}")
         if not -180 <= angle_deg <= 180:
@@ -357,8 +392,29 @@ class Board:
                 Reject.OUT_OF_RANGE, f"GOTO_PANIER.angle_deg={angle_deg} is outside -180..180"
             )
         steps = math.ceil(abs(angle_deg) / 2 - 0.5)  # nearest, a half step towards zero
-        extra = (0,) if self.pec else ()  # with PEC, the full form (issue 31's options byte)
-        self._command("GOTO_PANIER", -steps if angle_deg < 0 else steps, *extra)
+        self._command(
+            "GOTO_PANIER",
+            -steps if angle_deg < 0 else steps,
+            *self._options_byte("GOTO_PANIER", append),
+            needs=_needs_append(append),
+        )
+
+    def _options_byte(self, name: str, append: bool) -> tuple[int, ...]:
+        # The trailing options byte of GOTO_REVERSE and GOTO_PANIER: absent unless needed, so
+        # that a plain order is the 2002 frame; a PEC needs the full form (docs/protocol.md).
+        if _flag("append", append):
+            return (int(GotoOption.APPEND),)
+        return (0,) if self.pec and len(codec.message(name).params) > 1 else ()
+
+    def pause(self) -> None:
+        """PAUSE (capability PAUSE): brake along the path, within the grip, and hold; the running
+        order and the queue are kept (CHECK_BUSY still reads busy, MOTION says paused)."""
+        self._command("PAUSE", needs=("PAUSE",))
+
+    def resume(self) -> None:
+        """RESUME (capability PAUSE): go on with the same order, to the same target, from where
+        the robot stands."""
+        self._command("RESUME", needs=("PAUSE",))
 
     def stop(self) -> None:
         """STOP (extension): decelerate at the current limits and hold the position reached."""
@@ -376,6 +432,17 @@ class Board:
     def set_vitesse_rot(self, speed_cm_s: int, accel_cm_s2: int | None = None) -> None:
         """SET_VITESSE_ROT: wheel limits during a rotation in place (as set_vitesse_traj)."""
         self._set_vitesse("SET_VITESSE_ROT", speed_cm_s, accel_cm_s2)
+
+    def set_speed_scale(self, percent: int) -> None:
+        """SET_SPEED_SCALE (capability SPEED_SCALE): 0..100 % of the speed limits, at once for the
+        running order and those that follow; the robot slows or speeds up within its
+        acceleration limit and the grip."""
+        self._command("SET_SPEED_SCALE", _integer("percent", percent), needs=("SPEED_SCALE",))
+
+    def set_corner(self, tolerance_mm: int) -> None:
+        """SET_CORNER (capability CORNERS): how far, 1..255 mm, a pass-through corner's curve may
+        stay from its point."""
+        self._command("SET_CORNER", _integer("tolerance_mm", tolerance_mm), needs=("CORNERS",))
 
     def set_filtre(self, preset: Filtre | int) -> None:
         """SET_FILTRE: a preset of PID gains (Filtre.FILTRE_STD, FILTRE_SOUPLE, FILTRE_RAIDE)."""
@@ -432,7 +499,7 @@ class Board:
                 )
         if not 0 < sigma_mm <= 255 or not 0 <= age_ms <= 500:
             raise ValueError(f"fix: sigma_mm={sigma_mm} must be 0..255, age_ms={age_ms} 0..500")
-        self._require(Capability.FIX, "SET_FIX")
+        self._require(("FIX",), "SET_FIX")
         self._command(
             "SET_FIX",
             round(x_mm),
@@ -446,7 +513,7 @@ class Board:
     def fix_info(self) -> FixInfo:
         """FIX_INFO (extension): fixes fused, rejected as outliers, rejected as too old or
         stale, since power-on (each wrapping at 65536), and the last one's result."""
-        self._require(Capability.FIX, "FIX_INFO")
+        self._require(("FIX",), "FIX_INFO")
         return self._query("FIX_INFO", FixInfo)
 
     def reset_info(self) -> ResetInfo:
@@ -454,19 +521,8 @@ class Board:
         the pose survived it (``pose_lost``: motion orders are refused, REFUSED_NO_POSE, until
         ``set_new_pos()`` or ``declare_pose()``) and the radius's widening for the time the
         board was down. Read it when the status shows PB_MOTEUR with DEBUG end_reason RESET."""
-        self._require(Capability.RESET_INFO, "RESET_INFO")
+        self._require(("RESET_INFO",), "RESET_INFO")
         return self._query("RESET_INFO", ResetInfo)
-
-    def _require(self, cap: Capability, what: str) -> None:
-        """Raise Unsupported when the board's VERSION lacks cap (read once, then cached)."""
-        if self._caps is None:
-            self._caps = self.version().capabilities
-        if cap not in self._caps:
-            raise Unsupported(
-                f"{what}: the board at 0x{self.address:02x} lacks {cap.name} (capabilities"
-                f" 0x{int(self._caps):04x}): it was built without it (docs/avr.md says what the"
-                " AVR leaves out)"
-            )
 
     def set_new_pos(self, err_x_mm: int, err_y_mm: int, err_angle_deg: int) -> None:
         """SET_NEW_POS: the error of the board's estimate (estimate minus truth), which the
@@ -528,6 +584,20 @@ class Board:
     def version(self) -> Version:
         """VERSION (extension): protocol major, minor and capability bits."""
         return self._query("VERSION", Version)
+
+    def motion(self) -> Motion:
+        """MOTION (capability PAUSE): the running order's sequence number (of the last accepted
+        one when idle), the orders pending, paused or not, the last ending, the braking distance
+        and time if paused now, the speed scale."""
+        self._require(_MOTION_CAPS, "MOTION")
+        return self._query("MOTION", Motion)
+
+    def capabilities(self, *, refresh: bool = False) -> Capability:
+        """VERSION's capability bits, read once per Board (``refresh``: read them again, after
+        the board was flashed)."""
+        if self._capabilities is None or refresh:
+            self._capabilities = self.version().capabilities
+        return self._capabilities
 
     def last_reject(self) -> LastReject:
         """LAST_REJECT (extension): why the last rejected write was rejected, and the count."""
@@ -670,13 +740,29 @@ class Board:
             ) from e
         return _expect(name, reply, kind)
 
-    def _command(self, name: str, *args: int) -> None:
+    def _command(self, name: str, *args: int, needs: tuple[str, ...] = ()) -> None:
         """An ORDRE or SET; with ``check``, confirm in the same transaction that it was taken
         (the write, the status and LAST_REJECT under the bus lock: no other thread's write
-        in between)."""
+        in between). ``needs``: the capabilities it takes, all of them (``Unsupported``)."""
         frame = codec.encode(name, *args, pec=self.pec, address=self.address)
+        for cap in needs:
+            self._require((cap,), name)
         with self._lock:
             self._command_locked(name, frame, args)
+
+    def _require(self, caps: tuple[str, ...], what: str) -> None:
+        """Raise Unsupported unless the board has one of ``caps`` (names of the capability
+        table)."""
+        have = self.capabilities()
+        if any(c in Capability.__members__ and Capability[c] & have for c in caps):
+            return
+        names = " ".join(f.name for f in Capability if f in have and f.name) or "none"
+        which = caps[0] if len(caps) == 1 else "any of " + ", ".join(caps)
+        raise Unsupported(
+            f"{what}: this board has no {which} (its VERSION lists {names}: a build that"
+            " compiles it out, or an older firmware; nothing was sent)",
+            caps[0],
+        )
 
     def _command_locked(self, name: str, frame: bytes, args: tuple[int, ...]) -> None:
         if not self.check:
@@ -730,6 +816,26 @@ def _integer(name: str, value: object) -> int:
     if not isinstance(value, SupportsIndex):
         raise TypeError(f"{name} must be an integer, got {value!r}")
     return operator.index(value)
+
+
+_MOTION_CAPS = ("PAUSE",)  # messages.toml: PAUSE covers PAUSE, RESUME and MOTION
+
+
+def _flag(name: str, value: object) -> bool:
+    if not isinstance(value, bool):
+        raise TypeError(f"{name} must be True or False, got {value!r}")
+    return value
+
+
+def _needs(options: int) -> tuple[str, ...]:
+    """The capabilities GOTO's option bits take."""
+    return (("QUEUE",) if options & GotoOption.APPEND else ()) + (
+        ("CORNERS",) if options & GotoOption.PASS_THROUGH else ()
+    )
+
+
+def _needs_append(append: bool) -> tuple[str, ...]:
+    return ("QUEUE",) if append else ()
 
 
 def _expect(name: str, reply: codec.Reply, kind: type[T]) -> T:

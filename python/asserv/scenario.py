@@ -6,7 +6,7 @@ A scenario is a text file, one command a line, ``#`` starts a comment::
     field annex              # field/annex.toml (or a path to a field file)
     set_vitesse_traj 100     # cm/s (an optional second number: cm/s^2)
     set_vitesse_rot 50
-    goto 200 100             # x_mm y_mm [options: ligne, bord, ligne+bord or a number]
+    goto 200 100             # x_mm y_mm [options: ligne, bord, append, through, a+b, a number]
     wait                     # poll CHECK_BUSY until the order ends [timeout_s, default 30]
     goto_panier 44           # degrees, sent in 2-degree steps
 
@@ -18,12 +18,14 @@ board also believes), ``config KEY VALUE...`` (a member of ``struct sim_config``
 Then the bus commands, one per driver method: ``goto``, ``goto_reverse``, ``goto_panier``,
 ``stop``, ``set_vitesse_traj``, ``set_vitesse_rot``, ``set_filtre`` (STD, SOUPLE, RAIDE or a
 number), ``set_filtre_raw``, ``set_new_pos``, ``declare_pose``, ``check_busy``, ``position``,
-``info_choc``, ``version``, ``last_reject``, ``debug``; and ``wait [TIMEOUT_S]``,
-``sleep SECONDS``.
+``info_choc``, ``version``, ``last_reject``, ``debug``, ``pause``, ``resume``,
+``set_speed_scale``, ``set_corner``, ``motion`` (issue 31's match play); and
+``wait [TIMEOUT_S]``, ``sleep SECONDS``.
 
 Opponents and timed events (docs/simulator.md, "Scenario files")::
 
     opponent -400 500 150 300 -400 -300     # X Y RADIUS_MM SPEED_MM_S, then its path [loop]
+    crossing_opponent 150 random 0 -850 600 -600 900 300   # a random path across that route
     at 2.5 press 1                          # at T (simulated s): press MASK, release,
                                             # cut_encoder L|R, restore_encoder L|R,
                                             # stick_motor L|R, free_motor L|R, battery VOLTS,
@@ -52,7 +54,7 @@ from typing import TYPE_CHECKING, Any
 
 from . import codec
 from . import field as fieldmod
-from ._protocol import EndReason, Filtre, Status
+from ._protocol import Capability, EndReason, Filtre, Status
 from .codec import Pose
 from .driver import AsservError, Board, GotoOption, Outcome, outcome_of
 from .fixes import FixSource
@@ -117,6 +119,11 @@ BUS_COMMANDS: dict[str, tuple[str, list[Parser], list[Parser], str]] = {
     "debug": ("debug", [], [], "debug"),
     "heartbeat": ("heartbeat", [], [], "heartbeat"),
     "fix_info": ("fix_info", [], [], "fix_info"),
+    "pause": ("pause", [], [], "pause"),
+    "resume": ("resume", [], [], "resume"),
+    "set_speed_scale": ("set_speed_scale", [_int], [], "set_speed_scale PERCENT"),
+    "set_corner": ("set_corner", [_int], [], "set_corner TOLERANCE_MM"),
+    "motion": ("motion", [], [], "motion"),
     "wait": ("", [], [_num], "wait [TIMEOUT_S]"),
     "sleep": ("", [_num], [], "sleep SECONDS"),
 }
@@ -155,6 +162,7 @@ SETUP = (
     "bus_hz",
     "pec",
     "opponent",
+    "crossing_opponent",
     "robot",
     "fixes",
 )
@@ -186,6 +194,8 @@ class Opponent:
     speed_mm_s: float
     path: list[tuple[float, float]]
     loop: bool
+    #: For a crossing_opponent: the route its random path crosses (x, y, path and loop unused).
+    route: list[tuple[float, float]] | None = None
 
 
 @dataclass
@@ -250,7 +260,11 @@ class Scenario:
         if self.fixes is not None:
             sim.add_fix_source(self.fixes)
         for o in self.opponents:
-            sim.add_opponent(o.x_mm, o.y_mm, o.radius_mm, o.path, o.speed_mm_s, o.loop)
+            if o.route is not None:
+                speed = o.speed_mm_s if o.speed_mm_s > 0 else None
+                sim.add_crossing_opponent(o.route, radius_mm=o.radius_mm, speed_mm_s=speed)
+            else:
+                sim.add_opponent(o.x_mm, o.y_mm, o.radius_mm, o.path, o.speed_mm_s, o.loop)
         for ev in self.events:
             sim.at(ev.t_s, _event_action(ev, out))
 
@@ -342,6 +356,7 @@ def parse(
     base = base or Path.cwd()
     scn = Scenario(source, fieldmod.load())
     dry = Board(_DryBus(), check=False)
+    dry._capabilities = Capability(sum(int(c) for c in Capability))  # judge the args only
     for n, raw in enumerate(text.splitlines(), 1):
         words = raw.split("#", 1)[0].split()
         if not words:
@@ -412,6 +427,28 @@ def parse(
                         if where_ and where_.startswith("off"):
                             raise fail(f"opponent: ({px:g}, {py:g}) is {where_}")
                     scn.opponents.append(Opponent(n, x, y, r, v, path, loop))
+                elif cmd == "crossing_opponent":
+                    usage = "crossing_opponent RADIUS_MM SPEED_MM_S|random X_MM Y_MM X_MM Y_MM..."
+                    if len(rest) < 6:
+                        raise fail(f"crossing_opponent takes {usage} (the route it crosses)")
+                    r = _num(rest[0])
+                    v = 0.0 if rest[1].lower() == "random" else _num(rest[1])
+                    if not (0 < r < 1000 and (v > 0 or rest[1].lower() == "random")):
+                        raise fail(
+                            f"crossing_opponent: the radius and the speed must be > 0 ({usage})"
+                        )
+                    route, loop = _path(rest[2:])
+                    if loop:
+                        raise fail(f"crossing_opponent: its path loops already ({usage})")
+                    for px, py in route:
+                        where_ = _inside(scn.field, px, py) if scn.field.borders else None
+                        if where_ and where_.startswith("off"):
+                            raise fail(f"crossing_opponent: ({px:g}, {py:g}) is {where_}")
+                    if len(route) < 2 or len(set(route)) < 2:
+                        raise fail(
+                            f"crossing_opponent: the route needs two distinct points ({usage})"
+                        )
+                    scn.opponents.append(Opponent(n, 0.0, 0.0, r, v, [], True, route))
                 elif cmd == "start_uncertainty":
                     if len(rest) != 2:
                         raise fail(

@@ -9,6 +9,7 @@ line per request and one per reply (docs/simulator.md, "The simulator server"):
     sleep S                        ok T                     (after S simulated seconds)
     truth                          ok T X Y HEADING         (the true pose, for a live view)
     obstacles                      ok X,Y X,Y ...           (baskets, obstacles, opponents)
+    lidar                          ok T N B,R B,R ...       (the last lidar scan: asserv.lidar)
     rdwr w02:0400c80064 r02:1      ok 05                    (one I2C_RDWR transaction)
     (anything wrong)               err ERRNO TEXT
 
@@ -53,6 +54,7 @@ from .bus import I2C_M_RD, I2C_RDWR_MAX_MSGS
 from .driver import bus_lock
 
 if TYPE_CHECKING:
+    from .lidar import LidarScan
     from .sim import Simulator
 
 __all__ = [
@@ -122,7 +124,7 @@ def _log_stderr(line: str) -> None:
 # The server ---------------------------------------------------------------------------------
 
 
-REQUESTS = ("hello", "time", "sleep", "truth", "obstacles", "rdwr")
+REQUESTS = ("hello", "time", "sleep", "truth", "obstacles", "lidar", "rdwr")
 
 
 def _not_a_request(raw: bytes, greeted: bool) -> str:
@@ -308,6 +310,11 @@ class SimServer:
                 with self.lock:
                     where = self.sim.obstacles()
                 return "ok" + "".join(f" {x:.3f},{y:.3f}" for x, y in where)
+            if cmd == "lidar":
+                with self.lock:
+                    scan = self.sim.lidar()
+                hits = "".join(f" {h.bearing_deg:g},{h.range_mm:.1f}" for h in scan.hits)
+                return f"ok {scan.t_s:.9f} {scan.number}{hits}"
             if cmd == "rdwr":
                 ops = decode_rdwr(words[1:])
                 with self.lock:
@@ -407,6 +414,17 @@ class RemoteBus:
             x, _, y = w.partition(",")
             out.append((float(x), float(y)))
         return out
+
+    def lidar(self) -> LidarScan:
+        """The simulated robot's last lidar scan (``Simulator.lidar``)."""
+        from .lidar import LidarHit, LidarScan
+
+        words = self.request("lidar").split()
+        hits = []
+        for w in words[2:]:
+            b, _, r = w.partition(",")
+            hits.append(LidarHit(float(b), float(r)))
+        return LidarScan(float(words[0]), int(words[1]), tuple(hits))
 
     def close(self) -> None:
         if self.closed:

@@ -31,6 +31,7 @@ from ._columns import TRACE_FIELDS
 from ._core import ffi, lib
 from ._protocol import ResetCause
 from .bus import VirtualBus
+from .lidar import LIDAR, LidarScan, Target, Yielding, crossing_path, scan_targets
 
 if TYPE_CHECKING:
     from .fixes import FixFeed, FixSource
@@ -306,6 +307,14 @@ class Simulator:
         self.bus = VirtualBus({address: self}, clock=self)
         self._proto = ffi.addressof(self._h.board, "proto")
         self._tx_open = False  # between bus_start() and bus_stop()/bus_abort()
+        self.seed = seed
+        #: The obstacles the lidar sees (the opponents, the other robots of an Arena).
+        self.lidar_targets: set[int] = set()
+        self._scan: LidarScan | None = None
+        self._scan_pose = (0.0, 0.0, 0.0)
+        self._crossings = 0
+        #: The crossing opponents that stop for our robot, by obstacle index.
+        self.yielding: dict[int, Yielding] = {}
 
     # ---- time -------------------------------------------------------------------------------
     #: Sleeping on this clock runs the simulation (asserv.bus.clock_of, Board.sleep).
@@ -687,6 +696,102 @@ class Simulator:
         self.set_opponent_path(i, path, speed_mm_s, loop)
         return i
 
+    def add_crossing_opponent(
+        self,
+        route: Sequence[tuple[float, float]],
+        *,
+        radius_mm: float = 150.0,
+        speed_mm_s: float | None = None,
+        crossings: int = 4,
+        keep_clear: Sequence[tuple[float, float, float]] = (),
+        seed: int | None = None,
+        yield_mm: float | None = 100.0,
+    ) -> int:
+        """An opponent on a random looping path that crosses ``route`` (our robot's, a
+        polyline) ``crossings`` times, at 45 to 135 degrees (``asserv.lidar.crossing_path``),
+        at ``speed_mm_s`` (default: drawn within 200..400 mm/s). It starts at its path's first
+        point. The draw comes from ``seed`` (default: the simulator's seed and the number of
+        crossing opponents added before): the same call on the same simulator gives the same
+        opponent. ``keep_clear``: points (x, y, r) its runs stay r away from (a start area).
+        ``yield_mm``: it stops while our robot is that close ahead of it, as a real opponent
+        with its own lidar would (``asserv.lidar.Yielding``; None: it never stops). Returns its
+        obstacle index."""
+        if yield_mm is not None and not 0 <= yield_mm < 1000:
+            raise ValueError(f"add_crossing_opponent: yield_mm must be 0..1000, not {yield_mm}")
+        if speed_mm_s is not None and not 0 < speed_mm_s < 1e6:
+            raise ValueError(f"add_crossing_opponent: speed_mm_s must be > 0, not {speed_mm_s}")
+        if not 0 < radius_mm < 1000:
+            raise ValueError(f"add_crossing_opponent: radius_mm must be 0..1000, not {radius_mm}")
+        rng = np.random.default_rng([self.seed if seed is None else seed, 0xC2055, self._crossings])
+        fl = self.field
+        path = crossing_path(
+            route,
+            rng,
+            length_mm=fl.length_mm,
+            width_mm=fl.width_mm,
+            radius_mm=radius_mm,
+            crossings=crossings,
+            keep_clear=keep_clear,
+        )
+        speed = float(rng.uniform(200, 400)) if speed_mm_s is None else speed_mm_s
+        self._crossings += 1
+        loop = path[1:] + path[:1]
+        i = self.add_opponent(*path[0], radius_mm, loop, speed, loop=True)
+        if yield_mm is not None:
+            y = Yielding(i, loop, speed, yield_mm)
+            self.yielding[i] = y
+            self.at(self.time_s, y.step)
+        return i
+
+    def opponent_radius(self, i: int) -> float:
+        """The radius of obstacle ``i`` (a disc), mm."""
+        self._obstacle_index(i)
+        return float(self._h.sim.field.obstacles[i].radius_mm)
+
+    # ---- the lidar (asserv.lidar) ---------------------------------------------------------------
+    def lidar(self) -> LidarScan:
+        """What the robot's lidar (``asserv.lidar.LIDAR``) saw of the opponents in its last full
+        scan. The first call switches it on: a scan is taken then, and every 1 / scan_hz s of
+        simulated time after (timed events, as ``at``). Between two scans the same scan is
+        returned; its ``t_s`` says when it was taken."""
+        if self._scan is None:
+            self._take_scan(0, self.time_s)
+        assert self._scan is not None
+        return self._scan
+
+    def lidar_view(self) -> list[Target]:
+        """What the lidar can see now, where it truly is (for tests and views)."""
+        f = self._h.sim.field
+        out = []
+        for i in sorted(self.lidar_targets):
+            o = f.obstacles[i]
+            out.append(
+                Target(
+                    o.x_mm,
+                    o.y_mm,
+                    o.radius_mm if o.shape == lib.SIM_SHAPE_CIRCLE else 0.0,
+                    o.half_x_mm if o.shape == lib.SIM_SHAPE_BOX else 0.0,
+                    o.half_y_mm if o.shape == lib.SIM_SHAPE_BOX else 0.0,
+                    math.degrees(o.heading_rad),
+                )
+            )
+        return out
+
+    def lidar_points(self) -> list[tuple[float, float]]:
+        """The last scan's hits on the field, from the true pose the robot had at the scan
+        (for a view); empty while the lidar is off."""
+        if self._scan is None:
+            return []
+        return self._scan.points(*self._scan_pose)
+
+    def _take_scan(self, index: int, t0_s: float) -> None:
+        x, y, h = self.true_pose()
+        self._scan_pose = (x, y, h)
+        rng = np.random.default_rng([self.seed, 0x11DA2, index])
+        self._scan = LidarScan(self.time_s, index, scan_targets(x, y, h, self.lidar_view(), rng))
+        nxt = t0_s + (index + 1) / LIDAR.scan_hz
+        self.at(nxt, lambda s: s._take_scan(index + 1, t0_s))
+
     def set_opponent_path(
         self,
         i: int,
@@ -707,6 +812,7 @@ class Simulator:
                 f"set_opponent_path: speed {speed_mm_s} must be > 0 and the points finite"
                 f" (and at most {lib.SIM_MAX_OPPONENTS} opponents)"
             )
+        self.lidar_targets.add(i)
 
     def _obstacle_index(self, i: int) -> None:
         n = int(self._h.sim.field.obstacle_count)

@@ -60,6 +60,7 @@ from .field import Field
 if TYPE_CHECKING:
     from websockets.typing import Origin
 
+    from .codec import Motion
     from .driver import Board
     from .scenario import Scenario
     from .sim import Simulator
@@ -161,6 +162,9 @@ class Source:
     target: tuple[float, float] | None = None
     outcome: Outcome = dataclasses.field(default_factory=Outcome)
     message: str = ""  # what the source is doing (the scenario's line, an error)
+    #: Match play (issue 31): what MOTION says, the points queued by this view that the board
+    #: has not reached, the lidar's hits on the field; None where the board or bus has none.
+    match: MatchState | None = None
 
     def why_no_goto(self) -> str:
         """Why the page's clicks send no GOTO here ("" when they do)."""
@@ -187,6 +191,7 @@ class Source:
             "outcome": self.outcome.last,
             "orders": self.outcome.orders,
             "message": self.message,
+            "match": None if self.match is None else self.match.as_dict(),
         }
 
     def advance(self, dt_s: float) -> np.ndarray:
@@ -206,6 +211,55 @@ class Source:
 
     def close(self) -> None:
         pass
+
+
+@dataclass
+class MatchState:
+    """The match-play part of the view's state: MOTION's pause, pending orders, braking
+    distance and scale; the points this view queued (GOTO with APPEND) that are still ahead;
+    the lidar's last hits on the field."""
+
+    paused: bool = False
+    pending: int = 0
+    running: bool = False
+    braking_mm: int = 0
+    scale_percent: int = 100
+    queue: list[tuple[float, float]] = dataclasses.field(default_factory=list)
+    lidar: list[tuple[float, float]] = dataclasses.field(default_factory=list)
+
+    def sent(self, x_mm: float, y_mm: float, append: bool) -> None:
+        """A GOTO the view sent: queued behind the others, or replacing them."""
+        self.queue = [*self.queue, (x_mm, y_mm)] if append else [(x_mm, y_mm)]
+
+    def read(self, m: Motion) -> None:
+        """MOTION read: the queue keeps the running point and those pending."""
+        self.paused, self.pending, self.running = m.paused, m.pending, m.running
+        self.braking_mm, self.scale_percent = m.braking_mm, m.scale_percent
+        left = m.pending + 1 if m.running else 0
+        self.queue = self.queue[len(self.queue) - left :] if left else []
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "paused": self.paused,
+            "pending": self.pending,
+            "braking_mm": self.braking_mm,
+            "scale_percent": self.scale_percent,
+            "queue": [list(q) for q in self.queue],
+            "lidar": [[round(x, 1), round(y, 1)] for x, y in self.lidar],
+        }
+
+
+def read_match(board: Board, state: MatchState | None) -> MatchState | None:
+    """Read MOTION into ``state`` (a new one at first); None if the board has no PAUSE."""
+    from .driver import Unsupported
+
+    try:
+        m = board.motion()
+    except Unsupported:
+        return None
+    state = state or MatchState()
+    state.read(m)
+    return state
 
 
 def _decimate(rows: np.ndarray, n: int = MAX_ROWS_PER_FRAME) -> np.ndarray:
@@ -259,9 +313,23 @@ class SimSource(Source):
         if self._gen is not None:
             self.message = "strategy"
 
-    def goto(self, x_mm: float, y_mm: float) -> None:
-        self.board.goto(round(x_mm), round(y_mm))
+    def goto(self, x_mm: float, y_mm: float, append: bool = False) -> None:
+        self.board.goto(round(x_mm), round(y_mm), append=append)
         self.target = (float(round(x_mm)), float(round(y_mm)))
+        if self.match is not None:
+            self.match.sent(*self.target, append)
+
+    def _read_match(self) -> None:
+        """MOTION (the view is a master on the bus, as a strategy is) and the lidar's hits."""
+        from .driver import AsservError
+
+        try:
+            self.match = read_match(self.board, self.match)
+        except AsservError:
+            return
+        if self.match is not None and self.sim.lidar_targets:
+            self.sim.lidar()  # switched on at the first frame that has something to see
+            self.match.lidar = self.sim.lidar_points()
 
     def _strategy(self) -> None:
         """Give the strategy its turn when its wait is over."""
@@ -304,6 +372,9 @@ class SimSource(Source):
                     getattr(self.board, BUS_COMMANDS[st.command][0])(*st.args)
                     if st.command == "goto":
                         self.target = (float(st.args[0]), float(st.args[1]))
+                        if self.match is not None:
+                            append = bool(st.args[2] & 4) if len(st.args) > 2 else False
+                            self.match.sent(*self.target, append)
             except AsservError as e:
                 self.message = f"line {st.line}: {e}"
                 self._steps.clear()
@@ -316,6 +387,8 @@ class SimSource(Source):
             return log.empty(0)
         budget = dt_s * self.speed
         end = self.sim.time_s + budget
+        if budget > 0.005:  # the MOTION read's bytes take their time within the frame's
+            self._read_match()
         while self.sim.time_s < end - 1e-9:
             self._script()  # its bus transactions take simulated time too
             left = end - self.sim.time_s
@@ -374,8 +447,10 @@ class BoardSource(Source):
 
         try:
             rows = log.poll_board(self.board, self.hz, until=self._stop.is_set, clock=self._clock)
-            for row in rows:
+            for n, row in enumerate(rows):
                 self._rows.put(row)
+                if n % 5 == 0:
+                    self._read_match(row)
                 while not self._orders.empty():
                     x, y = self._orders.get()
                     try:
@@ -385,6 +460,19 @@ class BoardSource(Source):
                         self.message = f"GOTO ({x}, {y}): {e}"
         except AsservError as e:
             self.message = f"the board stopped answering: {e}"
+
+    def _read_match(self, row: np.void) -> None:
+        """MOTION, and the lidar where the bus has one (the simulator server's), its hits put
+        on the field from the board's estimate."""
+        self.match = read_match(self.board, self.match)
+        lidar = getattr(self.board.bus, "lidar", None)
+        if self.match is not None and callable(lidar):
+            try:
+                scan = lidar()
+            except OSError:
+                return
+            x, y, h = (float(row[k]) for k in ("est_x_mm", "est_y_mm", "est_heading_deg"))
+            self.match.lidar = scan.points(x, y, h)
 
     def why_no_goto(self) -> str:
         if self.can_goto:

@@ -62,6 +62,7 @@ def test_every_command_is_parsed(capsys: pytest.CaptureFixture[str]) -> None:
             "set-new-pos": ["1", "2", "3"],
             "set-timeout": ["500"],
             "set-odometrie": ["1", "280", "3"],
+            "scale": ["50"],
             "flash": ["fw.bin"],
         }.get(name, [])
         args = ap.parse_args(["--bus", "1", name, *argv])

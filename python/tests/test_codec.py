@@ -24,6 +24,8 @@ def valid_args(m: Message) -> st.SearchStrategy[tuple[int, ...]]:
 def valid_write(draw: st.DrawFn) -> tuple[Message, tuple[int, ...], bool]:
     m = draw(st.sampled_from(MESSAGES))
     args = draw(valid_args(m))
+    if m.name == "GOTO" and args[2] & 0x08 and args[2] & 0x03:
+        args = (*args[:2], args[2] & ~0x08)  # PASS_THROUGH with a recalibration: BAD_OPTIONS
     if m.min_params < len(m.params) and draw(st.booleans()):
         return m, args[: m.min_params], False
     return m, args, draw(st.booleans())

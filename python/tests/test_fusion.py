@@ -152,8 +152,8 @@ def test_the_driver_checks_a_fix_before_sending_it() -> None:
 
 def test_a_board_without_fixes_says_so() -> None:
     _, board = lane()
-    board._caps = board.version().capabilities & ~board.version().capabilities.FIX
-    with pytest.raises(Unsupported, match="lacks FIX"):
+    board._capabilities = board.version().capabilities & ~board.version().capabilities.FIX
+    with pytest.raises(Unsupported, match="has no FIX"):
         board.fix(0, 0, None, 10, None, 0)
 
 

@@ -129,7 +129,7 @@ def test_a_post_to_the_server_runs_nothing() -> None:
         replies = _talk(server.address, post.encode())
         assert replies == [
             "err 71 'POST' is not a request of asserv-sim"
-            " (hello, time, sleep, truth, obstacles, rdwr)"
+            " (hello, time, sleep, truth, obstacles, lidar, rdwr)"
         ]
         # In lockstep the bytes of a transaction move the simulated time: none ran.
         assert sim.time_s == 0

@@ -141,6 +141,39 @@ function drawCross(x, y, color) {
 
 const EST = "rgb(211,47,47)";
 const TRU = "rgb(21,101,192)";
+const LIDAR = "rgb(255,143,0)";
+
+// Match play (issue 31): the queued points, the braking distance ahead, the lidar's hits.
+function drawMatch(m, r) {
+  if (!m || !r || r.est_x_mm === null) return;
+  const pts = [[r.est_x_mm, r.est_y_mm], ...m.queue];
+  drawPath(pts, "rgb(46,125,50)", [2, 4]);
+  for (const [x, y] of m.queue) {
+    const [px, py] = toCanvas(x, y);
+    fctx.beginPath(); fctx.arc(px, py, 4, 0, 2 * Math.PI);
+    fctx.fillStyle = "rgb(46,125,50)"; fctx.fill();
+  }
+  const o = view.info.outline;
+  const h = r.est_heading_deg * Math.PI / 180;
+  const front = o.length_mm / 2 + o.offset_x_mm;
+  const ax = r.est_x_mm + Math.cos(h) * front, ay = r.est_y_mm + Math.sin(h) * front;
+  const bx = ax + Math.cos(h) * m.braking_mm, by = ay + Math.sin(h) * m.braking_mm;
+  if (m.braking_mm > 0) {
+    const [pa, qa] = toCanvas(ax, ay), [pb, qb] = toCanvas(bx, by);
+    fctx.strokeStyle = "rgba(211,47,47,0.8)"; fctx.lineWidth = 4;
+    fctx.beginPath(); fctx.moveTo(pa, qa); fctx.lineTo(pb, qb); fctx.stroke();
+  }
+  fctx.fillStyle = LIDAR;
+  for (const [x, y] of m.lidar) {
+    const [px, py] = toCanvas(x, y);
+    fctx.fillRect(px - 1.5, py - 1.5, 3, 3);
+  }
+  if (m.paused) {
+    const [px, py] = toCanvas(r.est_x_mm, r.est_y_mm);
+    fctx.fillStyle = "rgb(211,47,47)"; fctx.font = "bold 14px sans-serif";
+    fctx.fillText("PAUSED", px + 12, py - 12);
+  }
+}
 
 function drawScene() {
   if (!view.info) return;
@@ -163,6 +196,7 @@ function drawScene() {
       fctx.stroke(); fctx.setLineDash([]);
     }
   }
+  drawMatch(view.state.match, r);
   view.frames += 1;
 }
 
@@ -260,6 +294,9 @@ function updatePanel() {
   text("outcome", st.outcome || (st.orders ? "under way" : "none yet"));
   text("orders", st.orders ? `(${st.orders} ${st.orders === 1 ? "order" : "orders"} so far)` : "");
   text("message", performance.now() < view.noticeUntil ? view.notice : (st.message || ""));
+  const m = st.match;
+  text("match", !m ? "-" : `${m.paused ? "PAUSED" : "running"}, ${m.pending} pending,` +
+    ` braking ${m.braking_mm} mm, scale ${m.scale_percent} %, ${m.lidar.length} lidar hits`);
   const target = st.target || view.pendingTarget;
   text("target", target ? `(${target[0].toFixed(0)}, ${target[1].toFixed(0)})` : "none");
   document.getElementById("play").textContent = st.paused ? "play" : "pause";
