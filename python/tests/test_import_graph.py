@@ -1,7 +1,8 @@
 """The modules of python/asserv import each other without a circle (issue "Structure").
 
 Every import between two modules of the package counts, at the top or inside a function: a
-circle means two modules that know each other's insides, whichever imports lazily.
+circle means two modules that know each other's insides, whichever imports lazily. An import
+for type hints only (under ``if TYPE_CHECKING:``) does not: nothing runs it.
 """
 
 from __future__ import annotations
@@ -22,7 +23,17 @@ def graph(pkg: Path) -> dict[str, set[str]]:
         rel = path.relative_to(pkg)
         node = rel.parts[0] if len(rel.parts) > 1 else path.stem
         depth = len(rel.parts) - 1  # 0: a top module, 1: a subpackage's
-        for n in ast.walk(ast.parse(path.read_text())):
+        tree = ast.parse(path.read_text())
+        typing_only = {
+            id(m)
+            for n in ast.walk(tree)
+            if isinstance(n, ast.If) and ast.unparse(n.test).endswith("TYPE_CHECKING")
+            for b in n.body
+            for m in ast.walk(b)
+        }
+        for n in ast.walk(tree):
+            if id(n) in typing_only:
+                continue
             if not isinstance(n, ast.ImportFrom) or n.level != depth + 1:
                 continue  # absolute, or within the subpackage
             targets = [n.module.split(".")[0]] if n.module else [a.name for a in n.names]
