@@ -6,6 +6,12 @@ bits, GOTO_REVERSE, GOTO_PANIER and STOP in their old frames, the settings, the 
 frames) drives a randomized robot at both rates; the whole trace (truth, estimate, set points,
 duties, status) and every byte read are hashed. ``EXPECTED`` holds the hashes the board gave
 before issue 31 (commit ab41e8a): any change of behaviour in the old protocol changes them.
+
+Two settings changed their behaviour on purpose since, and are sent as SET_VITESSE_ROT instead
+(drawn the same, so that the rest of the session is the same): SET_TIMEOUT, which only writes
+feed now and whose stop ends PB_MOTEUR (issue 28, item 5), and SET_FILTRE, whose new gains
+are taken in at the grip's pace in the middle of a move (issue 31, item 7). With them, and only
+with them, the hashes differ from ab41e8a's.
 """
 
 from __future__ import annotations
@@ -17,24 +23,24 @@ import pytest
 
 from asserv.sim import AVR_RATES, Simulator
 
-# Recorded with `python python/tests/test_annex_identity.py` on ab41e8a (before issue 31).
+# Recorded with this master on ab41e8a (before issues 28 and 31), its simulator built apart.
 EXPECTED: dict[tuple[int, bool], str] = {
-    (1, False): "8222462729dc26c6",
-    (1, True): "845d171f8db2f840",
-    (2, False): "b6391503956f109c",
-    (2, True): "74dc9a21c72a41d2",
-    (3, False): "87a82b83a7336176",
-    (3, True): "043619401507418d",
-    (4, False): "8f126f80a07a7b9e",
-    (4, True): "5918f31167db1b95",
-    (5, False): "e4a36a9d9017cfb5",
-    (5, True): "598a5bfb49f515f0",
-    (6, False): "c9628396be2ab252",
-    (6, True): "6f0f124cfc79f32f",
-    (7, False): "25abf2dcbd118129",
-    (7, True): "b8f0cc2d01088325",
-    (8, False): "8ce2a2097dc3ab85",
-    (8, True): "51cc5eaa4a40b359",
+    (1, False): "2e0cdfc572a5e6ea",
+    (1, True): "aa6172d5ddc73c8a",
+    (2, False): "a27920a2dea33de7",
+    (2, True): "4e02953a9699c88b",
+    (3, False): "c16a20f774ea48fd",
+    (3, True): "ba94733a1dc26a04",
+    (4, False): "59e3bcf3e781ce86",
+    (4, True): "1c634a1c1449a6c2",
+    (5, False): "8077a61c74ac270e",
+    (5, True): "f02b90ea7165aa3a",
+    (6, False): "084120dfe566a199",
+    (6, True): "518de2b7fb073b18",
+    (7, False): "dfa83cf8b293c2a4",
+    (7, True): "a52496219b724298",
+    (8, False): "1269647783b72b2b",
+    (8, True): "dddabe2749935288",
 }
 
 
@@ -54,15 +60,15 @@ def _frame(rng: random.Random) -> bytes:
         return bytes([6, rng.randint(5, 120), rng.randint(5, 200)])
     if k == 7:
         return bytes([7, rng.randint(5, 100)])
-    if k == 8:
-        return bytes([8, rng.randint(0, 2)])
+    if k == 8:  # SET_FILTRE's draw, sent as SET_VITESSE_ROT (above)
+        return bytes([7, 40 + rng.randint(0, 2)])
     if k == 9:  # a reply selection, read below
         return bytes([rng.choice([3, 4, 5, 14, 200])])
     if k == 10:  # malformed: too long, a reserved option bit, out of range
         return rng.choice(
             [bytes([0, 0, 0, 0, 0, 0x10]), bytes([0, 0, 0, 0, 0, 0x10, 1, 2]), bytes([8, 7])]
         )
-    return bytes([15, 0, rng.randint(0, 3)])
+    return bytes([7, 5 + rng.randint(0, 3)])  # SET_TIMEOUT's draw, sent as SET_VITESSE_ROT
 
 
 def trace_hash(seed: int, avr: bool) -> str:
