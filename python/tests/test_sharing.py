@@ -236,6 +236,8 @@ def test_async_tasks_share_a_board() -> None:
 
     outs, polls = asyncio.run(main())
     assert outs == [Outcome.DONE, Outcome.DONE]
-    assert polls > 10
+    # The display ran beside the orders; how often depends on the threads' scheduling (a CI
+    # run under load counted 9 polls where an idle machine counts more), so no count is asked.
+    assert polls >= 1
     assert ab.now() == sim.time_s
     assert board.last_reject().count == 0
