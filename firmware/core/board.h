@@ -262,7 +262,7 @@ int board_restart(struct board *b, const struct board_config *cfg, const struct 
 /* Install an odometry calibration, as SET_ODOMETRIE does (a port calls it after board_init()
  * with the one it stored). The pose is kept; the error radius keeps what it has accumulated and
  * uses the calibrated residual bounds from then on. Returns 0, or -EDOM when the factors fall
- * outside the odometry's ranges (nothing changes). Interrupt-safe: no (from the slow steps'
+ * outside the odometry's ranges (nothing changes). Interrupt-safe: no (from the planner's
  * context, or before the first tick). */
 int board_set_calibration(struct board *b, const struct board_calibration *cal);
 
@@ -281,8 +281,8 @@ static inline int board_period_ends(const struct board *b)
 	return (b->servo.tick & b->servo.slow_mask) == 0;
 }
 
-/* The estimate of the robot's pose (what POSITION reports, at full resolution): the slow steps'
- * own, as of the last period they ran. Interrupt-safe: from the slow steps' context. */
+/* The estimate of the robot's pose (what POSITION reports, at full resolution): the planner's
+ * own, as of the last period it ran. Interrupt-safe: from the planner's context. */
 static inline struct odometry_pose board_get_pose(const struct board *b)
 {
 	return b->planner.m.pose;
