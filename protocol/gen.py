@@ -134,6 +134,11 @@ def gen_header(t: dict[str, Any]) -> str:
         prefix = {"filter": ""}.get(e, e.upper() + "_")
         for v in t[e]:
             out.append(f"#define {prefix}{v['name']} {enum_code(v)} /* {v['doc']} */")
+        if e == "reject":  # every code a rejection may carry, NONE aside (all below 32)
+            mask = sum(1 << enum_code(v) for v in t[e] if enum_code(v) != 0)
+            out.append(
+                f"#define REJECT_KNOWN_MASK 0x{mask:08x}u /* bit n: code n is a rejection */"
+            )
     out += ["", "/* Index of each parameter in struct proto_msg.arg[]. */"]
     for m in msgs:
         for i, prm in enumerate(m.get("params", [])):

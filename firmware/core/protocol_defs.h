@@ -83,6 +83,7 @@
 #define REJECT_UNSUPPORTED 11 /* a message of an extension this build leaves out (its capability bit is clear) */
 #define REJECT_REFUSED_BUSY 16 /* BOOTLOADER was sent while an order runs (the motors driving): stop the robot first */
 #define REJECT_REFUSED_NO_POSE 13 /* a motion order after a reset that lost the pose (RESET_INFO): refused until SET_NEW_POS sets it */
+#define REJECT_KNOWN_MASK 0x00012ffeu /* bit n: code n is a rejection */
 
 /* filter codes. */
 #define FILTRE_STD 0 /* standard gains for trajectories */
