@@ -182,8 +182,10 @@ static void set_fix(struct planner *pl, const struct proto_msg *msg)
 
 	z.x_um = a[ARG_SET_FIX_X_MM] * UM_PER_MM;
 	z.y_um = a[ARG_SET_FIX_Y_MM] * UM_PER_MM;
-	/* 0.01 degree: 2^32 / 36000 turn32 each, in 64 bits */
-	z.heading_turn32 = (uint32_t)(((int64_t)a[ARG_SET_FIX_HEADING_CDEG] << 32) / 36000);
+	/* 0.01 degree: 2^32 / 36000 turn32 each, in 64 bits (a product: the angle may be negative,
+	 * and a left shift of a negative value is undefined) */
+	z.heading_turn32 =
+		(uint32_t)((int64_t)a[ARG_SET_FIX_HEADING_CDEG] * ((int64_t)1 << 32) / 36000);
 	z.sigma_um = (uint32_t)a[ARG_SET_FIX_SIGMA_MM] * UM_PER_MM;
 	/* 0.1 degree: 2^32 / 3600 turn32 each, rounded up (the noise is never understated) */
 	z.sigma_turn32 =
