@@ -24,6 +24,9 @@ void fix_init(struct fix *f, uint16_t slow_hz)
 		f->waiting[i] = (struct fix_meas){0, 0, 0, 0, 0, 0};
 		f->waiting_t[i] = 0;
 	}
+#if CONFIG_FIX
+	f->carry = (struct fix_carry){{0, 0, 0, 0}, 0, 0, 0, 0, 0, 0, 0, 0};
+#endif
 	f->info = (struct fix_info){0, 0, 0, FIX_RESULT_NONE, 0};
 	for (uint8_t i = 0; i < FIX_HISTORY_N; i++)
 		f->h[i] = (struct fix_entry){0, 0, 0, 0};
@@ -39,18 +42,26 @@ static void push(struct fix *f, const struct odometry_pose *pose, uint32_t radiu
 	if (f->count < FIX_HISTORY_N)
 		f->count++;
 	f->countdown = f->spacing;
+	if (f->carry.left) /* the entries still to move are one further from the newest */
+		f->carry.next++;
 }
+
+static void carry_some(struct fix *f);
 
 static uint8_t fuse(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
 		    struct uncertainty *u, const struct fix_meas *z, uint32_t t);
 
 void fix_record(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
-		struct uncertainty *u)
+		struct uncertainty *u, uint8_t busy)
 {
 	f->now++;
 	if (--f->countdown == 0)
 		push(f, pose, u->radius_um);
-	if (f->pending && uncertainty_fuse_ready(u)) {
+	if (f->carry.left) {
+		carry_some(f);
+		return; /* the next fix is compared with a history that has moved */
+	}
+	if (f->pending && !busy && uncertainty_fuse_ready(u)) {
 		uint8_t i = f->first;
 
 		f->first = (uint8_t)((i + 1u) % FIX_QUEUE);
@@ -73,6 +84,13 @@ static struct fix_entry lerp(const struct fix_entry *a, const struct fix_entry *
 
 	if (den == 0 || num == 0)
 		return e;
+	if (num == den) { /* b itself, without the divisions: the same values */
+		e.x_um = b->x_um;
+		e.y_um = b->y_um;
+		e.heading_turn32 = b->heading_turn32;
+		e.radius_um = a->radius_um < b->radius_um ? a->radius_um : b->radius_um;
+		return e;
+	}
 	e.x_um += (int32_t)(((int64_t)b->x_um - a->x_um) * num / den);
 	e.y_um += (int32_t)(((int64_t)b->y_um - a->y_um) * num / den);
 	e.heading_turn32 +=
@@ -139,8 +157,30 @@ static void innovation(const struct fix *f, const struct fix_meas *z, const stru
 	uf->gate_q8 = f->outliers_in_a_row >= FIX_YIELD_AFTER ? 0 : FIX_GATE_Q8;
 }
 
-/* Fused: the estimate now and the history since then moved as one rigid motion, and the radius
- * they recorded lowered by what the fix took off it. */
+/* Up to FIX_CARRY_PER_PERIOD of the history entries still to move with the last fix. */
+static void carry_some(struct fix *f)
+{
+	struct fix_carry *k = &f->carry;
+	struct uncertainty_correction c = {k->dx_um, k->dy_um, k->dheading_turn32, 0};
+	uint8_t n = k->left < FIX_CARRY_PER_PERIOD ? k->left : FIX_CARRY_PER_PERIOD;
+
+	if ((uint32_t)k->next + k->left > f->count) /* the oldest ones left the history */
+		k->left = k->next < f->count ? (uint8_t)(f->count - k->next) : 0;
+	if (n > k->left)
+		n = k->left;
+	for (uint8_t j = 0; j < n; j++) {
+		struct fix_entry *e = entry(f, (uint32_t)k->next + j);
+
+		carry(e, &k->then, &c, k->sin_q30, k->cos_q30);
+		e->radius_um = e->radius_um > k->shrink_um ? e->radius_um - k->shrink_um : 0;
+	}
+	k->next = (uint8_t)(k->next + n);
+	k->left = (uint8_t)(k->left - n);
+}
+
+/* Fused: the estimate now and the history since then moved as one rigid motion (the estimate at
+ * once, the history over the next periods: carry_some()), and the radius they recorded lowered
+ * by what the fix took off it. */
 static void correct(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
 		    const struct fix_entry *then, const struct uncertainty_correction *c,
 		    uint32_t newer, uint32_t shrink_um)
@@ -149,12 +189,8 @@ static void correct(struct fix *f, struct odometry_position *pos, struct odometr
 	struct fix_entry now_e = {pose->x_um, pose->y_um, pose->heading_turn32, 0};
 
 	fx_sincos((uint32_t)c->dheading_turn32, &s, &co);
-	for (uint32_t j = 0; j < newer; j++) {
-		struct fix_entry *e = entry(f, j);
-
-		carry(e, then, c, s, co);
-		e->radius_um = e->radius_um > shrink_um ? e->radius_um - shrink_um : 0;
-	}
+	f->carry = (struct fix_carry){*then, c->dx_um,  c->dy_um, c->dheading_turn32, s,
+				      co,    shrink_um, 0,        (uint8_t)newer};
 	carry(&now_e, then, c, s, co);
 	odometry_set_position(pos, now_e.x_um, now_e.y_um);
 	pose->x_um = now_e.x_um;
@@ -226,6 +262,7 @@ void fix_forget(struct fix *f, const struct odometry_pose *pose, const struct un
 		(void)count(f, FIX_RESULT_STALE, 0);
 	f->forget = f->now;
 	f->count = 0;
+	f->carry.left = 0; /* what it would move is forgotten */
 	push(f, pose, u->radius_um);
 }
 

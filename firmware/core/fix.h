@@ -26,11 +26,27 @@
 #define FIX_YIELD_AFTER 5
 /* Fixes that may wait for the error radius at once (20 Hz with jitter: 2 in 20 ms). */
 #define FIX_QUEUE (CONFIG_FIX ? 4 : 1)
+/* History entries a planner period moves with a fused fix's correction: the estimate now moves
+ * at once, the entries since the measured time over the next periods (a 500 ms old fix's 50
+ * entries in 4 periods at 1 kHz), and the next fix waits for them. One period's carrying stays
+ * within the CPU budget (bench/stm32.py --fixes). */
+#define FIX_CARRY_PER_PERIOD 16
 
 struct fix_entry {
 	int32_t x_um, y_um;
 	uint32_t heading_turn32;
 	uint32_t radius_um; /* the error radius then, for the growth since */
+};
+
+/* A fused fix's correction, still to be carried to the history entries since its time. */
+struct fix_carry {
+	struct fix_entry then;    /* the estimate at the measured time, before the fix */
+	int32_t dx_um, dy_um;     /* the correction there */
+	int32_t dheading_turn32;  /* and the turn about it */
+	int32_t sin_q30, cos_q30; /* of dheading_turn32 */
+	uint32_t shrink_um;       /* what the fix took off the error radius */
+	uint8_t next;             /* the next entry to move, counted from the newest */
+	uint8_t left;             /* entries still to move (0: none) */
 };
 
 /* A fix as SET_FIX carries it, in the core's units. */
@@ -68,26 +84,33 @@ struct fix {
 	uint32_t waiting_t[FIX_QUEUE];
 	uint8_t first;
 	uint8_t pending;
+#if CONFIG_FIX
+	struct fix_carry carry; /* the last fused fix's, over the next periods */
+#endif
 	struct fix_info info;
 };
 
 /* Power-on: no history, no fix. slow_hz: the planner's rate. Interrupt-safe: no. */
 void fix_init(struct fix *f, uint16_t slow_hz);
 
-/* Once a planner period, after the pose and the error radius: keeps the estimate of this
- * period in the history, and fuses a fix that waited for the radius's batch to end.
+/* Once a planner period, after the orders (their set points from the estimate before a fix:
+ * a fused fix re-aims them at the next period): keeps the estimate of this period in the
+ * history, moves the history with the last fix's correction (FIX_CARRY_PER_PERIOD entries), and
+ * when that is done, fuses a fix that waited for the radius's batch to end, unless busy (the
+ * period already did heavy work: a fix then waits for the next one).
  * Interrupt-safe: no (the planner's context). */
 #if CONFIG_FIX
 void fix_record(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
-		struct uncertainty *u);
+		struct uncertainty *u, uint8_t busy);
 #else
 static inline void fix_record(struct fix *f, struct odometry_position *pos,
-			      struct odometry_pose *pose, struct uncertainty *u)
+			      struct odometry_pose *pose, struct uncertainty *u, uint8_t busy)
 {
 	(void)f;
 	(void)pos;
 	(void)pose;
 	(void)u;
+	(void)busy;
 }
 #endif
 

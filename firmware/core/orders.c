@@ -513,6 +513,9 @@ static void step_goto(struct orders *o, const struct orders_measure *m)
 		return;
 	}
 	o->aim_wait = o->aim_period;
+#if CONFIG_FIX
+	o->aimed = 1;
+#endif
 	if (within_freeze(o, &m->pose)) {
 		o->frozen = 1;
 		return;
@@ -737,6 +740,9 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 {
 	uint8_t reason = END_REASON_NONE;
 
+#if CONFIG_FIX
+	o->aimed = 0;
+#endif
 	if (o->state != ORDER_STATE_IDLE) {
 		if (!o->paused)
 			reason = update_state(o, m);

@@ -7,6 +7,7 @@
 
 #include <stdint.h>
 
+#include "feature_set.h"
 #include "odometry.h"
 #include "profile.h"
 
@@ -169,7 +170,23 @@ struct orders {
 	uint8_t scale_percent;
 	int32_t paused_target_um[2];
 	int32_t through_um;
+#if CONFIG_FIX
+	/* The last orders_update() re-aimed a GOTO: a heavy period, which a position fix's fusion
+	 * does not share (planner.c, step 6). */
+	uint8_t aimed;
+#endif
 };
+
+/* 1 when the last orders_update() re-aimed a GOTO (0 where the fixes are compiled out). */
+static inline uint8_t orders_aimed(const struct orders *o)
+{
+#if CONFIG_FIX
+	return o->aimed;
+#else
+	(void)o;
+	return 0;
+#endif
+}
 
 /* Power-on: no order, holding (dist_um, angle_um); limits 10 cm/s, 40 cm/s^2 on both axes;
  * updated rate_hz times a second; count_um_s: the speed one free-wheel count over an update

@@ -388,7 +388,7 @@ static void sp_step(struct orders_axis *step, const struct orders_axis *from,
 	step->acc_um_s2 = 0;
 }
 
-/* Step 6: after a motor problem the motors stay off until the next order: holding the position
+/* Step 7: after a motor problem the motors stay off until the next order: holding the position
  * would drive the same stalled, slipping or overloaded motor again. Nothing holds the robot
  * then, so the set points follow it and the next order starts from where it is. Then the set
  * points, from the last ones, where the servo is at the hand-over (it gets there at the
@@ -429,7 +429,6 @@ static void planner_steps(struct board *b)
 			   pl->m.pose.heading_turn32);
 	silent_wheels(pl, cfg, travel_q16, p->in.motor_count);
 	uncertainty_advance(&pl->uncertainty, b->servo.slow_mask); /* its stages as fast in time */
-	fix_record(&pl->fix, &pl->position, &pl->m.pose, &pl->uncertainty); /* and a waiting fix */
 
 	/* 2. The switches; line crossings. */
 	pl->shocks = p->in.shocks;
@@ -458,7 +457,14 @@ static void planner_steps(struct board *b)
 	motion_after(pl);
 	planner_update_status(pl);
 
-	/* 6. The hand-over's draft: motors off after a motor problem, the set points. */
+	/* 6. The history of estimates, and a position fix that waited (fix.c): after the orders, so
+	 * that a fix's correction and the orders' re-aim at it fall in two periods; and not in a
+	 * period that re-aimed, when re-aims are spread (a GOTO at 1 kHz: every 4th period), so
+	 * that the two heaviest steps never add up (bench/stm32.py --fixes). */
+	fix_record(&pl->fix, &pl->position, &pl->m.pose, &pl->uncertainty,
+		   (uint8_t)(orders_aimed(&pl->orders) && pl->orders.aim_period > 1));
+
+	/* 7. The hand-over's draft: motors off after a motor problem, the set points. */
 	step_handover(pl, mb, cfg->slow_shift);
 }
 

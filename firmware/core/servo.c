@@ -236,7 +236,7 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 	}
 
 	/* 6. Control: feed-forward + PID on both axes, mixed into the motor duties; none after a
-	 * motor problem (planner.c, step 6). */
+	 * motor problem (planner.c, step 7). */
 	if (s->motors_off)
 		control_off(&s->control);
 	else

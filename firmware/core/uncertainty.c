@@ -903,8 +903,12 @@ static void carry_cov(struct cov3 *m, int32_t dx_um, int32_t dy_um, int sign)
 {
 	int64_t a = -(int64_t)dy_um / UNCERTAINTY_POS_UM * sign; /* [2^-16] */
 	int64_t b = (int64_t)dx_um / UNCERTAINTY_POS_UM * sign;
-	int64_t at = (a * m->p[2][2]) >> 16, bt = (b * m->p[2][2]) >> 16;
-	int64_t xt = m->p[0][2], yt = m->p[1][2];
+	int64_t at, bt, xt = m->p[0][2], yt = m->p[1][2];
+
+	if (a == 0 && b == 0) /* F = I: the same covariance, without the products */
+		return;
+	at = (a * m->p[2][2]) >> 16;
+	bt = (b * m->p[2][2]) >> 16;
 
 	m->p[0][0] += 2 * ((a * xt) >> 16) + ((a * at) >> 16);
 	m->p[1][1] += 2 * ((b * yt) >> 16) + ((b * bt) >> 16);
@@ -917,12 +921,13 @@ static void carry_cov(struct cov3 *m, int32_t dx_um, int32_t dy_um, int sign)
 /* The correlations within what the variances allow (after the variances were lowered). */
 static void shrink_cov(struct cov3 *m)
 {
+	int64_t root[3]; /* each variance's root, once */
+
+	for (uint8_t j = 0; j < 3; j++)
+		root[j] = (int64_t)fx_isqrt32_up((uint32_t)(m->p[j][j] > 0 ? m->p[j][j] : 0));
 	for (uint8_t j = 0; j < 3; j++)
 		for (uint8_t k = (uint8_t)(j + 1u); k < 3; k++) {
-			int64_t lim =
-				(int64_t)fx_isqrt32_up(
-					(uint32_t)(m->p[j][j] > 0 ? m->p[j][j] : 0)) *
-				(int64_t)fx_isqrt32_up((uint32_t)(m->p[k][k] > 0 ? m->p[k][k] : 0));
+			int64_t lim = root[j] * root[k];
 
 			lim = lim * 15 / 16; /* strictly inside: the matrix stays positive */
 			if (m->p[j][k] > lim)
@@ -969,21 +974,23 @@ static int32_t var_back(int64_t v, int32_t cap)
 	return v < 0 ? 0 : v > cap ? cap : (int32_t)v;
 }
 
-/* A covariance term back into 32 bits, within +-sqrt(a b) (a valid correlation). */
-static int32_t cov_back(int64_t v, int32_t a, int32_t b)
+/* A covariance term back into 32 bits, within +-root_a root_b (a valid correlation: the roots
+ * of the two variances, rounded up). */
+static int32_t cov_back(int64_t v, uint32_t root_a, uint32_t root_b)
 {
-	int64_t lim = (int64_t)fx_isqrt32_up((uint32_t)a) * fx_isqrt32_up((uint32_t)b);
+	int64_t lim = (int64_t)root_a * root_b;
 
 	return (int32_t)(v > lim ? lim : v < -lim ? -lim : v);
 }
 
 /* The innovations in the covariance's units, rounded; 1 when one is beyond any use (264 m). */
+#define FAR_UNITS ((int64_t)1 << 26)
 static int innovations(const struct uncertainty_fix *f, int64_t nu[3])
 {
 	nu[0] = div_round_s64(f->dx_um, UNCERTAINTY_POS_UM);
 	nu[1] = div_round_s64(f->dy_um, UNCERTAINTY_POS_UM);
 	nu[2] = fx_shr_round64((int64_t)f->dheading_turn32 * TWO_PI_Q16, 32);
-	return nu[0] > (1 << 26) || nu[0] < -(1 << 26) || nu[1] > (1 << 26) || nu[1] < -(1 << 26);
+	return nu[0] > FAR_UNITS || nu[0] < -FAR_UNITS || nu[1] > FAR_UNITS || nu[1] < -FAR_UNITS;
 }
 
 /* Until the stages refresh it, the radius at least what the fused covariance gives: its largest
@@ -1016,6 +1023,7 @@ int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 	int64_t rt = (int64_t)heading_units(f->sigma_turn32);
 	uint64_t d2 = 0;
 	int64_t g = 0;
+	uint32_t rx, ry, rh; /* the fused variances' roots */
 	int far = innovations(f, nu);
 
 	c->d2_q8 = UINT32_MAX;
@@ -1043,9 +1051,12 @@ int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
 	w.xx = var_back(m.p[0][0], VAR_CAP);
 	w.yy = var_back(m.p[1][1], VAR_CAP);
 	w.tt = var_back(m.p[2][2], TT_CAP);
-	w.xy = cov_back(m.p[0][1], w.xx, w.yy);
-	w.xt = cov_back(m.p[0][2], w.xx, w.tt);
-	w.yt = cov_back(m.p[1][2], w.yy, w.tt);
+	rx = fx_isqrt32_up((uint32_t)w.xx);
+	ry = fx_isqrt32_up((uint32_t)w.yy);
+	rh = fx_isqrt32_up((uint32_t)w.tt);
+	w.xy = cov_back(m.p[0][1], rx, ry);
+	w.xt = cov_back(m.p[0][2], rx, rh);
+	w.yt = cov_back(m.p[1][2], ry, rh);
 	/* The growth since the measured time, as an independent variance (sigma = growth / k): the
 	 * fixes in flight each add theirs, which a sum of sigmas would count over and over. */
 	if (f->growth_um) {

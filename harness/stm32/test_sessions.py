@@ -122,3 +122,44 @@ def test_any_bus_traffic_is_bit_identical(elf: Any, ops: list[tuple[str, Any, bo
                 dev.advance_ns(arg * 1000)
         dev.advance_ns(2_000_000)
     assert_same_runs(b, r)
+
+
+_FIXES = st.lists(
+    st.tuples(
+        st.integers(0, 60),  # ms before the fix is sent, after the previous one
+        st.integers(-60, 60),  # x off the estimate [mm]
+        st.integers(-60, 60),  # y
+        st.integers(-18000, 18000),  # heading [0.01 degree]: any sign
+        st.integers(1, 80),  # sigma [mm]
+        st.integers(0, 60),  # sigma of the heading [0.1 degree]; 0: none
+        st.integers(0, 500),  # age [ms]
+    ),
+    min_size=1,
+    max_size=6,
+)
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(fixes=_FIXES, seed=st.integers(0, 2**16))
+def test_position_fixes_are_fused_identically(
+    elf: Any, fixes: list[tuple[int, ...]], seed: int
+) -> None:
+    """SET_FIX on a randomized robot in a GOTO, at random moments, ages, noises and headings
+    (outliers among them): the fusion (the error radius's square roots from
+    firmware/arch/armv7m on the binary, the reference's on the host) leaves the same bits."""
+    from board import robot
+
+    b, r = pair(elf, *robot(seed=seed, randomize=True))
+    for dev in (b, r):
+        board = Board(dev.bus)
+        board.goto(400, -300)
+        dev.sleep(0.3)
+        for wait_ms, dx, dy, cdeg, sigma, sigma_h, age in fixes:
+            dev.sleep(wait_ms / 1000)
+            pose = board.position()
+            board.fix(pose.x_mm + dx, pose.y_mm + dy, cdeg / 100, sigma, sigma_h / 10, age)
+        dev.sleep(0.2)
+        board.fix_info()
+    assert_same_runs(b, r)
+    info = r.board.planner.fix.info
+    assert info.fused + info.outliers + info.too_old == len(fixes)  # each fix has its result

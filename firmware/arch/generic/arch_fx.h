@@ -95,6 +95,13 @@ static inline uint32_t fx_udiv_frac20(uint32_t q, uint32_t rem, uint32_t den)
 	return q;
 }
 
+#ifdef ARCH_FX_ISQRT32_REM
+/* An arch folder's kernel (firmware/arch/armv7m), with the same bits. */
+static inline uint32_t fx_isqrt32_rem(uint32_t *rem)
+{
+	return ARCH_FX_ISQRT32_REM(rem);
+}
+#else
 /* Digit by digit, one step per bit of the root; each step's choice applied through a mask (all
  * ones when the bit belongs to the root) rather than a branch: the choices are as good as random,
  * and a mispredicted branch costs a PC more than the two extra operations. */
@@ -116,6 +123,7 @@ static inline uint32_t fx_isqrt32_rem(uint32_t *rem)
 	*rem = v;
 	return res;
 }
+#endif
 
 static inline uint32_t fx_mul_q31_approx(uint32_t d, uint32_t m)
 {
