@@ -195,7 +195,7 @@ def flash_figures(elf: str) -> None:
 def sizes(b: Stm32Board) -> tuple[int, int]:
     s = b.cpu.sections
     flash = sum(s.get(n, 0) for n in (".isr_vector", ".text", ".ARM.exidx", ".data"))
-    ram = s.get(".data", 0) + s.get(".bss", 0)
+    ram = s.get(".data", 0) + s.get(".bss", 0) + s.get(".noinit", 0)
     return flash, ram
 
 
@@ -280,7 +280,10 @@ def main() -> int:
         f"asserv_stm32.elf on an STM32F446RE at {SYSCLK_HZ // 1_000_000} MHz (unicorn): control "
         "at 1000 Hz, one rate (slow_shift 0), motor encoders 2048 counts/turn in hardware"
     )
-    print(f"flash {flash} bytes (vectors + .text + .data); RAM {ram} bytes static (.data + .bss)")
+    print(
+        f"flash {flash} bytes (vectors + .text + .data); "
+        f"RAM {ram} bytes static (.data + .bss + .noinit)"
+    )
     print(f"{b.ticks} ticks ({b.ticks / 1000:.2f} s), 2.4 m at 1 m/s, 1 m/s^2")
     if args.fixes:
         print(f"with a SET_FIX every 100 ms: {board.fix_info()}")

@@ -125,13 +125,15 @@ int board_restart(struct board *b, const struct board_config *cfg, const struct 
 	pl->reset.cause = cause;
 	if (cause != RESET_CAUSE_POWER_ON) {
 		pl->reset.count = valid ? (uint8_t)(k.resets < 255u ? k.resets + 1u : 255u) : 1u;
-		if (valid && !k.pose_lost) {
+		if (CONFIG_KEEP_POSE && valid && !k.pose_lost) {
 			resume(pl, cfg, &k, down_ms);
 		} else { /* nothing kept: the estimate is the power-on one, the truth unknown */
 			uncertainty_reset(&pl->uncertainty, UINT32_MAX, (uint32_t)1 << 31);
 			pl->reset.pose_lost = 1;
 		}
-		if (!valid || k.busy) { /* abandoned, or may have been */
+		/* abandoned, or may have been (a build without the record's periodic write does
+		 * not know) */
+		if (!CONFIG_KEEP_POSE || !valid || k.busy) {
 			pl->status |= STATUS_PB_MOTEUR;
 			pl->orders.end_reason = END_REASON_RESET;
 		}

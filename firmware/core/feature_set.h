@@ -27,6 +27,15 @@
 #define CONFIG_MOTION_CORNERS 1 /* PASS_THROUGH, SET_CORNER */
 #endif
 
+/* The pose and the radius kept across a reset that keeps the RAM (keep.h): the planner seals
+ * its record every period. 0 (the AVR, whose budget has no room for the record's write): after
+ * any reset but a power-on the pose is lost (motion orders refused until SET_NEW_POS) and the
+ * order reported abandoned; the cause and the count are kept all the same, and VERSION's
+ * KEEP_POSE bit is clear. */
+#ifndef CONFIG_KEEP_POSE
+#define CONFIG_KEEP_POSE 1
+#endif
+
 /* Any of match play: without one, the motion module has nothing to follow or report. */
 #define CONFIG_MOTION_ANY                                                                          \
 	(CONFIG_MOTION_PAUSE || CONFIG_MOTION_SPEED_SCALE || CONFIG_MOTION_QUEUE ||                \

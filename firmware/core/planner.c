@@ -474,7 +474,7 @@ void board_slow(struct board *b)
 
 	arch_barrier(); /* the snapshot after slow_due said it is there */
 	planner_steps(b);
-	if (b->planner.reset.tracked) /* 8. What a reset keeps (keep.h). */
+	if (CONFIG_KEEP_POSE && b->planner.reset.tracked) /* 8. What a reset keeps (keep.h). */
 		board_keep_save(&b->planner, &b->keep);
 	/* 7. The reply snapshot, made public at the hand-over with the servo's new state. */
 	board_publish(&b->planner, &mb->up[mb->up_index ^ 1u], &b->proto);

@@ -102,8 +102,11 @@ uint8_t proto_pack_reply(const struct proto *p, uint8_t designation, const struc
 	case PROTO_VERSION:
 		out[n++] = PROTO_VERSION_MAJOR;
 		out[n++] = PROTO_VERSION_MINOR;
-		n += put_u16(&out[n], (uint16_t)(CAP_BUILD | (s->calibrated ? CAP_CALIBRATED : 0u) |
-						 (s->reset.tracked ? CAP_RESET_INFO : 0u)));
+		n += put_u16(
+			&out[n],
+			(uint16_t)(CAP_BUILD | (s->calibrated ? CAP_CALIBRATED : 0u) |
+				   (s->reset.tracked ? CAP_RESET_INFO : 0u) |
+				   (s->reset.tracked && CONFIG_KEEP_POSE ? CAP_KEEP_POSE : 0u)));
 		break;
 	case PROTO_LAST_REJECT:
 		out[n++] = p->last_reject;

@@ -1259,8 +1259,8 @@ static int read_elf(struct avrsim *h, const char *path, uint32_t *layout_addr)
 			h->text_size = (uint32_t)sh.sh_size;
 		if (name && !strcmp(name, ".data"))
 			h->data_size = (uint32_t)sh.sh_size;
-		if (name && !strcmp(name, ".bss"))
-			h->bss_size = (uint32_t)sh.sh_size;
+		if (name && (!strcmp(name, ".bss") || !strcmp(name, ".noinit")))
+			h->bss_size += (uint32_t)sh.sh_size; /* the board is in .noinit (main.c) */
 		if (sh.sh_type != SHT_SYMTAB)
 			continue;
 		Elf_Data *d = elf_getdata(scn, NULL);
@@ -1344,6 +1344,7 @@ struct avrsim *avrsim_open(const char *elf_path, uint32_t i2c_hz)
 				 (the harness reads OCR1x itself) */
 	avr->sleep = no_sleep;
 	avr_load_firmware(avr, &h->fw);
+	avr->data[m1284p.mcusr] = (uint8_t)(1u << m1284p.porf); /* a power-on */
 	avr->avcc = avr->vcc = avr->aref = AVR_ADC_VREF_MV;
 
 	lay = (uint16_t *)&h->layout;
@@ -1490,6 +1491,50 @@ int avrsim_eeprom_write(struct avrsim *h, uint16_t offset, const uint8_t *buf, u
 		return -1;
 	memcpy(ee + offset, buf, n);
 	return 0;
+}
+
+/* xorshift32 (Marsaglia 2003): the bytes of a RAM the reset did not keep. */
+static uint32_t xorshift32(uint32_t *x)
+{
+	*x ^= *x << 13;
+	*x ^= *x >> 17;
+	*x ^= *x << 5;
+	return *x;
+}
+
+int avrsim_reset(struct avrsim *h, uint8_t mcusr, int keep_ram, uint32_t seed)
+{
+	avr_t *avr = h->avr;
+	uint64_t cycle = avr->cycle;
+	uint16_t lo = m1284p.ramstart, n = (uint16_t)(m1284p.ramend + 1u - lo);
+	uint8_t *ram = malloc(n);
+	uint32_t x = seed | 1u;
+
+	if (!ram || h->opi < h->nops || h->held || h->wait_release) {
+		free(ram);
+		fprintf(stderr, "avrsim: reset with the bus busy, or out of memory\n");
+		return -1;
+	}
+	memcpy(ram, avr->data + lo, n);
+	avr_reset(avr); /* its timers too: the harness's wake-up is armed again below */
+	avr->cycle = cycle;
+	if (!keep_ram)
+		for (uint16_t i = 0; i < n; i++)
+			ram[i] = (uint8_t)xorshift32(&x);
+	memcpy(avr->data + lo, ram, n);
+	free(ram);
+	avr->data[m1284p.mcusr] = mcusr;
+	h->wake_armed = 0;
+	/* The reset cleared the PINx registers: the wires' levels again, and the analog inputs. */
+	for (int p = 0; p < 4; p++)
+		for (int b = 0; b < 8; b++)
+			if (h->port[p]->external.pull_mask >> b & 1u)
+				avr_raise_irq(h->pin[p][b],
+					      h->port[p]->external.pull_value >> b & 1u);
+	for (int ch = 0; ch < 2; ch++)
+		if (h->adc_mv[ch] != 0xFFFFFFFFu)
+			avr_raise_irq(h->adc[ch], h->adc_mv[ch]);
+	return reported(h);
 }
 
 struct avrsim *avrsim_power_cycle(struct avrsim *h)

@@ -97,6 +97,19 @@ int avrsim_eeprom_write(struct avrsim *h, uint16_t offset, const uint8_t *buf, u
  * message on stderr. */
 struct avrsim *avrsim_power_cycle(struct avrsim *h);
 
+/* A reset now, between two instructions, that leaves MCUSR's flags mcusr (AVRSIM_*RF: the
+ * datasheet's 10.2) as the chip's reset logic would: the registers and I/O to their reset values
+ * (the PWM off at once), the program from address 0, while the physics, the encoder wires and
+ * the inputs go on in real time (the firmware's start-up takes its cycles). The RAM keeps its
+ * contents (keep_ram 1), or is filled with bytes drawn from seed (the supply fell below what
+ * holds it). The bus must be idle. Returns 0, or -1 with a message on stderr. */
+#define AVRSIM_PORF 0x01u
+#define AVRSIM_EXTRF 0x02u
+#define AVRSIM_BORF 0x04u
+#define AVRSIM_WDRF 0x08u
+#define AVRSIM_JTRF 0x10u
+int avrsim_reset(struct avrsim *h, uint8_t mcusr, int keep_ram, uint32_t seed);
+
 /* Attaches the physics before the first control period (the robot at rest: the board's counts
  * at reset are the simulator's). sc, f are copied. Returns 0 or -1. */
 int avrsim_physics(struct avrsim *h, const struct sim_config *sc, const struct sim_field *f,
@@ -195,7 +208,7 @@ void avrsim_profile(struct avrsim *h, int on, int tick_only);
 void avrsim_profile_report(const struct avrsim *h, FILE *out, enum avrsim_part part, int top,
 			   uint64_t per, int worst);
 
-/* Flash and RAM of the binary (bytes): .text + .data, .data + .bss. */
+/* Flash and RAM of the binary (bytes): .text + .data, .data + .bss + .noinit. */
 void avrsim_sizes(const struct avrsim *h, uint32_t *flash, uint32_t *ram);
 
 /* The duty the physics receives for compare counts and a direction pin (high = backward),

@@ -368,8 +368,8 @@ int main(int argc, char **argv)
 		printf("two rates: the servo at %u Hz in the control timer's interrupt, the slow "
 		       "steps at %u Hz in the main loop (slow_shift %u)\n",
 		       bc.tick_hz, bc.tick_hz >> slow_shift, slow_shift);
-	printf("flash %u bytes (.text + .data); RAM %u bytes static (.data + .bss) + %u bytes of "
-	       "stack at most = %u of 16384\n",
+	printf("flash %u bytes (.text + .data); RAM %u bytes static (.data + .bss + .noinit) + %u "
+	       "bytes of stack at most = %u of 16384\n",
 	       flash, ram, (unsigned)(m1284p.ramend - all.st.sp_min),
 	       (unsigned)(ram + m1284p.ramend - all.st.sp_min));
 	print_phase("the whole move", &all, bc.tick_hz, slow_shift);

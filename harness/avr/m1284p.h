@@ -13,6 +13,8 @@ struct m1284p_regs {
 	uint16_t twcr, twsr, twdr, twar;
 	uint8_t twint, twea, twsta, twsto, twen, twie;
 	uint8_t vec_twi, vec_timer3_compa, vec_pcint[4]; /* vec_pcint[n]: PCINTn_vect */
+	uint16_t mcusr;                                  /* the reset flags */
+	uint8_t porf, extrf, borf, wdrf, jtrf;
 	uint16_t ramstart, ramend;
 	uint32_t flashend;
 };

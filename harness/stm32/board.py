@@ -35,6 +35,7 @@ IRQ_I2C1_EV, IRQ_I2C1_ER = 31, 32
 PWM_PERIOD = 9000  # TIM1 ARR + 1 at 180 MHz, 20 kHz (stm32_clock.h)
 ADC_CH_LEFT, ADC_CH_RIGHT = 4, 8
 TICK_NS = 1_000_000
+RESET_POWER_ON = 0  # RESET_CAUSE_POWER_ON (protocol/messages.toml)
 SYSCLK_HZ = 180_000_000
 
 
@@ -162,7 +163,8 @@ class Reference(_Lockstep):
         self.inp = ffi.new("struct board_inputs *")
         self.out = ffi.new("struct board_outputs *")
         self._inputs()
-        if lib.board_init(self.board, bc, self.inp):
+        # As the port starts at power-on (main.c): board_restart(), which keeps its record.
+        if lib.board_restart(self.board, bc, self.inp, RESET_POWER_ON, 0):
             raise ValueError("the board refused this configuration")
         self.proto = ffi.addressof(self.board, "proto")
         self.duty = (0, 0)
@@ -241,6 +243,7 @@ class Stm32Board(_Lockstep):
         self.lost_ticks = 0
         self.boot_stall_ns = 0
         self.power_cycles = 0
+        self.resets = 0  # reset() calls
         self.gpio = {p: Gpio(0x4002_0000 + 0x400 * i) for i, p in enumerate("ABC")}
         self.tim = {
             1: Timer(0x4001_0000, advanced=True),
@@ -269,7 +272,7 @@ class Stm32Board(_Lockstep):
         cpu.irq_lines.append(self._i2c_lines)
         self.config_override = bc
         if bc is not None:
-            at = cpu.symbols["board_init"] & ~1
+            at = cpu.symbols["board_restart"] & ~1
             cpu.uc.hook_add(UC_HOOK_CODE, self._inject_config, begin=at, end=at)
         self.encoders = {
             # (timer, physics field, side): the free wheels on TIM3/TIM4, motors on TIM5/TIM2
@@ -310,7 +313,33 @@ class Stm32Board(_Lockstep):
         progress stops part way (Flash.cut)."""
         self.watchdog_resets += 1
         self.flash.cut(Random(self.watchdog_resets))
-        self._restart()
+        self._restart(Rcc.IWDGRSTF | Rcc.PINRSTF)
+
+    def reset(self, flags: int, scramble: Random | None = None, down_ns: int = 0) -> None:
+        """A reset now, between two events, that leaves RCC_CSR's reset ``flags`` (Rcc's, e.g.
+        BORRSTF | PINRSTF for a brown-out): the motors off at once, the robot coasting for
+        ``down_ns`` (the board down: the reset, the bootloader, the start-up up to the
+        encoders counting again), then the firmware booting again. The RAM keeps its contents,
+        or with ``scramble`` is filled with bytes drawn from it (the supply fell too low)."""
+        self.resets += 1
+        self.flash.cut(Random(self.resets))
+        if scramble is not None:
+            self.cpu.uc.mem_write(SRAM_BASE, scramble.randbytes(SRAM_SIZE))
+        self.duty = (0, 0)
+        lib.sim_set_duty(self.sim, 0, 0)
+        self.tim[1].mem.clear()
+        self.tim[1].reset_values()  # TIM1 off: no PWM while the board is down
+        lib.sim_advance_ns(self.sim, down_ns)
+        self.now_ns += down_ns
+        # The encoder timers are held in reset: the edges of the coast are lost, the inputs'
+        # phase moves with the wheels.
+        s = self.read_sensors()
+        for t, (fld, side) in self.encoders.items():
+            pos = int(getattr(s, fld)[side])
+            self.tim[t].phase = (self.tim[t].phase + pos - self._enc_pos[t]) % 4
+            self._enc_pos[t] = pos
+        self.ticks = max(self.ticks, -(-self.now_ns // TICK_NS))
+        self._restart(flags)
 
     def power_cycle(self, rng: Random | None = None) -> None:
         """Power off and on now, between two events: as the watchdog's reset, and the RAM
@@ -319,15 +348,20 @@ class Stm32Board(_Lockstep):
         self.power_cycles += 1
         self.flash.cut(rng if rng is not None else Random(self.power_cycles))
         self.cpu.uc.mem_write(SRAM_BASE, b"\xa5" * SRAM_SIZE)
-        self._restart()
+        self._restart(None)
 
-    def _restart(self) -> None:
+    def _restart(self, flags: int | None) -> None:
+        """flags: a system reset's RCC_CSR reset flags, added to those the CSR keeps; None: a
+        power-on's."""
+        kept = self.rcc.mem.get(Rcc.CSR, 0) & Rcc.RESET_FLAGS
         models = [self.rcc, self.pwr, self.flash, self.adc, self.adc_common, self.i2c, self.iwdg]
         models += [*self.gpio.values(), *self.tim.values(), self.scs]
         phases = {t: self.tim[t].phase for t in self.encoders}
         for m in models:
             m.mem.clear()
             m.reset_values()
+        if flags is not None:
+            self.rcc.mem[Rcc.CSR] = kept | flags
         for t, ph in phases.items():
             self.tim[t].phase = ph
         self.cpu.pending.clear()
@@ -412,7 +446,7 @@ class Stm32Board(_Lockstep):
         return self.cpu.read32(a), self.cpu.read32(a + 4), self.cpu.read32(a + 8)
 
     def _inject_config(self, uc: Any, address: int, size: int, user: object) -> None:
-        """At board_init()'s entry: the simulated robot's configuration in place of the one
+        """At board_restart()'s entry: the simulated robot's configuration in place of the one
         compiled in (r1 points to it), as a team's robot.c would give it."""
 
         data = bytes(ffi.buffer(self.config_override))

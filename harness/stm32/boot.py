@@ -19,7 +19,7 @@ from typing import Any
 from board import TICK_NS, Stm32Board
 from elftools.elf.elffile import ELFFile
 from emu import FLASH_BASE, FLASH_SIZE, IRQ0, NVM_BASE, NVM_SIZE, SRAM_BASE, EmuError
-from periph import Flash
+from periph import Flash, Rcc
 from unicorn import UC_HOOK_MEM_WRITE_PROT
 
 from asserv._core import lib
@@ -48,6 +48,7 @@ RUN_BASE = 0x0800_8000
 STAGE_BASE = 0x0802_0000
 REQUEST_ADDR = 0x2001_FFF8  # boot_layout.h: BOOT_REQUEST_ADDR, BOOT_REQUEST_MAGIC
 REQUEST_MAGIC = 0xB007_1E57
+SYSTEM_RESET = Rcc.SFTRSTF | Rcc.PINRSTF  # RCC_CSR's flags after SYSRESETREQ (RM0390 6.3.21)
 
 
 def sector_of(offset: int) -> int:
@@ -288,7 +289,7 @@ class BootBoard(Stm32Board):
         if self.reset_requested:
             self.system_resets += 1
             self.flash.cut(Random(self.system_resets))
-            self._restart()  # RAM kept: a system reset, not a power cycle
+            self._restart(SYSTEM_RESET)  # RAM kept: a system reset, not a power cycle
             return True
         self._check_flash()
         self._outputs()
@@ -335,7 +336,7 @@ class BootBoard(Stm32Board):
         self.cpu.write32(REQUEST_ADDR, REQUEST_MAGIC)
         self.cpu.write32(REQUEST_ADDR + 4, ~REQUEST_MAGIC & 0xFFFF_FFFF)
         self.system_resets += 1
-        self._restart()
+        self._restart(SYSTEM_RESET)
 
     def power_on(self, image: bytes) -> None:
         """Power off, the flash replaced by ``image`` (as another chip's), power on."""

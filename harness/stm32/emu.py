@@ -103,7 +103,7 @@ class Cpu:
         self.enabled: Callable[[int], bool] = lambda exc: True
         self.irq_lines: list[Callable[[], set[int]]] = []
         self.vtor = FLASH_BASE
-        for name in ("stm32_idle", "asserv_board", "board_init", "stm32_layout"):
+        for name in ("stm32_idle", "asserv_board", "board_restart", "stm32_layout"):
             if name not in self.symbols:
                 raise EmuError(f"{elf_path}: not the asserv STM32 firmware (no symbol {name})")
         self.idle_pc = self.symbols["stm32_idle"] & ~1

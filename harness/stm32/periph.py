@@ -53,16 +53,22 @@ class Regs:
 class Rcc(Regs):
     """RM0390 6.3: the HSE ready flag follows HSEON (bypass: at once), the PLL's follows PLLON
     once its source is ready, SWS follows SW only to a ready source (6.3.1, 6.3.3). PLLCFGR is
-    taken only while the PLL is off (6.3.2)."""
+    taken only while the PLL is off (6.3.2). CSR's reset flags (6.3.21) read as a power-on
+    left them (PORRSTF, BORRSTF, PINRSTF) until RMVF clears them; a system reset keeps them
+    and adds its own (``Stm32Board.reset``)."""
 
-    CR, PLLCFGR, CFGR = 0x00, 0x04, 0x08
+    CR, PLLCFGR, CFGR, CSR = 0x00, 0x04, 0x08, 0x74
     HSEON, HSERDY, HSEBYP, PLLON, PLLRDY = 1 << 16, 1 << 17, 1 << 18, 1 << 24, 1 << 25
     HSION, HSIRDY = 1 << 0, 1 << 1
+    RMVF, BORRSTF, PINRSTF, PORRSTF = 1 << 24, 1 << 25, 1 << 26, 1 << 27
+    SFTRSTF, IWDGRSTF, WWDGRSTF, LPWRRSTF = 1 << 28, 1 << 29, 1 << 30, 1 << 31
+    RESET_FLAGS = 0xFE00_0000
 
     def reset_values(self) -> None:
         self.mem[self.CR] = 0x0000_0083  # HSION, HSIRDY, trim
         self.mem[self.PLLCFGR] = 0x2400_3010
         self.mem[self.CFGR] = 0
+        self.mem[self.CSR] = self.PORRSTF | self.BORRSTF | self.PINRSTF
 
     def write(self, off: int, value: int) -> None:
         if off == self.CR:
@@ -85,6 +91,10 @@ class Rcc(Regs):
             if self._source_ready(sw):
                 sws = sw
             self.mem[off] = (value & ~0xC) | sws << 2
+        elif off == self.CSR:
+            flags = 0 if value & self.RMVF else self.mem[self.CSR] & self.RESET_FLAGS
+            lsi = (value & 1) << 1  # LSIRDY follows LSION at once
+            self.mem[off] = flags | (value & 1) | lsi
         else:
             self.mem[off] = value
 

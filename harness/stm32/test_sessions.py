@@ -11,7 +11,7 @@ from conftest import ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from asserv import Board
+from asserv import Board, ResetCause, Status
 from asserv._core import lib
 from asserv.scenario import BUS_COMMANDS, load
 
@@ -91,7 +91,11 @@ def test_watchdog_resets_the_chip_when_the_ticks_stop(elf: Any) -> None:
     b.ticks_on = True
     b.sleep(0.1)
     assert b.watchdog_resets == 1
-    assert board.check_busy() == 0  # booted again: idle, answering
+    # Booted again, answering: the GOTO reported abandoned, the cause and the pose kept
+    # (test_resets.py soaks it).
+    assert board.check_busy() == Status.PB_MOTEUR
+    info = board.reset_info()
+    assert (info.cause, info.count, info.pose_lost) == (ResetCause.WATCHDOG, 1, False)
 
 
 _OPS = st.lists(

@@ -454,6 +454,8 @@ int sim_init(struct sim *s, const struct sim_config *cfg, const struct sim_field
 void sim_set_duty(struct sim *s, int16_t left_q15, int16_t right_q15);
 void sim_advance_ns(struct sim *s, uint64_t duration_ns);
 int board_init(struct board *b, const struct board_config *cfg, const struct board_inputs *in);
+int board_restart(struct board *b, const struct board_config *cfg, const struct board_inputs *in,
+                  uint8_t cause, uint16_t down_ms);
 void board_tick(struct board *b, const struct board_inputs *in, struct board_outputs *out);
 void board_slow(struct board *b);
 """

@@ -16,6 +16,9 @@
  * simavr harness finds it by this symbol name. */
 extern struct board asserv_board;
 
+/* The cause of this start (RESET_CAUSE_*) of MCUSR as the reset left it (reset.c). */
+uint8_t avr_reset_cause(uint8_t mcusr);
+
 /* Set-up, once, interrupts off: pins and pull-ups (sensors.c), encoder decoding (encoder.c),
  * PWM, direction pins and the current-sense ADC (motor.c). */
 void avr_sensors_init(void);

@@ -11,7 +11,11 @@
 #include "port.h"
 #include "port_nvm.h"
 
-struct board asserv_board;
+/* Not cleared by the start-up (avr-libc's .noinit): what a reset keeps (keep.h) is in it. */
+struct board asserv_board __attribute__((section(".noinit")));
+
+/* MCUSR as the reset left it, saved before the start-up (which would clear a .bss variable). */
+static uint8_t avr_mcusr __attribute__((section(".noinit")));
 
 /* The calibration's record in the EEPROM (nvm.c): loaded at start, written by the main loop. */
 static struct port_nvm avr_nvm;
@@ -20,10 +24,12 @@ static struct port_nvm avr_nvm;
  * the main loop (one rate) or by the timer's interrupt (two rates, tick_isr.S). */
 volatile uint16_t avr_tick_overruns;
 
-/* After a watchdog reset the watchdog stays on: turn it off before anything else. */
+/* After a watchdog reset the watchdog stays on: turn it off before anything else (WDRF must be
+ * cleared first), keeping the reset flags for main(). */
 void avr_early_init(void) __attribute__((naked, used, section(".init3")));
 void avr_early_init(void)
 {
+	avr_mcusr = MCUSR;
 	MCUSR = 0;
 	wdt_disable();
 }
@@ -42,7 +48,10 @@ int main(void)
 	avr_robot_config(&cfg);
 	port_sample(&in);
 	port_sample_period(&in);
-	if (cfg.slow_shift != CONFIG_AVR_SLOW_SHIFT || board_init(&asserv_board, &cfg, &in) != 0) {
+	/* The down time is unused: this build refuses the pose after a reset (CONFIG_KEEP_POSE,
+	 * CMakeLists.txt). */
+	if (cfg.slow_shift != CONFIG_AVR_SLOW_SHIFT ||
+	    board_restart(&asserv_board, &cfg, &in, avr_reset_cause(avr_mcusr), 0) != 0) {
 		/* A configuration the core refuses, or rates the execution model built in does not
 		 * run (tick.c): motors off, no bus, wait for a new binary. */
 		for (;;)

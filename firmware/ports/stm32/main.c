@@ -12,7 +12,8 @@
 #include "stm32_port.h"
 #include "stm32f4_regs.h"
 
-struct board asserv_board;
+/* Not cleared by the start-up (stm32f446re.ld): what a reset keeps (keep.h) is in it. */
+struct board asserv_board __attribute__((section(".noinit")));
 /* The calibration's log in flash: loaded at start, written by the main loop (thread mode). */
 static struct stm32_nvm stm32_nvm;
 
@@ -29,6 +30,7 @@ int main(void)
 {
 	struct board_config cfg;
 	struct board_inputs in;
+	uint8_t cause = stm32_reset_cause();
 
 	stm32_clock_init();
 	stm32_io_init();
@@ -38,7 +40,7 @@ int main(void)
 	port_sample_period(&in);
 	/* One rate only (planner_ticks 0): board_tick() runs board_slow() itself, inside
 	 * port_control_tick(); the port_slow() after it in SysTick then finds nothing due. */
-	if (board_init(&asserv_board, &cfg, &in) != 0) {
+	if (board_restart(&asserv_board, &cfg, &in, cause, stm32_down_ms(cause)) != 0) {
 		/* A configuration the core refuses: motors off, no bus, wait for a new binary. */
 		for (;;)
 			;

@@ -45,6 +45,19 @@ void stm32_idle(void);
 #define STM32_WDG_ERASE_RLR 1249u
 void stm32_watchdog_set(uint32_t pr, uint32_t rlr);
 
+/* The cause of this start (RESET_CAUSE_*) from RCC_CSR's reset flags, which it then clears
+ * (reset.c). Called once, first thing in main(). */
+uint8_t stm32_reset_cause(void);
+
+/* The longest the board is down at a reset [ms], from the last record the planner kept
+ * (keep.h) to the encoders counting again (stm32_io_init()): STM32_START_MS for the start-up,
+ * the bootloader's checks included (harness/stm32/test_resets.py measures it), and for a
+ * watchdog reset the hang before it, STM32_WDG_MAX_MS: the 60 ms window (STM32_WDG_RLR) at
+ * the LSI's slowest, 17 kHz: 480 * 4 / 17000 s. */
+#define STM32_START_MS 120u
+#define STM32_WDG_MAX_MS 113u
+uint16_t stm32_down_ms(uint8_t cause);
+
 /* BOOTLOADER accepted: the motors off, then a reset into the bootloader (boot_enter.c,
  * docs/update.md). Does not return. */
 void stm32_boot_enter(void);

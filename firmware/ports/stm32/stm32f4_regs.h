@@ -61,6 +61,15 @@
 #define RCC_APB2ENR STM32_REG(RCC_BASE + 0x44u) /* 6.3.14 */
 #define RCC_APB2ENR_TIM1EN (1u << 0)
 #define RCC_APB2ENR_ADC1EN (1u << 8)
+#define RCC_CSR STM32_REG(RCC_BASE + 0x74u) /* 6.3.21: the reset flags, kept until RMVF */
+#define RCC_CSR_RMVF (1u << 24)
+#define RCC_CSR_BORRSTF (1u << 25) /* set with PORRSTF at a power-on, alone at a brown-out */
+#define RCC_CSR_PINRSTF (1u << 26) /* set by every reset: each drives the NRST pin */
+#define RCC_CSR_PORRSTF (1u << 27)
+#define RCC_CSR_SFTRSTF (1u << 28)
+#define RCC_CSR_IWDGRSTF (1u << 29)
+#define RCC_CSR_WWDGRSTF (1u << 30)
+#define RCC_CSR_LPWRRSTF (1u << 31)
 
 /* ---- PWR: RM0390 section 5.4 ---- */
 #define PWR_CR STM32_REG(PWR_BASE + 0x00u) /* 5.4.1 */
