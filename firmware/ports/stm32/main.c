@@ -23,7 +23,7 @@ const struct stm32_layout stm32_layout = {
 };
 
 void SysTick_Handler(void);
-static void stm32_watchdog_start(void);
+static void stm32_watchdog_start(uint32_t pr, uint32_t rlr);
 
 int main(void)
 {
@@ -43,10 +43,13 @@ int main(void)
 		for (;;)
 			;
 	}
-	/* Before the bus, the watchdog and the ticks: a start-up erase stalls nothing that runs. */
+	/* Before the bus and the ticks: a start-up erase stalls nothing that runs. The watchdog is
+	 * already counting when the bootloader started the application: it is widened for the
+	 * erase (up to 2 s), then set to its 60 ms. */
+	stm32_watchdog_start(STM32_WDG_ERASE_PR, STM32_WDG_ERASE_RLR);
 	stm32_nvm_load(&stm32_nvm, &asserv_board);
 	hal_i2c_slave_init(PROTO_ADDRESS);
-	stm32_watchdog_start();
+	stm32_watchdog_set(STM32_WDG_PR, STM32_WDG_RLR);
 	hal_tick_start(cfg.tick_hz);
 	for (;;) {
 		stm32_nvm_poll(&stm32_nvm, &asserv_board); /* one flash operation at most */
@@ -59,10 +62,10 @@ int main(void)
  * the chip within 60 ms, and the reset stops the motors (the PWM pins float: the bridge's enable
  * inputs need pull-downs, docs/stm32.md). 60 ms at the LSI's nominal 32 kHz: (479 + 1) * 4 /
  * 32000; the LSI's spread (17..47 kHz) makes it 41..113 ms. */
-static void stm32_watchdog_start(void)
+static void stm32_watchdog_start(uint32_t pr, uint32_t rlr)
 {
-	IWDG_KR = IWDG_KR_START;
-	stm32_watchdog_set(STM32_WDG_PR, STM32_WDG_RLR); /* LSI / 4, 480 counts */
+	IWDG_KR = IWDG_KR_START; /* the bootloader may have started it: harmless */
+	stm32_watchdog_set(pr, rlr);
 }
 
 /* RM0390 19.3.2: the access key opens PR and RLR until the next key, so the tick's reload must
