@@ -232,6 +232,7 @@ class Stm32Board(_Lockstep):
         self.pwr = Pwr(0x4000_7000)
         self.flash = self._make_flash()
         self.flash.stall_on_sr = True  # the CPU fetches from this flash: see Flash
+        self.flash.on_stall = self._code_stall
         for name, given, area in (
             ("nvm", nvm, self.flash.data),
             ("nvm_b", nvm_b, self.flash.data_b),
@@ -302,6 +303,17 @@ class Stm32Board(_Lockstep):
         self._check_flash()
         self.boot_stall_ns = self.flash.stalled_ns - stalled
         self._check_boot()
+
+    def _code_stall(self, wait_ns: int) -> None:
+        """The code waits for a flash operation (a start-up erase: the start-up runs in no
+        simulated time here; an interrupt's wait has checked the watchdog first,
+        _wait_for_flash): a watchdog already counting (the bootloader starts it) must outlast
+        it."""
+        if self.iwdg.running and wait_ns >= self.iwdg.left_ns:
+            self.flash.faults.append(
+                f"the watchdog ({self.iwdg.left_ns / 1e6:.0f} ms left) resets the chip in a "
+                f"{wait_ns / 1e6:.0f} ms flash stall of the start-up"
+            )
 
     def time_passes(self, ns: int) -> None:
         self.flash.advance(ns)  # the CPU sleeps: no fetch waits for the flash

@@ -251,6 +251,8 @@ class BootBoard(Stm32Board):
             return
         self._ready = True
         self.scs.on_reset = self._on_reset
+        # The bootloader runs from RAM; the application it starts from flash, its start-up too.
+        self.flash.code_in_flash = lambda: not self.in_boot()
         self.cpu.irq_lines.append(self._flash_line)
 
     def _on_reset(self) -> None:

@@ -206,6 +206,11 @@ class Flash(Regs):
         self.programs = 0
         self.erases = 0
         self.erased: list[int] = []  # the sector of each erase started
+        # Called with each wait of the bus (stall) before the operation ends: the board checks
+        # the watchdog against a stall of the start-up, which runs in no simulated time.
+        self.on_stall: Callable[[int], None] | None = None
+        # When set, says whether the CPU fetches from the flash now (stall_on_sr's value).
+        self.code_in_flash: Callable[[], bool] | None = None
         super().__init__(base)
 
     def reset_values(self) -> None:
@@ -238,6 +243,8 @@ class Flash(Regs):
         if self.op is None:
             return 0
         wait = max(0, self.busy_ns)
+        if self.on_stall is not None:
+            self.on_stall(wait)
         self.stalled_ns += wait
         self.finish()
         return wait
@@ -279,7 +286,8 @@ class Flash(Regs):
     # ---- registers ----------------------------------------------------------------------------
     def read(self, off: int) -> int:
         if off == self.SR:
-            if self.op is not None and self.stall_on_sr:
+            fetching = self.code_in_flash() if self.code_in_flash else self.stall_on_sr
+            if self.op is not None and fetching:
                 self.stall()
             return self.sr | (self.BSY if self.op is not None else 0)
         if off == self.KEYR:
