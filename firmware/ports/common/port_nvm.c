@@ -1,6 +1,7 @@
 /* The calibration kept in the port's storage (see port_nvm.h). */
 #include "port_nvm.h"
 
+#include "calib_log.h"
 #include "hal.h"
 
 #define SPOILT 0xFFu /* byte 0 while a record is written: not the magic's 'a' */
@@ -10,43 +11,38 @@ static uint16_t slot_offset(uint8_t slot)
 	return (uint16_t)(PORT_NVM_CALIB_OFFSET + slot * CALIB_STORE_SIZE);
 }
 
-/* Slot i's record into rec, and its decoding: 0 and *cal, or a refusal (-1: unreadable). */
-static int read_slot(uint8_t slot, uint8_t rec[CALIB_STORE_SIZE], struct board_calibration *cal)
+/* calib_log.h's reader: slot i of area i (each area one slot), copied into buf. */
+static const uint8_t *read_slot(uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
 {
+	(void)i;
 	if (hal_nvm_size() < slot_offset(PORT_NVM_SLOTS) ||
-	    hal_nvm_read(slot_offset(slot), rec, CALIB_STORE_SIZE) != 0)
-		return -1;
-	return calib_store_decode(rec, cal);
+	    hal_nvm_read(slot_offset(area), buf, CALIB_STORE_SIZE) != 0)
+		return 0;
+	return buf;
 }
 
 int port_nvm_load(struct port_nvm *s, struct board *b)
 {
-	struct board_calibration cal, other;
-	uint8_t rec[CALIB_STORE_SIZE];
-	int err, err1;
+	struct calib_log_area l[CALIB_LOG_AREAS];
+	int err;
 
 	s->have = 0;
 	s->pos = PORT_NVM_STEPS;
-	/* None valid: the first record goes into slot 0, generation 0. */
-	s->slot = 1;
-	s->gen = 0xFFu;
-	err = read_slot(0, rec, &cal);
-	if (err == 0) {
-		s->slot = 0;
-		s->gen = calib_store_generation(rec);
-	}
-	err1 = read_slot(1, rec, &other);
-	if (err1 == 0 && (err != 0 || calib_store_newer(calib_store_generation(rec), s->gen))) {
-		cal = other;
+	calib_log_scan(read_slot, 0, 1, &l[0]);
+	calib_log_scan(read_slot, 1, 1, &l[1]);
+	if (l[0].found || l[1].found) {
+		s->slot = calib_log_pick(l);
+		s->gen = l[s->slot].gen;
+		err = board_set_calibration(b, &l[s->slot].cal);
+	} else {
+		/* None valid: the first record goes into slot 0, generation 0. */
 		s->slot = 1;
-		s->gen = calib_store_generation(rec);
-		err = 0;
+		s->gen = 0xFFu;
+		err = l[0].err;
 	}
-	if (err == 0)
-		err = board_set_calibration(b, &cal);
 	if (err == 0) {
 		/* What the storage holds is installed: nothing to write until it changes. */
-		s->stored = cal;
+		s->stored = l[s->slot].cal;
 		s->have = 1;
 	}
 	s->loaded = (int8_t)(err < -128 ? -128 : err);

@@ -21,6 +21,7 @@
 #include <stdint.h>
 
 #include "board.h"
+#include "calib_log.h"
 #include "calib_store.h"
 
 #define PORT_NVM_CALIB_OFFSET 0u
@@ -38,9 +39,9 @@ struct port_nvm {
 };
 
 /* At start, after board_init() and before the first tick: read both slots, and install the
- * calibration of the newest valid record (the higher generation, calib_store_newer()). Returns 0
+ * calibration of the newest valid record (calib_log.h: the newer generation). Returns 0
  * (installed), a CALIB_STORE_* refusal (none valid: slot 0's, blank, corrupt, out of range: the
- * board stays uncalibrated), -1 (storage too small or unreadable), or
+ * board stays uncalibrated), CALIB_LOG_UNREADABLE (storage too small or unreadable), or
  * board_set_calibration()'s error. Never fails the start: an uncalibrated board runs.
  * Interrupt-safe: no (start-up only). */
 int port_nvm_load(struct port_nvm *s, struct board *b);

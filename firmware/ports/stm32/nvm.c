@@ -22,6 +22,7 @@
  * gives the figures. */
 #include <string.h>
 
+#include "calib_log.h"
 #include "calib_store.h"
 #include "hal.h"
 #include "stm32_nvm.h"
@@ -54,14 +55,6 @@ static const uint8_t *slot_at(uint8_t area, uint16_t i)
 static uint8_t step_word(uint8_t step)
 {
 	return (uint8_t)((step + 1u) & 3u);
-}
-
-static int blank(const uint8_t *p)
-{
-	for (uint8_t i = 0; i < CALIB_STORE_SIZE; i++)
-		if (p[i] != 0xFFu)
-			return 0;
-	return 1;
 }
 
 /* RM0390 3.5.1: KEY1 then KEY2 opens FLASH_CR; a wrong key locks it until the next reset (and
@@ -119,51 +112,11 @@ static uint32_t rec_word(const struct stm32_nvm *s, uint8_t k)
 	return w;
 }
 
-/* What one log holds: the slot after the last one ever written (torn ones too), and its last
- * valid record (found), or the last refusal (err). */
-struct log_scan {
-	struct board_calibration cal;
-	uint16_t next;
-	uint8_t found;
-	uint8_t gen;
-	int err;
-};
-
-static void scan_log(uint8_t area, struct log_scan *l)
+/* calib_log.h's reader: the slot itself, in the flash's address space. */
+static const uint8_t *read_slot(uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
 {
-	struct board_calibration cal;
-
-	l->next = 0;
-	l->found = 0;
-	l->gen = 0;
-	l->err = CALIB_STORE_BLANK;
-	for (uint16_t i = 0; i < STM32_NVM_SLOTS; i++) {
-		const uint8_t *p = slot_at(area, i);
-		int e;
-
-		if (blank(p))
-			continue;
-		l->next = (uint16_t)(i + 1u);
-		e = calib_store_decode(p, &cal);
-		if (e == 0 || l->err != 0)
-			l->err = e; /* the last valid record, or the last refusal if none */
-		if (e == 0) {
-			l->cal = cal;
-			l->gen = calib_store_generation(p);
-			l->found = 1;
-		}
-	}
-}
-
-/* The log to go on with: the one whose record is the newer generation, or the only one with a
- * record; with none, the emptier one (a log left full of zeros by a flashed .bin, say). */
-static uint8_t pick_log(const struct log_scan l[STM32_NVM_AREAS])
-{
-	if (l[0].found && l[1].found)
-		return calib_store_newer(l[1].gen, l[0].gen);
-	if (l[0].found || l[1].found)
-		return l[1].found;
-	return l[1].next < l[0].next;
+	(void)buf;
+	return slot_at(area, i);
 }
 
 /* Start-up: the active log is nearly full, and the control has not started. Erase the other
@@ -192,14 +145,14 @@ static void compact_at_start(struct stm32_nvm *s)
 
 int stm32_nvm_load(struct stm32_nvm *s, struct board *b)
 {
-	struct log_scan l[STM32_NVM_AREAS];
+	struct calib_log_area l[CALIB_LOG_AREAS];
 	int err;
 
 	memset(s, 0, sizeof(*s));
 	s->word = SLOT_WORDS;
-	scan_log(0, &l[0]);
-	scan_log(1, &l[1]);
-	s->area = pick_log(l);
+	calib_log_scan(read_slot, 0, STM32_NVM_SLOTS, &l[0]);
+	calib_log_scan(read_slot, 1, STM32_NVM_SLOTS, &l[1]);
+	s->area = calib_log_pick(l); /* the newer generation's log, or the emptier */
 	s->gen = l[s->area].gen;
 	s->next = l[s->area].next;
 	err = l[s->area].err;

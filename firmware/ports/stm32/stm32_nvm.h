@@ -14,7 +14,6 @@
 /* The two logs (RM0390 3.3 Table 4; RM0368 3.3 Table 5): sector 1, 16 KiB, and sector 7, 128
  * KiB, of which the first 16 KiB are used, so that both logs hold as many records.
  * stm32f446re.ld keeps code out of both; neither the bootloader nor flash.sh writes them. */
-#define STM32_NVM_AREAS 2u
 #define STM32_NVM_BASE 0x08004000u /* sector 1 */
 #define STM32_NVM_SECTOR 1u
 #define STM32_NVM_B_BASE 0x08060000u /* sector 7 */
