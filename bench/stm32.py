@@ -151,8 +151,9 @@ class Bench(Stm32Board):
 
 
 def flash_figures(elf: str) -> None:
-    """The calibration's log in flash (firmware/ports/stm32/nvm.c): a record's write after
-    SET_ODOMETRIE, and a run-time erase of the full log, in the emulator."""
+    """The calibration's two logs in flash (firmware/ports/stm32/nvm.c): a record's write after
+    SET_ODOMETRIE, and the run-time erases of a switch from a full log to the other, in the
+    emulator."""
     slot, slots, start_free = 16, 1024, 64  # stm32_nvm.h
     bc, sc, f = robot()
     b = Stm32Board(elf, sc, f, bc)
@@ -162,33 +163,40 @@ def flash_figures(elf: str) -> None:
     while b.flash.programs < slot // 4 or b.flash.busy():
         b.advance_ns(10_000)
     words = b.flash.programs
-    print("\n---- the calibration in flash (sector 1, a log of 16-byte records) ----")
+    print("\n---- the calibration in flash (sectors 1 and 7, two logs of 16-byte records) ----")
     print(
         f"a record: {words} words of 32 bits, written {(b.now_ns - t0) / 1e6:.1f} ms after "
         f"SET_ODOMETRIE's last byte; each word stalls the CPU's flash fetches "
         f"{b.flash.PROGRAM_NS / 1000:.0f} us (data sheet typical, 100 us at most); worst "
         f"stall of an interrupt in the emulator {max(b.stalls, default=0) / 1000:.1f} us"
     )
-    # A full log: the next record waits for no order to run, then the erase.
+    # A full log: the next record waits for no order to run, then the other sector's erase.
     log = bytes(b.flash.data[:slot]) * (slots - start_free)
-    b = Stm32Board(elf, sc, f, bc, nvm=log)
-    board = Board(b.bus)
-    for i in range(start_free + 1):
-        board.set_odometrie(i, 28000, 0)
-        b.sleep(0.008)
-    b.sleep(0.6)
-    erase = max(b.stalls, default=0)
+    switched = b""
+    for sector, most, nvm, nvm_b in (
+        (7, "2 s", log, None),
+        (1, "500 ms", log + bytes(b.flash.data[:slot]) * start_free, "switched"),
+    ):
+        b = Stm32Board(elf, sc, f, bc, nvm=nvm, nvm_b=switched if nvm_b else None)
+        board = Board(b.bus)
+        for i in range(start_free + 1):
+            board.set_odometrie(i, 28000, 0)
+            b.sleep(0.008)
+        b.sleep(1.2)
+        switched = bytes(b.flash.data_b[:slot]) * (slots - start_free)
+        erase = max(b.stalls, default=0)
+        print(
+            f"a run-time switch to sector {sector} (the log full, no order running, motors "
+            f"off): {b.flash.erases} erase of sector {b.flash.erased[0]}, the CPU stalled "
+            f"{erase / 1e6:.0f} ms (data sheet typical at x32; {most} at most), "
+            f"{b.lost_ticks} control ticks lost, {b.watchdog_resets} watchdog resets (its "
+            f"window widened to 5 s for it)"
+        )
+    b = Stm32Board(elf, sc, f, bc, nvm=log + bytes(slot))
     print(
-        f"a run-time erase (the log full, no order running, motors off): "
-        f"{b.flash.erases} erase, the CPU stalled {erase / 1e6:.0f} ms (data sheet typical "
-        f"at x32; 500 ms at most), {b.lost_ticks} control ticks lost, "
-        f"{b.watchdog_resets} watchdog resets (its window widened to 2.5 s for it)"
-    )
-    log = bytes(b.flash.data[:slot]) * (slots - start_free + 1)
-    b = Stm32Board(elf, sc, f, bc, nvm=log)
-    print(
-        f"start-up with fewer than {start_free} free slots: erased and the record written "
-        f"back before the control starts, the start-up {b.boot_stall_ns / 1e6:.0f} ms longer"
+        f"start-up with fewer than {start_free} free slots: sector {b.flash.erased[0]} erased and "
+        f"the record written there before the control starts, the start-up "
+        f"{b.boot_stall_ns / 1e6:.0f} ms longer"
     )
 
 

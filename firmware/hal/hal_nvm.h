@@ -12,8 +12,9 @@
 uint16_t hal_nvm_size(void);
 
 /* Copy n bytes from offset into buf. Returns 0, or -1 when the range leaves the storage (buf
- * untouched). Meant for start-up: on the AVR it waits for a write in progress to end (up to
- * 3.4 ms), then takes 4 cycles a byte. May be called from an interrupt: no. */
+ * untouched). On the AVR it waits for a write in progress to end (up to 3.4 ms), then takes 4
+ * cycles a byte: at start-up, or from the main loop once hal_nvm_busy() is 0 (port_nvm.c reads
+ * one byte before each record). May be called from an interrupt: no. */
 int hal_nvm_read(uint16_t offset, uint8_t *buf, uint16_t n);
 
 /* 1 while a write started by hal_nvm_write_byte() is still in progress (no write may start),

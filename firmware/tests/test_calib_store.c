@@ -57,11 +57,12 @@ static void test_layout(void **state)
 	uint16_t crc;
 
 	(void)state;
-	calib_store_encode(&c, r);
+	calib_store_encode(&c, 0xA7, r);
 	assert_int_equal(r[0], 'a');
 	assert_int_equal(r[1], 'c');
 	assert_int_equal(r[2], CALIB_STORE_VERSION);
-	assert_int_equal(r[3], 0);
+	assert_int_equal(r[3], 0xA7);
+	assert_int_equal(calib_store_generation(r), 0xA7);
 	assert_memory_equal(&r[4], ((const uint8_t[]){0xff, 0xff, 0xff, 0xfe}), 4);
 	assert_memory_equal(&r[8], ((const uint8_t[]){1, 2, 3, 4}), 4);
 	assert_int_equal(r[12] << 8 | r[13], 28012);
@@ -83,15 +84,18 @@ static void test_round_trip(void **state)
 
 	(void)state;
 	for (size_t i = 0; i < N_OF(edges); i++) {
-		calib_store_encode(&edges[i], r);
+		calib_store_encode(&edges[i], (uint8_t)i, r);
 		assert_int_equal(calib_store_decode(r, &d), 0);
 		assert_cal_equal(&d, &edges[i]);
 	}
 	for (int i = 0; i < 100000; i++) {
+		uint8_t gen = (uint8_t)rng_next();
+
 		c = random_cal();
-		calib_store_encode(&c, r);
+		calib_store_encode(&c, gen, r);
 		assert_int_equal(calib_store_decode(r, &d), 0);
 		assert_cal_equal(&d, &c);
+		assert_int_equal(calib_store_generation(r), gen);
 	}
 }
 
@@ -125,13 +129,13 @@ static void test_range(void **state)
 
 	(void)state;
 	for (size_t i = 0; i < N_OF(bad); i++) {
-		calib_store_encode(&bad[i], r);
+		calib_store_encode(&bad[i], 3, r);
 		assert_int_equal(calib_store_decode(r, &d), CALIB_STORE_RANGE);
 	}
 }
 
 /* CRC-16/CCITT has a Hamming distance of 4 at this length: every 1- and 2-bit error of the 128
- * bits is refused (the magic, version and reserved bytes are covered by the CRC too). */
+ * bits is refused (the magic, version and generation bytes are covered by the CRC too). */
 static void test_bit_errors_refused(void **state)
 {
 	uint8_t r[CALIB_STORE_SIZE], e[CALIB_STORE_SIZE];
@@ -141,7 +145,7 @@ static void test_bit_errors_refused(void **state)
 	for (int n = 0; n < 20; n++) {
 		struct board_calibration c = random_cal();
 
-		calib_store_encode(&c, r);
+		calib_store_encode(&c, (uint8_t)rng_next(), r);
 		for (unsigned i = 0; i < 8 * CALIB_STORE_SIZE; i++) {
 			memcpy(e, r, sizeof(e));
 			e[i / 8] ^= (uint8_t)(1u << (i % 8));
@@ -175,13 +179,13 @@ static void test_random_bytes(void **state)
 			r[0] = 'a';
 			r[1] = 'c';
 			r[2] = CALIB_STORE_VERSION;
-			r[3] = 0;
+			r[3] = (uint8_t)n;
 		}
 		if ((n & 3) == 3) { /* and values in range */
 			struct board_calibration c = random_cal();
 			uint8_t full[CALIB_STORE_SIZE];
 
-			calib_store_encode(&c, full);
+			calib_store_encode(&c, 0, full);
 			memcpy(&r[4], &full[4], 10);
 		}
 		crc = calib_store_crc16(r, 14);
@@ -203,7 +207,7 @@ static void test_random_bytes(void **state)
 		err = calib_store_decode(r, &d);
 		if (err == 0) {
 			accepted++;
-			calib_store_encode(&d, back);
+			calib_store_encode(&d, calib_store_generation(r), back);
 			assert_memory_equal(back, r, CALIB_STORE_SIZE);
 		} else {
 			int32_t ratio = (int32_t)((uint32_t)r[4] << 24 | (uint32_t)r[5] << 16 |
@@ -219,6 +223,64 @@ static void test_random_bytes(void **state)
 	assert_true(accepted >= 250000 - 1000); /* the in-range quarter, at least */
 }
 
+/* A version-1 record (the boards of before the generation: byte 3 reserved, 0) decodes as
+ * generation 0, to the same calibration; with byte 3 not 0 (and its CRC right) it is refused. */
+static void test_version_1_still_decodes(void **state)
+{
+	uint8_t r[CALIB_STORE_SIZE];
+	struct board_calibration d;
+	uint16_t crc;
+
+	(void)state;
+	for (int i = 0; i < 10000; i++) {
+		struct board_calibration c = random_cal();
+
+		calib_store_encode(&c, 0, r);
+		r[2] = CALIB_STORE_VERSION_1;
+		r[3] = (uint8_t)(i & 1 ? 0 : 1 + rng_next() % 255u);
+		crc = calib_store_crc16(r, 14);
+		r[14] = (uint8_t)(crc >> 8);
+		r[15] = (uint8_t)crc;
+		if (r[3] != 0) {
+			assert_int_equal(calib_store_decode(r, &d), CALIB_STORE_CORRUPT);
+			continue;
+		}
+		assert_int_equal(calib_store_decode(r, &d), 0);
+		assert_cal_equal(&d, &c);
+		assert_int_equal(calib_store_generation(r), 0);
+	}
+	/* Other versions: refused, with the CRC right. */
+	for (unsigned v = 0; v < 256; v++) {
+		if (v == CALIB_STORE_VERSION || v == CALIB_STORE_VERSION_1)
+			continue;
+		calib_store_encode(&(struct board_calibration){0, 0, 28000}, 0, r);
+		r[2] = (uint8_t)v;
+		crc = calib_store_crc16(r, 14);
+		r[14] = (uint8_t)(crc >> 8);
+		r[15] = (uint8_t)crc;
+		assert_int_equal(calib_store_decode(r, &d), CALIB_STORE_CORRUPT);
+	}
+}
+
+/* Serial-number order: a generation is newer than the 127 before it, older than the 128 after,
+ * never newer than itself; the order is antisymmetric. */
+static void test_generation_order(void **state)
+{
+	(void)state;
+	for (unsigned a = 0; a < 256; a++) {
+		assert_false(calib_store_newer((uint8_t)a, (uint8_t)a));
+		for (unsigned d = 1; d < 256; d++) {
+			uint8_t b = (uint8_t)(a - d);
+
+			assert_int_equal(calib_store_newer((uint8_t)a, b), d < 128);
+			if (d != 128)
+				assert_int_equal(calib_store_newer(b, (uint8_t)a),
+						 !calib_store_newer((uint8_t)a, b));
+		}
+	}
+	assert_true(calib_store_newer(0, 255)); /* the wrap */
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -229,6 +291,8 @@ int main(void)
 		cmocka_unit_test(test_range),
 		cmocka_unit_test(test_bit_errors_refused),
 		cmocka_unit_test(test_random_bytes),
+		cmocka_unit_test(test_version_1_still_decodes),
+		cmocka_unit_test(test_generation_order),
 	};
 
 	return cmocka_run_group_tests(tests, NULL, NULL);

@@ -3,7 +3,8 @@
  * host port's storage holds, byte for byte; after a power cycle (a new chip, the same EEPROM:
  * avrsim_power_cycle()) VERSION says CALIBRATED and the odometry's factors in the AVR's RAM are
  * the host's after its own power cycle, bit for bit, and those SET_ODOMETRIE had installed. A
- * corrupt record leaves the board uncalibrated, on the nominal factors, answering. */
+ * corrupt record leaves the board uncalibrated, on the nominal factors, answering. A power cut
+ * at any tick of a record's write leaves the previous calibration or the new one installed. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -183,7 +184,7 @@ static void test_corrupt_record_uncalibrated(void **state)
 	run_ticks(h, 20);
 	nominal = avr_factors(h);
 	for (unsigned bit = 0; bit < 8 * CALIB_STORE_SIZE; bit += 37) {
-		calib_store_encode(&cal, rec);
+		calib_store_encode(&cal, 0, rec);
 		rec[bit / 8] ^= (uint8_t)(1u << (bit % 8));
 		assert_int_equal(avrsim_eeprom_write(h, 0, rec, sizeof(rec)), 0);
 		h = avrsim_power_cycle(h);
@@ -194,7 +195,7 @@ static void test_corrupt_record_uncalibrated(void **state)
 		assert_factors_equal(avr_factors(h), nominal);
 	}
 	/* The same record intact: installed. */
-	calib_store_encode(&cal, rec);
+	calib_store_encode(&cal, 0, rec);
 	assert_int_equal(avrsim_eeprom_write(h, 0, rec, sizeof(rec)), 0);
 	h = avrsim_power_cycle(h);
 	assert_non_null(h);
@@ -203,11 +204,94 @@ static void test_corrupt_record_uncalibrated(void **state)
 	avrsim_close(h);
 }
 
+static uint8_t same_cal(const struct board_calibration *a, const struct board_calibration *b)
+{
+	return a->ratio_ppm == b->ratio_ppm && a->scale_ppm == b->scale_ppm &&
+	       a->track_10um == b->track_10um;
+}
+
+/* A board with an older calibration in slot 0 gets SET_ODOMETRIE, and the power goes ticks
+ * and cycles later. Returns what the cut left in slot 1 (the new record's) in slot1, and the
+ * calibration the board installs at the next start in *c (which must be one). */
+static struct avrsim *cut_after(struct avrsim *h, unsigned ticks, uint64_t cycles,
+				uint8_t slot1[CALIB_STORE_SIZE], struct board_calibration *c)
+{
+	static const struct board_calibration older = {-2000, 400, 27990};
+	uint8_t rec[2 * CALIB_STORE_SIZE];
+
+	memset(rec, 0xFF, sizeof(rec));
+	calib_store_encode(&older, 0, rec);
+	assert_int_equal(avrsim_eeprom_write(h, 0, rec, sizeof(rec)), 0);
+	h = avrsim_power_cycle(h);
+	assert_non_null(h);
+	run_ticks(h, 20);
+	assert_int_equal(avr_calibrated(h, c), 1);
+	assert_true(same_cal(c, &older));
+	assert_int_equal(avrsim_i2c_write(h, set_odometrie, sizeof(set_odometrie), 1), 0);
+	run_ticks(h, ticks);
+	if (cycles)
+		assert_int_equal(avrsim_run_cycles(h, cycles), 0);
+	h = avrsim_power_cycle(h); /* the cut */
+	assert_non_null(h);
+	assert_int_equal(avrsim_eeprom_read(h, CALIB_STORE_SIZE, slot1, CALIB_STORE_SIZE), 0);
+	run_ticks(h, 20);
+	assert_int_equal(avr_calibrated(h, c), 1); /* never nothing */
+	assert_int_equal(version_caps(h), AVR_CAPS | CAP_CALIBRATED);
+	assert_true(same_cal(c, &older) || same_cal(c, &cal)); /* never a mix */
+	return h;
+}
+
+/* Cuts before, inside and after the record's write into slot 1: the tick it is written in
+ * found first, then the cycles of that tick, coarse then by 10 cycles across the write. The
+ * board comes back with the older calibration until the record is whole, the new one once it
+ * is (simavr writes an EEPROM byte at once: the cut of a byte half written is the host test's,
+ * firmware/tests/test_port_nvm.c). */
+static void test_power_cut_during_the_write(void **state)
+{
+	struct avrsim *h = avrsim_open(elf_path, 100000);
+	uint8_t want[CALIB_STORE_SIZE], blank[CALIB_STORE_SIZE], slot1[CALIB_STORE_SIZE];
+	struct board_calibration c;
+	unsigned tick = 0;
+	uint64_t from = 0;
+	int torn = 0, cuts = 0;
+
+	(void)state;
+	assert_non_null(h);
+	calib_store_encode(&cal, 1, want);
+	memset(blank, 0xFF, sizeof(blank));
+	for (; tick <= 40; tick++) { /* the tick after which slot 1 is written */
+		h = cut_after(h, tick, 0, slot1, &c);
+		if (memcmp(slot1, blank, sizeof(slot1)) != 0)
+			break;
+	}
+	assert_true(tick > 0 && tick <= 40);
+	for (from = 0; from < 16000; from += 500) { /* the 500 cycles of the write's start */
+		h = cut_after(h, tick - 1u, from + 500u, slot1, &c);
+		if (memcmp(slot1, blank, sizeof(slot1)) != 0)
+			break;
+	}
+	for (uint64_t at = from; at <= from + 2000u; at += 10u) {
+		h = cut_after(h, tick - 1u, at, slot1, &c);
+		cuts++;
+		if (memcmp(slot1, want, sizeof(slot1)) == 0) {
+			assert_true(same_cal(&c, &cal)); /* whole: the new one */
+		} else {
+			assert_false(same_cal(&c, &cal)); /* not whole: the older one */
+			torn += memcmp(slot1, blank, sizeof(slot1)) != 0;
+		}
+	}
+	print_message("%d cuts across the write of the record, %d of them left it torn\n", cuts,
+		      torn);
+	assert_true(torn > 0); /* some cuts fell inside the write */
+	avrsim_close(h);
+}
+
 int main(int argc, char **argv)
 {
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_calibration_survives_power_cycle),
 		cmocka_unit_test(test_corrupt_record_uncalibrated),
+		cmocka_unit_test(test_power_cut_during_the_write),
 	};
 
 	if (argc != 2) {

@@ -222,20 +222,27 @@ class Stm32Board(_Lockstep):
         byte_ns: int = 90_000,
         nvm: bytes | None = None,
         boot_elf: str | Path | None = None,
+        nvm_b: bytes | None = None,
     ) -> None:
-        """``nvm``: flash sector 1 (the calibration log) at power-on, 16 KiB at most, the
-        rest erased; default: all erased (a new chip). ``boot_elf``: the bootloader in sector
-        0, started at reset (boot.py); without it the application starts directly."""
+        """``nvm``, ``nvm_b``: flash sectors 1 and 7 (the calibration's two logs) at power-on,
+        16 and 128 KiB at most, the rest erased; default: all erased (a new chip).
+        ``boot_elf``: the bootloader in sector 0, started at reset (boot.py); without it the
+        application starts directly."""
         super().__init__(sc, f, byte_ns)
         cpu = self.cpu = Cpu(elf, boot_elf)
         self.rcc = Rcc(0x4002_3800)
         self.pwr = Pwr(0x4000_7000)
         self.flash = self._make_flash()
         self.flash.stall_on_sr = True  # the CPU fetches from this flash: see Flash
-        if nvm is not None:
-            if len(nvm) > len(self.flash.data):
-                raise ValueError(f"nvm holds at most {len(self.flash.data)} bytes")
-            self.flash.data[: len(nvm)] = nvm
+        self.flash.on_stall = self._code_stall
+        for name, given, area in (
+            ("nvm", nvm, self.flash.data),
+            ("nvm_b", nvm_b, self.flash.data_b),
+        ):
+            if given is not None:
+                if len(given) > len(area):
+                    raise ValueError(f"{name} holds at most {len(area)} bytes")
+                area[: len(given)] = given
         self.flash.attach_sector(cpu.uc)
         # Runtime stalls of the CPU on a flash operation [ns], and the control ticks they ate.
         self.stalls: list[int] = []
@@ -299,6 +306,17 @@ class Stm32Board(_Lockstep):
         self._check_flash()
         self.boot_stall_ns = self.flash.stalled_ns - stalled
         self._check_boot()
+
+    def _code_stall(self, wait_ns: int) -> None:
+        """The code waits for a flash operation (a start-up erase: the start-up runs in no
+        simulated time here; an interrupt's wait has checked the watchdog first,
+        _wait_for_flash): a watchdog already counting (the bootloader starts it) must outlast
+        it."""
+        if self.iwdg.running and wait_ns >= self.iwdg.left_ns:
+            self.flash.faults.append(
+                f"the watchdog ({self.iwdg.left_ns / 1e6:.0f} ms left) resets the chip in a "
+                f"{wait_ns / 1e6:.0f} ms flash stall of the start-up"
+            )
 
     def time_passes(self, ns: int) -> None:
         self.flash.advance(ns)  # the CPU sleeps: no fetch waits for the flash

@@ -18,8 +18,18 @@ from typing import Any
 
 from board import TICK_NS, Stm32Board
 from elftools.elf.elffile import ELFFile
-from emu import FLASH_BASE, FLASH_SIZE, IRQ0, NVM_BASE, NVM_SIZE, SRAM_BASE, EmuError
-from periph import Flash, Rcc
+from emu import (
+    FLASH_BASE,
+    FLASH_SIZE,
+    IRQ0,
+    NVM_AREAS,
+    NVM_B_BASE,
+    NVM_BASE,
+    NVM_SIZE,
+    SRAM_BASE,
+    EmuError,
+)
+from periph import SECTOR_ERASE_NS, Flash, Rcc
 from unicorn import UC_HOOK_MEM_WRITE_PROT
 
 from asserv._core import lib
@@ -37,13 +47,7 @@ SECTORS = [
     (0x4_0000, 0x2_0000),
     (0x6_0000, 0x2_0000),
 ]
-# Typical erase times at x8, x16, x32 (STM32F446xC/E data sheet, "Flash memory programming":
-# tERASE16KB, tERASE64KB, tERASE128KB) [ns].
-ERASE_NS = {
-    0x4000: (400_000_000, 300_000_000, 250_000_000),
-    0x1_0000: (1_200_000_000, 700_000_000, 550_000_000),
-    0x2_0000: (2_000_000_000, 1_300_000_000, 1_000_000_000),
-}
+ERASE_NS = SECTOR_ERASE_NS  # by sector size: periph.py
 RUN_BASE = 0x0800_8000
 STAGE_BASE = 0x0802_0000
 REQUEST_ADDR = 0x2001_FFF8  # boot_layout.h: BOOT_REQUEST_ADDR, BOOT_REQUEST_MAGIC
@@ -59,9 +63,9 @@ def sector_of(offset: int) -> int:
 
 
 class WholeFlash(Flash):
-    """The flash interface and all 8 sectors (``image``, 512 KiB). ``data`` stays sector 1's
-    bytes (a view of ``image``), as periph.Flash's users expect. ``log`` records every operation
-    started: (kind, offset, size, value)."""
+    """The flash interface and all 8 sectors (``image``, 512 KiB). ``data`` and ``data_b`` stay
+    sector 1's and sector 7's bytes (views of ``image``), as periph.Flash's users expect. ``log``
+    records every operation started: (kind, offset, size, value)."""
 
     def __init__(self, base: int, image: bytes) -> None:
         super().__init__(base)
@@ -69,11 +73,12 @@ class WholeFlash(Flash):
             raise ValueError(f"a flash image is {FLASH_SIZE} bytes")
         self.image = bytearray(image)
         self.data = memoryview(self.image)[NVM_BASE - FLASH_BASE : NVM_BASE - FLASH_BASE + NVM_SIZE]  # type: ignore[assignment]
+        self.data_b = memoryview(self.image)[NVM_B_BASE - FLASH_BASE :]  # type: ignore[assignment]
         self.uc: Any = None
         self.log: list[tuple[str, int, int, int]] = []
 
     def attach_sector(self, uc: Any) -> None:
-        """Sector 1 as periph.Flash maps it; the other sectors are the CPU's memory (code runs
+        """Sectors 1 and 7 as periph.Flash maps them; the others are the CPU's memory (code runs
         from them), which a store cannot write: a write-protection hook takes the store."""
         self.uc = uc
         super().attach_sector(uc)
@@ -83,24 +88,28 @@ class WholeFlash(Flash):
         self._mirror(0, FLASH_SIZE)
 
     def _mirror(self, off: int, size: int) -> None:
-        """The CPU's view of [off, off + size) follows ``image`` (sector 1 is read through the
-        model already)."""
-        nvm0, nvm1 = NVM_BASE - FLASH_BASE, NVM_BASE - FLASH_BASE + NVM_SIZE
-        for a, b in ((off, min(off + size, nvm0)), (max(off, nvm1), off + size)):
+        """The CPU's view of [off, off + size) follows ``image`` (sectors 1 and 7 are read
+        through the model already)."""
+        a = off
+        for base, n in NVM_AREAS:
+            b = min(off + size, base - FLASH_BASE)
             if a < b:
                 self.uc.mem_write(FLASH_BASE + a, bytes(self.image[a:b]))
+            a = max(a, base - FLASH_BASE + n)
+        if a < off + size:
+            self.uc.mem_write(FLASH_BASE + a, bytes(self.image[a : off + size]))
 
     def _store(self, uc: Any, access: int, addr: int, size: int, value: int, user: Any) -> bool:
         self.program(addr - FLASH_BASE, size, value)
         return True  # the store is taken: the memory changes at the operation's end
 
-    def _array_rd(self, uc: object, offset: int, size: int, user: object) -> int:
+    def _array_rd(self, uc: object, offset: int, size: int, user: int) -> int:
         self.stall()
-        off = NVM_BASE - FLASH_BASE + offset
+        off = user + offset
         return int.from_bytes(self.image[off : off + size], "little")
 
-    def _array_wr(self, uc: object, offset: int, size: int, value: int, user: object) -> None:
-        self.program(NVM_BASE - FLASH_BASE + offset, size, value)
+    def _array_wr(self, uc: object, offset: int, size: int, value: int, user: int) -> None:
+        self.program(user + offset, size, value)
 
     def program(self, offset: int, size: int, value: int) -> None:
         if sector_of(offset) == 0:
@@ -131,6 +140,7 @@ class WholeFlash(Flash):
                 self.op = ("erase", start, size, 0)
                 self.busy_ns = ERASE_NS[size][self.psize()]
                 self.erases += 1
+                self.erased.append(snb)
                 self.log.append(self.op)
 
     def finish(self) -> None:
@@ -189,12 +199,16 @@ def with_version(image: Image, version: int) -> Image:
     return Image(bytes(data), image.board_id, version)
 
 
-def factory_flash(boot_elf: str | Path, app: Image | None, nvm: bytes = b"") -> bytes:
-    """The flash as an ST-LINK leaves it: the bootloader in sector 0, the calibration's sector
-    (``nvm``), the run slot with its header and ``app`` (or erased), the rest erased."""
+def factory_flash(
+    boot_elf: str | Path, app: Image | None, nvm: bytes = b"", nvm_b: bytes = b""
+) -> bytes:
+    """The flash as an ST-LINK leaves it: the bootloader in sector 0, the calibration's sectors
+    1 and 7 (``nvm``, ``nvm_b``), the run slot with its header and ``app`` (or erased), the rest
+    erased."""
     image = bytearray(b"\xff" * FLASH_SIZE)
     image[: SECTORS[0][1]] = elf_bytes_at(boot_elf, FLASH_BASE, SECTORS[0][1])
     image[0x4000 : 0x4000 + len(nvm)] = nvm
+    image[NVM_B_BASE - FLASH_BASE : NVM_B_BASE - FLASH_BASE + len(nvm_b)] = nvm_b
     if app is not None:
         slot = slot_bytes(app)
         image[RUN_BASE - FLASH_BASE : RUN_BASE - FLASH_BASE + len(slot)] = slot
@@ -238,6 +252,8 @@ class BootBoard(Stm32Board):
             return
         self._ready = True
         self.scs.on_reset = self._on_reset
+        # The bootloader runs from RAM; the application it starts from flash, its start-up too.
+        self.flash.code_in_flash = lambda: not self.in_boot()
         self.cpu.irq_lines.append(self._flash_line)
 
     def _on_reset(self) -> None:

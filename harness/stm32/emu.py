@@ -47,8 +47,11 @@ from unicorn.unicorn_py3.unicorn import Uc, UcError
 
 FLASH_BASE = 0x0800_0000
 FLASH_SIZE = 512 * 1024
-NVM_BASE = 0x0800_4000  # flash sector 1, the calibration log: the flash model maps it (board.py)
+NVM_BASE = 0x0800_4000  # flash sector 1, the calibration's first log: the flash model maps it
 NVM_SIZE = 0x4000
+NVM_B_BASE = 0x0806_0000  # flash sector 7, its second log (periph.NVM_SECTORS)
+NVM_B_SIZE = 0x2_0000
+NVM_AREAS = ((NVM_BASE, NVM_SIZE), (NVM_B_BASE, NVM_B_SIZE))
 SRAM_BASE = 0x2000_0000
 SRAM_SIZE = 128 * 1024
 EXC_RETURN_THREAD_MSP = 0xFFFF_FFF9  # PM0214 Table 17: return to thread mode, main stack
@@ -84,10 +87,14 @@ class Cpu:
         would (the application alone is linked at its slot, not at the boot address)."""
         self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         self.uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
-        # Flash but its sector 1, which the flash interface's model maps (periph.Flash).
-        self.uc.mem_map(FLASH_BASE, NVM_BASE - FLASH_BASE, UC_PROT_READ | UC_PROT_EXEC)
-        end = NVM_BASE + NVM_SIZE
-        self.uc.mem_map(end, FLASH_BASE + FLASH_SIZE - end, UC_PROT_READ | UC_PROT_EXEC)
+        # Flash but its sectors 1 and 7, which the flash interface's model maps (periph.Flash).
+        start = FLASH_BASE
+        for base, size in NVM_AREAS:
+            if base > start:
+                self.uc.mem_map(start, base - start, UC_PROT_READ | UC_PROT_EXEC)
+            start = base + size
+        if start < FLASH_BASE + FLASH_SIZE:
+            self.uc.mem_map(start, FLASH_BASE + FLASH_SIZE - start, UC_PROT_READ | UC_PROT_EXEC)
         self.uc.mem_map(SRAM_BASE, SRAM_SIZE, UC_PROT_ALL)
         self.symbols: dict[str, int] = {}
         self.sizes: dict[str, int] = {}
@@ -145,8 +152,9 @@ class Cpu:
                 if seg["p_type"] != "PT_LOAD" or not seg["p_filesz"]:
                     continue
                 start = seg["p_paddr"]
-                if start < NVM_BASE + NVM_SIZE and start + seg["p_filesz"] > NVM_BASE:
-                    raise EmuError(f"{path}: code or data linked into flash sector 1 (the log)")
+                for base, size in NVM_AREAS:
+                    if start < base + size and start + seg["p_filesz"] > base:
+                        raise EmuError(f"{path}: code or data linked into a calibration log")
                 # Flash holds every loadable byte at its load address (.data's initial values
                 # too: the reset handler copies them).
                 self.uc.mem_write(seg["p_paddr"], seg.data())

@@ -10,6 +10,17 @@ from random import Random
 from unicorn.unicorn_py3.unicorn import Uc
 
 HSE_HZ = 8_000_000  # the ST-LINK's MCO on OSC_IN
+FLASH_BASE = 0x0800_0000
+# The sectors the application programs and erases, the calibration's two logs
+# (firmware/ports/stm32/stm32_nvm.h): (sector, address, size), RM0390 3.3, Table 4.
+NVM_SECTORS = ((1, 0x0800_4000, 0x4000), (7, 0x0806_0000, 0x2_0000))
+# Typical erase times at x8, x16, x32 by sector size (STM32F446xC/E data sheet, "Flash memory
+# programming": tERASE16KB, tERASE64KB, tERASE128KB) [ns].
+SECTOR_ERASE_NS = {
+    0x4000: (400_000_000, 300_000_000, 250_000_000),
+    0x1_0000: (1_200_000_000, 700_000_000, 550_000_000),
+    0x2_0000: (2_000_000_000, 1_300_000_000, 1_000_000_000),
+}
 
 
 class Regs:
@@ -146,7 +157,9 @@ class Pwr(Regs):
 
 
 class Flash(Regs):
-    """The embedded flash interface, RM0390 3 (registers 3.8), and the sector it programs.
+    """The embedded flash interface, RM0390 3 (registers 3.8), and the sectors it programs
+    (``NVM_SECTORS``: 1 and 7, the calibration's logs; ``data`` is sector 1, ``data_b`` sector
+    7). Operations name their place by its offset from the flash's base.
 
     - FLASH_ACR (3.8.1): LATENCY reads back what was written (3.4.1).
     - Unlock (3.5.1): FLASH_CR is locked at reset (LOCK); KEY1 then KEY2 written to FLASH_KEYR
@@ -157,10 +170,11 @@ class Flash(Regs):
       x32) programs it, 1 bits to 0 only (the result is old AND new: 0 to 1 needs an erase);
       a store of another size sets PGPERR, one not aligned to its size PGAERR, one without PG
       PGSERR, and nothing is written. BSY for ``PROGRAM_NS``.
-    - Erase (3.5.3): SER, SNB and STRT erase a sector to 0xFF; BSY for ``ERASE_NS`` of the
-      PSIZE (the data sheet's typical tERASE16KB); STRT reads 1 until BSY clears. Erasing
-      another sector than the modelled one, or a mass erase, would erase the firmware's code:
-      a fault. The operation's result appears when it ends (``advance``, ``finish``).
+    - Erase (3.5.3): SER, SNB and STRT erase a sector to 0xFF; BSY for ``SECTOR_ERASE_NS`` of
+      its size and the PSIZE (the data sheet's typical figures); STRT reads 1 until BSY clears.
+      Erasing another sector than the modelled ones, or a mass erase, would erase the
+      firmware's code: a fault. The operation's result appears when it ends (``advance``,
+      ``finish``).
     - FLASH_SR (3.8.4): BSY; EOP (with EOPIE) and the error flags OPERR, WRPERR, PGAERR,
       PGPERR, PGSERR, cleared by writing 1 (rc_w1).
     - While BSY, a write to FLASH_CR and any access to the sector stall the bus until the
@@ -189,19 +203,24 @@ class Flash(Regs):
     SNB_POS, PSIZE_POS = 3, 8
     CR_RW = PG | SER | MER | 0xF << 3 | 3 << 8 | EOPIE | ERRIE
     PROGRAM_NS = 16_000  # the data sheet's typical word (byte, half-word) programming time
-    ERASE_NS = (400_000_000, 300_000_000, 250_000_000)  # tERASE16KB at x8, x16, x32
+    ERASE_NS = SECTOR_ERASE_NS[0x4000]  # sector 1's, at x8, x16, x32
+    ERASE_B_NS = SECTOR_ERASE_NS[0x2_0000]  # sector 7's
 
-    def __init__(
-        self, base: int, sector: int = 1, sector_base: int = 0x0800_4000, size: int = 0x4000
-    ) -> None:
-        self.sector = sector
-        self.sector_base = sector_base
-        self.data = bytearray(b"\xff" * size)
+    def __init__(self, base: int) -> None:
+        self.sectors = {n: bytearray(b"\xff" * size) for n, _, size in NVM_SECTORS}
+        self.data = self.sectors[1]
+        self.data_b = self.sectors[7]
         self.stall_on_sr = False
         self.stalled_ns = 0  # total time the bus waited for an operation
         self.faults: list[str] = []
         self.programs = 0
         self.erases = 0
+        self.erased: list[int] = []  # the sector of each erase started
+        # Called with each wait of the bus (stall) before the operation ends: the board checks
+        # the watchdog against a stall of the start-up, which runs in no simulated time.
+        self.on_stall: Callable[[int], None] | None = None
+        # When set, says whether the CPU fetches from the flash now (stall_on_sr's value).
+        self.code_in_flash: Callable[[], bool] | None = None
         super().__init__(base)
 
     def reset_values(self) -> None:
@@ -234,6 +253,8 @@ class Flash(Regs):
         if self.op is None:
             return 0
         wait = max(0, self.busy_ns)
+        if self.on_stall is not None:
+            self.on_stall(wait)
         self.stalled_ns += wait
         self.finish()
         return wait
@@ -242,11 +263,12 @@ class Flash(Regs):
         if self.op is None:
             return
         kind, off, size, value = self.op
+        buf, at = self._locate(off)
         if kind == "program":
             for i in range(size):
-                self.data[off + i] &= (value >> (8 * i)) & 0xFF
+                buf[at + i] &= (value >> (8 * i)) & 0xFF
         else:
-            self.data[:] = b"\xff" * len(self.data)
+            buf[:] = b"\xff" * len(buf)
         self.op = None
         self.busy_ns = 0
         self.mem[self.CR] &= ~self.STRT
@@ -258,22 +280,24 @@ class Flash(Regs):
         if self.op is None:
             return
         kind, off, size, value = self.op
+        buf, at = self._locate(off)
         if kind == "program":
             for i in range(size):
                 done = rng.getrandbits(8)  # the 1-to-0 changes that happened
-                self.data[off + i] &= ((value >> (8 * i)) & 0xFF) | ~done & 0xFF
+                buf[at + i] &= ((value >> (8 * i)) & 0xFF) | ~done & 0xFF
         else:
-            for i in range(0, len(self.data), 4):
+            for i in range(0, len(buf), 4):
                 done = rng.getrandbits(32)  # the 0-to-1 changes that happened
-                word = int.from_bytes(self.data[i : i + 4], "little") | done
-                self.data[i : i + 4] = word.to_bytes(4, "little")
+                word = int.from_bytes(buf[i : i + 4], "little") | done
+                buf[i : i + 4] = word.to_bytes(4, "little")
         self.op = None
         self.busy_ns = 0
 
     # ---- registers ----------------------------------------------------------------------------
     def read(self, off: int) -> int:
         if off == self.SR:
-            if self.op is not None and self.stall_on_sr:
+            fetching = self.code_in_flash() if self.code_in_flash else self.stall_on_sr
+            if self.op is not None and fetching:
                 self.stall()
             return self.sr | (self.BSY if self.op is not None else 0)
         if off == self.KEYR:
@@ -319,30 +343,42 @@ class Flash(Regs):
                 self.faults.append("a mass erase: it would erase the firmware")
             elif value & self.SER:
                 snb = (value >> self.SNB_POS) & 0xF
-                if snb != self.sector:
+                if snb not in self.sectors:
                     self.faults.append(f"an erase of sector {snb}: it holds the firmware")
                     return
                 if self.psize() == 3:
                     self.faults.append("an erase at x64: it needs an external VPP (3.6.2)")
                     return
+                _, addr, size = next(x for x in NVM_SECTORS if x[0] == snb)
                 self.mem[self.CR] |= self.STRT
-                self.op = ("erase", 0, 0, 0)
-                self.busy_ns = self.ERASE_NS[self.psize()]
+                self.op = ("erase", addr - FLASH_BASE, size, 0)
+                self.busy_ns = SECTOR_ERASE_NS[size][self.psize()]
                 self.erases += 1
+                self.erased.append(snb)
 
-    # ---- the sector (mapped at sector_base) ---------------------------------------------------
+    # ---- the sectors (mapped at their addresses) ----------------------------------------------
+    def _locate(self, off: int) -> tuple[bytearray, int]:
+        """The sector's bytes that hold flash offset ``off``, and its index in them."""
+        for n, addr, size in NVM_SECTORS:
+            if 0 <= off - (addr - FLASH_BASE) < size:
+                return self.sectors[n], off - (addr - FLASH_BASE)
+        raise ValueError(f"flash offset 0x{off:x} is outside the modelled sectors")
+
     def attach_sector(self, uc: Uc) -> None:
-        uc.mmio_map(self.sector_base, len(self.data), self._array_rd, None, self._array_wr, None)
+        for _, addr, size in NVM_SECTORS:
+            base = addr - FLASH_BASE  # each access's offset is the sector's: user adds this
+            uc.mmio_map(addr, size, self._array_rd, base, self._array_wr, base)
 
-    def _array_rd(self, uc: object, offset: int, size: int, user: object) -> int:
+    def _array_rd(self, uc: object, offset: int, size: int, user: int) -> int:
         self.stall()
-        return int.from_bytes(self.data[offset : offset + size], "little")
+        buf, at = self._locate(user + offset)
+        return int.from_bytes(buf[at : at + size], "little")
 
-    def _array_wr(self, uc: object, offset: int, size: int, value: int, user: object) -> None:
-        self.program(offset, size, value)
+    def _array_wr(self, uc: object, offset: int, size: int, value: int, user: int) -> None:
+        self.program(user + offset, size, value)
 
     def program(self, offset: int, size: int, value: int) -> None:
-        """A store of ``size`` bytes into the sector at ``offset``."""
+        """A store of ``size`` bytes at flash offset ``offset``."""
         self.stall()
         cr = self.mem[self.CR]
         if not cr & self.PG:

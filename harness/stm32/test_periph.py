@@ -13,6 +13,8 @@ from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Scs, Timer
 
 from asserv import codec
 
+S1 = 0x4000  # sector 1's offset from the flash's base: Flash.program() takes such offsets
+
 
 # ---- RCC and PWR (RM0390 6.3.1, 6.3.2, 6.3.3, 5.1.4) -----------------------------------
 def test_hse_ready_follows_hseon() -> None:
@@ -439,7 +441,7 @@ def test_a_key_while_unlocked_is_a_bus_error() -> None:
 def test_word_program_is_busy_for_its_time_then_written() -> None:
     fl = unlocked_flash()
     fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
-    fl.program(16, 4, 0x1234_5678)
+    fl.program(S1 + 16, 4, 0x1234_5678)
     assert fl.read(fl.SR) & fl.BSY and fl.data[16:20] == b"\xff" * 4  # not yet
     fl.advance(fl.PROGRAM_NS - 1)
     assert fl.read(fl.SR) & fl.BSY
@@ -448,7 +450,7 @@ def test_word_program_is_busy_for_its_time_then_written() -> None:
     assert fl.data[16:20] == bytes([0x78, 0x56, 0x34, 0x12])  # little-endian
     assert not fl.read(fl.SR) & fl.EOP  # EOP only with EOPIE
     fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS | fl.EOPIE)
-    fl.program(20, 4, 0)
+    fl.program(S1 + 20, 4, 0)
     fl.advance(fl.PROGRAM_NS)
     assert fl.read(fl.SR) & fl.EOP
     fl.write(fl.SR, fl.EOP)  # rc_w1
@@ -460,7 +462,7 @@ def test_programming_only_clears_bits(old: int, new: int) -> None:
     fl = unlocked_flash()
     fl.data[0:4] = old.to_bytes(4, "little")
     fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
-    fl.program(0, 4, new)
+    fl.program(S1 + 0, 4, new)
     fl.advance(fl.PROGRAM_NS)
     assert int.from_bytes(fl.data[0:4], "little") == old & new
 
@@ -479,29 +481,50 @@ def test_a_bad_program_sets_its_error_and_writes_nothing(
 ) -> None:
     fl = unlocked_flash()
     fl.write(fl.CR, cr)
-    fl.program(offset, size, 0)
+    fl.program(S1 + offset, size, 0)
     assert fl.read(fl.SR) & fl.ERRORS == flag and not fl.busy()
     assert fl.data[:8] == b"\xff" * 8
     fl.write(fl.SR, flag)  # rc_w1
     assert not fl.read(fl.SR) & fl.ERRORS
 
 
-@pytest.mark.parametrize(("psize", "ms"), [(0, 400), (1, 300), (2, 250)])
-def test_sector_erase_sets_ff_after_its_time_and_strt_reads_until_then(psize: int, ms: int) -> None:
+@pytest.mark.parametrize(
+    ("sector", "psize", "ms"),
+    [(1, 0, 400), (1, 1, 300), (1, 2, 250), (7, 0, 2000), (7, 1, 1300), (7, 2, 1000)],
+)
+def test_sector_erase_sets_ff_after_its_time_and_strt_reads_until_then(
+    sector: int, psize: int, ms: int
+) -> None:
     fl = unlocked_flash()
-    fl.data[:4] = bytes(4)
-    fl.write(fl.CR, fl.SER | 1 << fl.SNB_POS | psize << fl.PSIZE_POS)
+    mine, other = (fl.data, fl.data_b) if sector == 1 else (fl.data_b, fl.data)
+    mine[:4] = bytes(4)
+    other[:4] = bytes(4)
+    fl.write(fl.CR, fl.SER | sector << fl.SNB_POS | psize << fl.PSIZE_POS)
     assert not fl.busy()  # SER alone does not start it
     fl.write(fl.CR, fl.read(fl.CR) | fl.STRT)
     assert fl.read(fl.SR) & fl.BSY and fl.read(fl.CR) & fl.STRT
     fl.advance(ms * 1_000_000 - 1)
-    assert fl.busy() and fl.data[:4] == bytes(4)
+    assert fl.busy() and mine[:4] == bytes(4)
     fl.advance(1)
     assert not fl.read(fl.SR) & fl.BSY and not fl.read(fl.CR) & fl.STRT
-    assert fl.data == b"\xff" * len(fl.data)
+    assert mine == b"\xff" * len(mine)
+    assert other[:4] == bytes(4) and other[4:] == b"\xff" * (len(other) - 4)  # the other kept
+    assert fl.erased == [sector]
 
 
-@pytest.mark.parametrize("cr", [Flash.SER | 2 << 3, Flash.SER | 0 << 3, Flash.MER])
+def test_sector_7_programs_at_its_offsets() -> None:
+    fl = unlocked_flash()
+    fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
+    fl.program(0x6_0000 + 8, 4, 0)
+    fl.advance(fl.PROGRAM_NS)
+    assert fl.data_b[8:12] == bytes(4) and fl.data == b"\xff" * len(fl.data)
+    assert fl._array_rd(None, 8, 4, 0x6_0000) == 0
+
+
+@pytest.mark.parametrize(
+    "cr",
+    [Flash.SER | 2 << 3, Flash.SER | 0 << 3, Flash.SER | 5 << 3, Flash.SER | 6 << 3, Flash.MER],
+)
 def test_erasing_the_code_is_a_fault(cr: int) -> None:
     fl = unlocked_flash()
     fl.write(fl.CR, cr | 2 << fl.PSIZE_POS | fl.STRT)
@@ -511,16 +534,16 @@ def test_erasing_the_code_is_a_fault(cr: int) -> None:
 def test_the_bus_stalls_on_the_sector_and_cr_while_busy() -> None:
     fl = unlocked_flash()
     fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
-    fl.program(0, 4, 0)
+    fl.program(S1 + 0, 4, 0)
     fl.advance(6_000)
-    assert fl._array_rd(None, 0, 4, None) == 0  # the read waited for the program's end
+    assert fl._array_rd(None, 0, 4, S1) == 0  # the read waited for the program's end
     assert fl.stalled_ns == fl.PROGRAM_NS - 6_000 and not fl.busy()
-    fl.program(4, 4, 0)
+    fl.program(S1 + 4, 4, 0)
     fl.write(fl.CR, fl.LOCK)  # waits too, then locks
     assert fl.stalled_ns == 2 * fl.PROGRAM_NS - 6_000 and fl.data[4:8] == bytes(4)
     fl2 = unlocked_flash()
     fl2.write(fl2.CR, fl2.PG | 2 << fl2.PSIZE_POS)
-    fl2.program(0, 4, 0)
+    fl2.program(S1 + 0, 4, 0)
     assert fl2.read(fl2.SR) & fl2.BSY  # a register read does not wait...
     fl2.stall_on_sr = True
     assert not fl2.read(fl2.SR) & fl2.BSY  # ...but the CPU's load of it, fetched from flash
@@ -531,7 +554,7 @@ def test_a_cut_program_leaves_a_part_of_its_changes(old: int, new: int, seed: in
     fl = unlocked_flash()
     fl.data[0:4] = old.to_bytes(4, "little")
     fl.write(fl.CR, fl.PG | 2 << fl.PSIZE_POS)
-    fl.program(0, 4, new)
+    fl.program(S1 + 0, 4, new)
     fl.cut(Random(seed))
     got = int.from_bytes(fl.data[0:4], "little")
     assert got & ~old == 0  # no bit went from 0 to 1

@@ -21,6 +21,7 @@ SOURCES = [
     PORTS / "common" / "port.c",
     PORTS / "common" / "port_nvm.c",
     PORTS / "common" / "calib_store.c",
+    PORTS / "common" / "calib_log.c",
     PORTS / "host" / "host.c",
 ]
 INCLUDES = [

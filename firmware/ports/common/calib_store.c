@@ -1,8 +1,8 @@
 /* The calibration record (see calib_store.h). */
 #include "calib_store.h"
 
-#define MAGIC0 0x61u /* 'a' */
-#define MAGIC1 0x63u /* 'c' */
+#define MAGIC0 CALIB_STORE_MAGIC0
+#define MAGIC1 CALIB_STORE_MAGIC1
 #define PPM_LIMIT 30000
 
 /* Bitwise: 16 bytes once at start-up and once per calibration, so no table. */
@@ -32,14 +32,15 @@ static uint32_t get_u32(const uint8_t *in)
 	return (uint32_t)in[0] << 24 | (uint32_t)in[1] << 16 | (uint32_t)in[2] << 8 | in[3];
 }
 
-void calib_store_encode(const struct board_calibration *cal, uint8_t out[CALIB_STORE_SIZE])
+void calib_store_encode(const struct board_calibration *cal, uint8_t gen,
+			uint8_t out[CALIB_STORE_SIZE])
 {
 	uint16_t crc;
 
 	out[0] = MAGIC0;
 	out[1] = MAGIC1;
 	out[2] = CALIB_STORE_VERSION;
-	out[3] = 0;
+	out[3] = gen;
 	put_u32(&out[4], (uint32_t)cal->ratio_ppm);
 	put_u32(&out[8], (uint32_t)cal->scale_ppm);
 	out[12] = (uint8_t)(cal->track_10um >> 8);
@@ -63,7 +64,8 @@ int calib_store_decode(const uint8_t in[CALIB_STORE_SIZE], struct board_calibrat
 
 	if (all_bytes(in, 0xFFu) || all_bytes(in, 0x00u))
 		return CALIB_STORE_BLANK;
-	if (in[0] != MAGIC0 || in[1] != MAGIC1 || in[2] != CALIB_STORE_VERSION || in[3] != 0 ||
+	if (in[0] != MAGIC0 || in[1] != MAGIC1 ||
+	    !(in[2] == CALIB_STORE_VERSION || (in[2] == CALIB_STORE_VERSION_1 && in[3] == 0)) ||
 	    calib_store_crc16(in, 14) != (uint16_t)((uint16_t)in[14] << 8 | in[15]))
 		return CALIB_STORE_CORRUPT;
 	ratio = (int32_t)get_u32(&in[4]);

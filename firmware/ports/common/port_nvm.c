@@ -1,52 +1,106 @@
 /* The calibration kept in the port's storage (see port_nvm.h). */
 #include "port_nvm.h"
 
+#include "calib_log.h"
 #include "hal.h"
 
-static int same(const struct board_calibration *a, const struct board_calibration *b)
+#define SPOILT 0xFFu /* byte 0 while a record is written: not the magic's 'a' */
+
+static uint16_t slot_offset(uint8_t slot)
 {
-	return a->ratio_ppm == b->ratio_ppm && a->scale_ppm == b->scale_ppm &&
-	       a->track_10um == b->track_10um;
+	return (uint16_t)(PORT_NVM_CALIB_OFFSET + slot * CALIB_STORE_SIZE);
+}
+
+/* calib_log.h's reader: slot i of area i (each area one slot), copied into buf. */
+static const uint8_t *read_slot(uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
+{
+	(void)i;
+	if (hal_nvm_size() < slot_offset(PORT_NVM_SLOTS) ||
+	    hal_nvm_read(slot_offset(area), buf, CALIB_STORE_SIZE) != 0)
+		return 0;
+	return buf;
 }
 
 int port_nvm_load(struct port_nvm *s, struct board *b)
 {
-	struct board_calibration cal;
+	struct calib_log_area l[CALIB_LOG_AREAS];
 	int err;
 
 	s->have = 0;
-	s->pos = CALIB_STORE_SIZE;
-	if (hal_nvm_size() < PORT_NVM_CALIB_OFFSET + CALIB_STORE_SIZE ||
-	    hal_nvm_read(PORT_NVM_CALIB_OFFSET, s->rec, CALIB_STORE_SIZE) != 0)
-		err = -1;
-	else
-		err = calib_store_decode(s->rec, &cal);
-	if (err == 0)
-		err = board_set_calibration(b, &cal);
+	s->pos = PORT_NVM_STEPS;
+	calib_log_scan(read_slot, 0, 1, &l[0]);
+	calib_log_scan(read_slot, 1, 1, &l[1]);
+	if (l[0].found || l[1].found) {
+		s->slot = calib_log_pick(l);
+		s->gen = l[s->slot].gen;
+		err = board_set_calibration(b, &l[s->slot].cal);
+	} else {
+		/* None valid: the first record goes into slot 0, generation 0. */
+		s->slot = 1;
+		s->gen = 0xFFu;
+		err = l[0].err;
+	}
 	if (err == 0) {
 		/* What the storage holds is installed: nothing to write until it changes. */
-		s->stored = cal;
+		s->stored = l[s->slot].cal;
 		s->have = 1;
 	}
 	s->loaded = (int8_t)(err < -128 ? -128 : err);
 	return err;
 }
 
+/* 1 when the slot's byte 0 reads as the magic's 'a'. A write cut by a power-off may leave the
+ * byte it writes anything, 'a' too: byte 0 is spoilt first only when it is 'a', so that such a
+ * cut cannot make a slot decode that did not (bytes 1 to 15 that are a whole record, left by
+ * a cut of an earlier record's last write, behind an 'a' the cut made). No write is in progress
+ * (the caller checked): the read does not wait. */
+static uint8_t magic_first(uint8_t slot)
+{
+	uint8_t v;
+
+	return hal_nvm_read(slot_offset(slot), &v, 1) == 0 && v == CALIB_STORE_MAGIC0;
+}
+
+/* The byte of write step i: byte 0 spoilt, bytes 1 to 15, then byte 0. */
+static uint8_t step_byte(const struct port_nvm *s, uint8_t i, uint8_t *at)
+{
+	if (i == 0) {
+		*at = 0;
+		return SPOILT;
+	}
+	*at = i == CALIB_STORE_SIZE ? 0 : i;
+	return s->rec[*at];
+}
+
 void port_nvm_poll(struct port_nvm *s, const struct board *b)
 {
 	/* b->planner.calibration changes only in the planner (SET_ODOMETRIE), which run in this
 	 * context: no torn read. A calibration that comes while a record is half written
-	 * restarts the write with its own record. */
-	if (b->planner.calibrated && (!s->have || !same(&b->planner.calibration, &s->stored))) {
+	 * restarts the write with its own record, in the same slot: the other one still holds
+	 * the newest complete record. */
+	if (b->planner.calibrated &&
+	    (!s->have || !calib_store_same(&b->planner.calibration, &s->stored))) {
+		if (s->pos == PORT_NVM_STEPS) {
+			/* The previous record is whole: the new one goes into the other slot. */
+			s->slot ^= 1u;
+			s->gen++;
+		}
 		s->stored = b->planner.calibration;
 		s->have = 1;
-		calib_store_encode(&s->stored, s->rec);
+		calib_store_encode(&s->stored, s->gen, s->rec);
 		s->pos = 0;
 	}
-	while (s->pos < CALIB_STORE_SIZE && !hal_nvm_busy()) {
-		int err = hal_nvm_write_byte((uint16_t)(PORT_NVM_CALIB_OFFSET + s->pos),
-					     s->rec[s->pos]);
+	while (s->pos < PORT_NVM_STEPS && !hal_nvm_busy()) {
+		uint8_t at;
+		uint8_t v;
+		int err;
 
+		if (s->pos == 0 && !magic_first(s->slot)) {
+			s->pos = 1; /* byte 0 is not 'a': nothing to spoil */
+			continue;
+		}
+		v = step_byte(s, s->pos, &at);
+		err = hal_nvm_write_byte((uint16_t)(slot_offset(s->slot) + at), v);
 		if (err == -2)
 			break; /* busy after all: the next call */
 		/* Written, or outside the storage (port_nvm_load() then said -1): go on. */
@@ -56,5 +110,5 @@ void port_nvm_poll(struct port_nvm *s, const struct board *b)
 
 uint8_t port_nvm_pending(const struct port_nvm *s)
 {
-	return s->pos < CALIB_STORE_SIZE;
+	return s->pos < PORT_NVM_STEPS;
 }

@@ -2,8 +2,9 @@
 # Build the STM32 firmware and flash it into a Nucleo-F446RE plugged in by USB (its ST-LINK):
 #   bash firmware/ports/stm32/flash.sh [F446|F401]
 # The bootloader (sector 0) and the run slot (sector 2 on: its header, then the application)
-# are written apart, so that sector 1, the odometry calibration's log (docs/stm32.md, "The
-# calibration in flash"), is kept. The slot's header is the one the bootloader writes after an
+# are written apart, so that sector 1, the odometry calibration's first log (docs/stm32.md, "The
+# calibration in flash"), is kept; st-flash erases only the sectors it writes, so sector 7, its
+# second log, is kept too. The slot's header is the one the bootloader writes after an
 # update over I2C (docs/update.md): its CRC-32s are gzip's (RFC 1952 ends with the CRC-32 of
 # the data, the same as zlib's crc32). Later updates need no ST-LINK: `asserv --bus 1 flash`.
 # Needs Debian's gcc-arm-none-eabi, libnewlib-arm-none-eabi, cmake, ninja-build, stlink-tools.

@@ -1,8 +1,8 @@
 /* The asserv board on an STM32F4 Nucleo-64: start-up, then the control in interrupts. SysTick runs
- * the whole control tick at 1 kHz (one rate: the slow steps in it) and feeds the watchdog; the I2C
- * interrupts preempt it. The main loop, woken by each interrupt, writes the calibration to flash
- * (stm32_nvm.h) and sleeps. Pin map: pinmap.h; clocks: stm32_clock.h; build and flashing:
- * docs/stm32.md. */
+ * the whole control tick at 1 kHz (one rate: the slow steps in it) and feeds the watchdog (set
+ * up by watchdog.c); the I2C interrupts preempt it. The main loop, woken by each interrupt,
+ * writes the calibration to flash (stm32_nvm.h) and sleeps. Pin map: pinmap.h; clocks:
+ * stm32_clock.h; build and flashing: docs/stm32.md. */
 #include <stddef.h>
 
 #include "hal.h"
@@ -24,7 +24,6 @@ const struct stm32_layout stm32_layout = {
 };
 
 void SysTick_Handler(void);
-static void stm32_watchdog_start(void);
 
 int main(void)
 {
@@ -45,41 +44,18 @@ int main(void)
 		for (;;)
 			;
 	}
-	/* Before the bus, the watchdog and the ticks: a start-up erase stalls nothing that runs. */
+	/* Before the bus and the ticks: a start-up erase stalls nothing that runs. The watchdog
+	 * (watchdog.c) is already counting when the bootloader started the application: it is
+	 * widened for the erase (up to 2 s), then set to its 60 ms. */
+	stm32_watchdog_start(STM32_WDG_ERASE_PR, STM32_WDG_ERASE_RLR);
 	stm32_nvm_load(&stm32_nvm, &asserv_board);
 	hal_i2c_slave_init(PROTO_ADDRESS);
-	stm32_watchdog_start();
+	stm32_watchdog_set(STM32_WDG_PR, STM32_WDG_RLR);
 	hal_tick_start(cfg.tick_hz);
 	for (;;) {
 		stm32_nvm_poll(&stm32_nvm, &asserv_board); /* one flash operation at most */
 		stm32_idle();
 	}
-}
-
-/* The independent watchdog (RM0390 19.3: started, then configured, then reloaded), fed after
- * each tick: if the ticks stop (a fault handler's loop, an interrupt that never ends), it resets
- * the chip within 60 ms, and the reset stops the motors (the PWM pins float: the bridge's enable
- * inputs need pull-downs, docs/stm32.md). 60 ms at the LSI's nominal 32 kHz: (479 + 1) * 4 /
- * 32000; the LSI's spread (17..47 kHz) makes it 41..113 ms. */
-static void stm32_watchdog_start(void)
-{
-	IWDG_KR = IWDG_KR_START;
-	stm32_watchdog_set(STM32_WDG_PR, STM32_WDG_RLR); /* LSI / 4, 480 counts */
-}
-
-/* RM0390 19.3.2: the access key opens PR and RLR until the next key, so the tick's reload must
- * not come in between (PRIMASK); the new values are taken once SR's PVU and RVU clear (up to 5
- * LSI periods), and the reload that follows loads RLR. */
-void stm32_watchdog_set(uint32_t pr, uint32_t rlr)
-{
-	__asm__ volatile("cpsid i" ::: "memory");
-	IWDG_KR = IWDG_KR_ACCESS;
-	IWDG_PR = pr;
-	IWDG_RLR = rlr;
-	__asm__ volatile("cpsie i" ::: "memory");
-	while (IWDG_SR != 0)
-		;
-	IWDG_KR = IWDG_KR_RELOAD;
 }
 
 /* PM0214 4.5: SysTick at the processor clock, reloaded every period; its priority the lowest

@@ -1,19 +1,28 @@
-/* The odometry calibration kept in flash (stm32_nvm.h): an append-only log of calib_store.h
- * records in sector 1, written a 32-bit word at a time from the main loop.
+/* The odometry calibration kept in flash (stm32_nvm.h): calib_store.h's records in two logs,
+ * sectors 1 and 7, written a 32-bit word at a time from the main loop.
  *
  * Flash is programmed from 1 to 0 only and erased by whole sectors (RM0390 3.5.3, 3.5.4), so
- * ports/common/port_nvm.c's scheme, one record rewritten in place byte by byte, would need an
- * erase per calibration: 250 ms (typical; 500 ms at most, x32) during which every read of the
- * flash, every instruction fetch of the control interrupt included, stalls (RM0390 3.5: "any
- * attempt to read the flash memory while it is being written or erased causes the bus to
- * stall"). Here each calibration takes the next free 16-byte slot; the start-up takes the last
- * slot that decodes (magic, version, CRC: calib_store_decode()). A power-off while a record is
- * programmed leaves that slot torn, which does not decode: the previous record stays the last
- * valid one. The sector is erased only when the log is (nearly) full: at start-up before the
- * control starts, or at run time when a record waits and no order runs, the motors off and the
- * watchdog widened for the stall. docs/stm32.md gives the figures. */
+ * ports/common/port_nvm.c's scheme, records rewritten in place byte by byte, would need an
+ * erase per calibration, during which every read of the flash, every instruction fetch of the
+ * control interrupt included, stalls (RM0390 3.5: "any attempt to read the flash memory while
+ * it is being written or erased causes the bus to stall"). Here each calibration takes the next
+ * free 16-byte slot of the active log, its words 1, 2, 3 then 0 (the magic's): until word 0 is
+ * programmed whole the slot cannot decode, and a word 0 with only part of its bits programmed
+ * differs from the record's in byte 3 alone at most (magic and version checked), which the CRC
+ * always catches. A power-off while a record is programmed so leaves the previous record the
+ * newest valid one, or the new one whole.
+ *
+ * A full log is compacted into the other sector: erase it, then write the newest record there
+ * with the next generation (calib_store_newer()); the full log stays untouched until the other
+ * one fills in turn. A power-off during the erase, or before the record is whole, leaves the
+ * full log's record the newest valid one. The start-up takes the newest valid record of both
+ * logs: the higher generation, then the later slot. The erase happens at start-up (fewer than
+ * STM32_NVM_START_FREE free slots) before the control starts, or at run time when a record
+ * waits and no order runs, the motors off and the watchdog widened for the stall. docs/stm32.md
+ * gives the figures. */
 #include <string.h>
 
+#include "calib_log.h"
 #include "calib_store.h"
 #include "hal.h"
 #include "stm32_nvm.h"
@@ -22,23 +31,30 @@
 
 #define SLOT_WORDS (CALIB_STORE_SIZE / 4u)
 
-static const uint8_t *slot_at(uint16_t i)
+static uint32_t area_base(uint8_t area)
 {
-	return (const uint8_t *)(uintptr_t)(STM32_NVM_BASE + (uint32_t)i * CALIB_STORE_SIZE);
+	return area ? STM32_NVM_B_BASE : STM32_NVM_BASE;
 }
 
-static int blank(const uint8_t *p)
+static uint32_t area_sector(uint8_t area)
 {
-	for (uint8_t i = 0; i < CALIB_STORE_SIZE; i++)
-		if (p[i] != 0xFFu)
-			return 0;
-	return 1;
+	return area ? STM32_NVM_B_SECTOR : STM32_NVM_SECTOR;
 }
 
-static int same(const struct board_calibration *a, const struct board_calibration *b)
+static uint32_t slot_addr(uint8_t area, uint16_t slot, uint8_t k)
 {
-	return a->ratio_ppm == b->ratio_ppm && a->scale_ppm == b->scale_ppm &&
-	       a->track_10um == b->track_10um;
+	return area_base(area) + (uint32_t)slot * CALIB_STORE_SIZE + 4u * k;
+}
+
+static const uint8_t *slot_at(uint8_t area, uint16_t i)
+{
+	return (const uint8_t *)(uintptr_t)slot_addr(area, i, 0);
+}
+
+/* The word a record's step-th program writes: 1, 2, 3, then 0 (the magic's). */
+static uint8_t step_word(uint8_t step)
+{
+	return (uint8_t)((step + 1u) & 3u);
 }
 
 /* RM0390 3.5.1: KEY1 then KEY2 opens FLASH_CR; a wrong key locks it until the next reset (and
@@ -72,11 +88,11 @@ static void flash_program_start(uint32_t addr, uint32_t word)
 }
 
 /* RM0390 3.5.3: SER and SNB, then STRT. */
-static void flash_erase_start(void)
+static void flash_erase_start(uint32_t sector)
 {
 	flash_unlock();
 	FLASH_SR = FLASH_SR_ERRORS | FLASH_SR_EOP;
-	FLASH_CR = FLASH_CR_PSIZE_X32 | FLASH_CR_SER | STM32_NVM_SECTOR << FLASH_CR_SNB_POS;
+	FLASH_CR = FLASH_CR_PSIZE_X32 | FLASH_CR_SER | sector << FLASH_CR_SNB_POS;
 	FLASH_CR |= FLASH_CR_STRT;
 }
 
@@ -96,55 +112,57 @@ static uint32_t rec_word(const struct stm32_nvm *s, uint8_t k)
 	return w;
 }
 
-static uint32_t slot_addr(uint16_t slot, uint8_t k)
+/* calib_log.h's reader: the slot itself, in the flash's address space. */
+static const uint8_t *read_slot(uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
 {
-	return STM32_NVM_BASE + (uint32_t)slot * CALIB_STORE_SIZE + 4u * k;
+	(void)buf;
+	return slot_at(area, i);
+}
+
+/* Start-up: the active log is nearly full, and the control has not started. Erase the other
+ * log's sector (up to 2 s: main() widened the watchdog for it), then write the installed record
+ * into its slot 0, one generation on: from then on the other log is the active one. */
+static void compact_at_start(struct stm32_nvm *s)
+{
+	s->area ^= 1u;
+	s->gen++;
+	flash_erase_start(area_sector(s->area));
+	s->erases++;
+	s->errors += flash_wait() != 0;
+	s->next = 0;
+	if (!s->have)
+		return;
+	calib_store_encode(&s->stored, s->gen, s->rec);
+	for (uint8_t i = 0; i < SLOT_WORDS; i++) {
+		uint8_t k = step_word(i);
+
+		flash_program_start(slot_addr(s->area, 0, k), rec_word(s, k));
+		s->errors += flash_wait() != 0;
+	}
+	s->next = 1;
+	s->writes++;
 }
 
 int stm32_nvm_load(struct stm32_nvm *s, struct board *b)
 {
-	struct board_calibration cal;
-	int err = CALIB_STORE_BLANK;
+	struct calib_log_area l[CALIB_LOG_AREAS];
+	int err;
 
 	memset(s, 0, sizeof(*s));
 	s->word = SLOT_WORDS;
-	for (uint16_t i = 0; i < STM32_NVM_SLOTS; i++) {
-		const uint8_t *p = slot_at(i);
-		int e;
-
-		if (blank(p))
-			continue;
-		s->next = (uint16_t)(i + 1u); /* after the last slot ever written, torn ones too */
-		e = calib_store_decode(p, &cal);
-		if (e == 0 || err != 0)
-			err = e; /* the last valid record, or the last refusal if none */
-		if (e == 0) {
-			s->stored = cal;
-			s->have = 1;
-		}
-	}
-	if (s->have) {
+	calib_log_scan(read_slot, 0, STM32_NVM_SLOTS, &l[0]);
+	calib_log_scan(read_slot, 1, STM32_NVM_SLOTS, &l[1]);
+	s->area = calib_log_pick(l); /* the newer generation's log, or the emptier */
+	s->gen = l[s->area].gen;
+	s->next = l[s->area].next;
+	err = l[s->area].err;
+	if (l[s->area].found) {
+		s->stored = l[s->area].cal;
 		err = board_set_calibration(b, &s->stored);
-		if (err != 0)
-			s->have = 0; /* refused: the board's next calibration is written */
+		s->have = err == 0; /* refused: the board's next calibration is written */
 	}
-	if (STM32_NVM_SLOTS - s->next < STM32_NVM_START_FREE) {
-		/* Nearly full, and the control has not started: erase now (up to 500 ms), then
-		 * write the installed record back in slot 0. */
-		flash_erase_start();
-		s->erases++;
-		s->errors += flash_wait() != 0;
-		s->next = 0;
-		if (s->have) {
-			calib_store_encode(&s->stored, s->rec);
-			for (uint8_t k = 0; k < SLOT_WORDS; k++) {
-				flash_program_start(slot_addr(0, k), rec_word(s, k));
-				s->errors += flash_wait() != 0;
-			}
-			s->next = 1;
-			s->writes++;
-		}
-	}
+	if (STM32_NVM_SLOTS - s->next < STM32_NVM_START_FREE)
+		compact_at_start(s);
 	s->loaded = (int8_t)(err < -128 ? -128 : err);
 	return err;
 }
@@ -164,19 +182,40 @@ static uint8_t board_snapshot(const struct board *b, struct board_calibration *c
 	return on;
 }
 
-/* The run-time erase. The control ticks stall with the fetches, and nothing feeds the watchdog,
- * for up to 500 ms: the watchdog's window is widened first (restored at the erase's end), and
- * the motors are switched off for the stall, as the tick could not drive them (the hold's duty
- * comes back at the first tick after it). Under PRIMASK, so that no tick comes between the
- * motors' stop and the erase's start. */
-static void erase_when_idle(void)
+/* The run-time erase of the other log's sector. The control ticks stall with the fetches, and
+ * nothing feeds the watchdog, for up to 2 s: the watchdog's window is widened first (restored
+ * at the erase's end), and the motors are switched off for the stall, as the tick could not
+ * drive them (the hold's duty comes back at the first tick after it). Under PRIMASK, so that no
+ * tick comes between the motors' stop and the erase's start. */
+static void erase_when_idle(uint32_t sector)
 {
 	stm32_watchdog_set(STM32_WDG_ERASE_PR, STM32_WDG_ERASE_RLR);
 	__asm__ volatile("cpsid i" ::: "memory");
 	hal_motor_set(HAL_LEFT, 0);
 	hal_motor_set(HAL_RIGHT, 0);
-	flash_erase_start();
+	flash_erase_start(sector);
 	__asm__ volatile("cpsie i" ::: "memory");
+}
+
+/* The flash operation that has ended: its result into the state. */
+static void finish_op(struct stm32_nvm *s)
+{
+	uint32_t err = flash_finish();
+
+	s->errors += err != 0;
+	if (s->op == STM32_NVM_OP_ERASE) {
+		/* The other log is blank: it becomes the active one, one generation on. The full
+		 * log keeps the newest record until the first record here is whole. */
+		stm32_watchdog_set(STM32_WDG_PR, STM32_WDG_RLR);
+		s->area ^= 1u;
+		s->gen++;
+		s->next = 0;
+		s->word = 0;
+	} else {
+		/* A failed word: the slot is spoilt, its check moves to the next. */
+		s->word = err ? SLOT_WORDS : (uint8_t)(s->word + 1u);
+	}
+	s->op = STM32_NVM_OP_NONE;
 }
 
 void stm32_nvm_poll(struct stm32_nvm *s, const struct board *b)
@@ -185,37 +224,24 @@ void stm32_nvm_poll(struct stm32_nvm *s, const struct board *b)
 	uint8_t idle;
 
 	if (s->op != STM32_NVM_OP_NONE) {
-		uint32_t err;
-
 		if (FLASH_SR & FLASH_SR_BSY)
 			return;
-		err = flash_finish();
-		s->errors += err != 0;
-		if (s->op == STM32_NVM_OP_ERASE) {
-			stm32_watchdog_set(STM32_WDG_PR, STM32_WDG_RLR);
-			s->next = 0;
-			s->word = 0;
-		} else {
-			/* A failed word: the slot is spoilt, its check below moves to the next. */
-			s->word = err ? SLOT_WORDS : (uint8_t)(s->word + 1u);
-		}
-		s->op = STM32_NVM_OP_NONE;
+		finish_op(s);
 	}
-	if (board_snapshot(b, &cal, &idle) && (!s->have || !same(&cal, &s->stored))) {
+	if (board_snapshot(b, &cal, &idle) && (!s->have || !calib_store_same(&cal, &s->stored))) {
 		if (s->pending && s->word > 0 && s->next < STM32_NVM_SLOTS)
 			s->next++; /* a record half written: left torn, the new one after it */
 		s->stored = cal;
 		s->have = 1;
 		s->pending = 1;
 		s->word = 0;
-		calib_store_encode(&s->stored, s->rec);
 	}
 	if (!s->pending)
 		return;
 	if (s->word == SLOT_WORDS) {
 		/* Read back: a slot that does not hold the record (a flash error, a word that was
 		 * not blank) is left behind, and the record goes to the next. */
-		if (memcmp(slot_at(s->next), s->rec, CALIB_STORE_SIZE) == 0) {
+		if (memcmp(slot_at(s->area, s->next), s->rec, CALIB_STORE_SIZE) == 0) {
 			s->pending = 0;
 			s->writes++;
 		} else {
@@ -228,12 +254,15 @@ void stm32_nvm_poll(struct stm32_nvm *s, const struct board *b)
 	if (s->next >= STM32_NVM_SLOTS) {
 		if (!idle)
 			return; /* the erase would stall the control: not while an order runs */
-		erase_when_idle();
+		erase_when_idle(area_sector(s->area ^ 1u));
 		s->op = STM32_NVM_OP_ERASE;
 		s->erases++;
 		return;
 	}
-	flash_program_start(slot_addr(s->next, s->word), rec_word(s, s->word));
+	if (s->word == 0) /* the generation of the log it goes into */
+		calib_store_encode(&s->stored, s->gen, s->rec);
+	flash_program_start(slot_addr(s->area, s->next, step_word(s->word)),
+			    rec_word(s, step_word(s->word)));
 	s->op = STM32_NVM_OP_PROGRAM;
 }
 

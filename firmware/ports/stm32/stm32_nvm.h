@@ -1,7 +1,8 @@
-/* The odometry calibration kept across a power-off on the STM32F4: a log of calib_store.h's
- * 16-byte records in flash sector 1 (nvm.c; docs/stm32.md, "The calibration in flash"). The
- * STM32's counterpart of ports/common/port_nvm.h, which rewrites one record in place: flash
- * is erased by sectors, so a new record takes the next free slot instead. */
+/* The odometry calibration kept across a power-off on the STM32F4: calib_store.h's 16-byte
+ * records in two flash sectors, 1 and 7, each a log written in turn (nvm.c; docs/stm32.md, "The
+ * calibration in flash"). The STM32's counterpart of ports/common/port_nvm.h, which keeps two
+ * records in the AVR's EEPROM: flash is erased by sectors, so a new record takes the next free
+ * slot of the active log instead, and a full log is compacted into the other sector. */
 #ifndef ASSERV_STM32_NVM_H
 #define ASSERV_STM32_NVM_H
 
@@ -10,31 +11,37 @@
 #include "board.h"
 #include "calib_store.h"
 
-/* Sector 1 of the F446 and the F401 (RM0390 3.3 Table 4; RM0368 3.3 Table 5): 16 KiB, which
- * stm32f446re.ld keeps out of the code's region. */
-#define STM32_NVM_BASE 0x08004000u
+/* The two logs (RM0390 3.3 Table 4; RM0368 3.3 Table 5): sector 1, 16 KiB, and sector 7, 128
+ * KiB, of which the first 16 KiB are used, so that both logs hold as many records.
+ * stm32f446re.ld keeps code out of both; neither the bootloader nor flash.sh writes them. */
+#define STM32_NVM_BASE 0x08004000u /* sector 1 */
 #define STM32_NVM_SECTOR 1u
-#define STM32_NVM_SIZE 0x4000u                              /* [bytes] */
+#define STM32_NVM_B_BASE 0x08060000u /* sector 7 */
+#define STM32_NVM_B_SECTOR 7u
+#define STM32_NVM_SIZE 0x4000u                              /* [bytes] of each log */
 #define STM32_NVM_SLOTS (STM32_NVM_SIZE / CALIB_STORE_SIZE) /* 1024 records */
-/* At start-up the sector is erased when fewer slots than this are left, so that a run-time
- * erase (which stalls the CPU) needs that many calibrations in one power-on. */
+/* At start-up the active log is compacted when fewer slots than this are left, so that a
+ * run-time erase (which stalls the CPU) needs that many calibrations in one power-on. */
 #define STM32_NVM_START_FREE 64u
 
 enum stm32_nvm_op {
 	STM32_NVM_OP_NONE,
 	STM32_NVM_OP_PROGRAM, /* a word, 16 us typical, 100 us at most */
-	STM32_NVM_OP_ERASE,   /* the sector, 250 ms typical, 500 ms at most (x32) */
+	STM32_NVM_OP_ERASE,   /* the other log's sector: 16 KiB 250 ms typical, 500 ms at most;
+				 128 KiB 1 s typical, 2 s at most (x32) */
 };
 
 struct stm32_nvm {
-	struct board_calibration stored; /* the calibration of the last record, or the one being
-					    written */
+	struct board_calibration stored; /* the calibration of the newest record, or the one
+					    being written */
 	uint8_t have;                    /* stored is valid */
 	uint8_t pending;                 /* stored's record is not completely written yet */
 	uint8_t rec[CALIB_STORE_SIZE];   /* stored's record */
-	uint8_t word;                    /* rec's next word to program (4: all, to check) */
+	uint8_t word;                    /* rec's words programmed (4: all, to check) */
 	uint8_t op;                      /* enum stm32_nvm_op: the flash operation started */
-	uint16_t next;                   /* the slot being written, or the first free one
+	uint8_t area;                    /* the active log: 0 (sector 1) or 1 (sector 7) */
+	uint8_t gen;                     /* the generation of its records */
+	uint16_t next;                   /* its slot being written, or the first free one
 					    (STM32_NVM_SLOTS: the log is full) */
 	int8_t loaded;                   /* stm32_nvm_load()'s result */
 	uint16_t writes;                 /* records written and checked since start-up */
@@ -42,17 +49,18 @@ struct stm32_nvm {
 	uint16_t errors;                 /* flash errors and failed read-backs since start-up */
 };
 
-/* At start, after board_init(), before the I2C, the watchdog and the first tick: find the last
- * valid record and install it (board_set_calibration()). When fewer than STM32_NVM_START_FREE
- * slots are free, erase the sector and write that record back (the start-up then takes up to
- * 500 ms more). Returns 0 (installed), a CALIB_STORE_* refusal (none valid: the board stays
- * uncalibrated), or board_set_calibration()'s error. Interrupt-safe: no (start-up only). */
+/* At start, after board_init(), before the I2C, the watchdog and the first tick: find the newest
+ * valid record of both logs and install it (board_set_calibration()). When fewer than
+ * STM32_NVM_START_FREE slots of its log are free, erase the other log's sector and write that
+ * record there, one generation on (the start-up then takes up to 500 ms, or 2 s, more).
+ * Returns 0 (installed), a CALIB_STORE_* refusal (none valid: the board stays uncalibrated),
+ * or board_set_calibration()'s error. Interrupt-safe: no (start-up only). */
 int stm32_nvm_load(struct stm32_nvm *s, struct board *b);
 
 /* From the main loop (thread mode), never from an interrupt: finish the flash operation that
  * has ended, then, when the board's calibration is not the stored one, start writing its
- * record; start at most one operation (one word, or the sector's erase when the log is full and
- * the board idle) and return without waiting. */
+ * record; start at most one operation (one word, or the other sector's erase when the active
+ * log is full and the board idle) and return without waiting. */
 void stm32_nvm_poll(struct stm32_nvm *s, const struct board *b);
 
 /* 1 while a record is not completely written and checked. */

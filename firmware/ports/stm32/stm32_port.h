@@ -36,13 +36,20 @@ void stm32_robot_config(struct board_config *cfg);
 /* One sleep of the main loop (startup.c): wfi, then return once an interrupt has run. */
 void stm32_idle(void);
 
-/* The independent watchdog's window (main.c): LSI / (4 << pr) counts, (rlr + 1) of them, then
- * a reload. STM32_WDG_*: 60 ms, fed after each tick; STM32_WDG_ERASE_*: 2.5 s, while a flash
- * erase (up to 500 ms) stalls the ticks (nvm.c). Thread mode only. */
+/* The independent watchdog (watchdog.c): LSI / (4 << pr) counts, (rlr + 1) of them, then a
+ * reset. STM32_WDG_*: 60 ms, fed after each tick (41..113 ms with the LSI's 17..47 kHz);
+ * STM32_WDG_ERASE_*: 5 s (3.4..9.4 s), while a flash erase stalls the ticks, up to 2 s for
+ * sector 7's 128 KiB at x32 (STM32F446xC/E data sheet, tERASE128KB; nvm.c). */
 #define STM32_WDG_PR 0u
 #define STM32_WDG_RLR 479u
-#define STM32_WDG_ERASE_PR 4u
+#define STM32_WDG_ERASE_PR 5u
 #define STM32_WDG_ERASE_RLR 1249u
+
+/* Start the watchdog (or keep it running: the bootloader starts it too) with that window.
+ * Thread mode, start-up. */
+void stm32_watchdog_start(uint32_t pr, uint32_t rlr);
+
+/* A new window, and a reload. Thread mode only. */
 void stm32_watchdog_set(uint32_t pr, uint32_t rlr);
 
 /* The cause of this start (RESET_CAUSE_*) from RCC_CSR's reset flags, which it then clears

@@ -88,8 +88,9 @@
 #define FLASH_ACR_DCEN (1u << 10)
 
 /* ---- Flash programming and erase: RM0390 sections 3.5 (unlock 3.5.1, erase 3.5.3, program
- * 3.5.4), 3.8.2-3.8.5 (registers). Sector 1, 16 KiB at 0x0800 4000 (3.3, Table 4), holds the
- * calibration log (nvm.c); the linker script keeps code out of it. ---- */
+ * 3.5.4), 3.8.2-3.8.5 (registers). Sectors 1 (16 KiB at 0x0800 4000) and 7 (128 KiB at
+ * 0x0806 0000; 3.3, Table 4) hold the calibration's logs (nvm.c); the linker script keeps code
+ * out of them. ---- */
 #define FLASH_KEYR STM32_REG(FLASH_IF_BASE + 0x04u) /* 3.8.2 */
 #define FLASH_KEY1 0x45670123u                      /* 3.5.1: KEY1 then KEY2 clears LOCK */
 #define FLASH_KEY2 0xCDEF89ABu

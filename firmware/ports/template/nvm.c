@@ -1,5 +1,6 @@
 /* Template port: the non-volatile storage (hal_nvm.h), where the board keeps its odometry
- * calibration across a power-off (ports/common/port_nvm.h writes a 16-byte record at offset 0).
+ * calibration across a power-off (ports/common/port_nvm.h writes 16-byte records at offsets 0
+ * and 16).
  * This template has no storage: hal_nvm_size() is 0, port_nvm_load() then refuses, and the
  * board starts uncalibrated each time, which it runs with. A port with an EEPROM (the AVR:
  * ports/avr/nvm.c) or a flash page implements the four functions below; one that stores nothing
