@@ -13,7 +13,7 @@ It prints:
 - that every robot ended without PB_MOTEUR, without a contact, DONE, and with the truth within
   the error radius of the estimate.
 
-    python bench/course.py [--robots N] [--first-seed K] [--tolerance MM]
+    python bench/course.py [--robots N] [--first-seed K] [--tolerance MM] [--strict]
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import math
 import random
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,6 +29,7 @@ import numpy as np
 from asserv import codec, field
 from asserv._protocol import EndReason, Reject, Status
 from asserv.driver import Board, OrderRejected
+from asserv.goals import Goals, add_strict_flag
 from asserv.sim import Simulator
 
 APPEND, THROUGH = 0x04, 0x08
@@ -114,12 +116,13 @@ def tour(
     return Tour(seconds, near, ok, why + f" / radius {pos.radius_mm} mm")
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", type=int, default=50, help="randomized robots (50)")
     ap.add_argument("--first-seed", type=int, default=0, help="seed of the first robot (0)")
     ap.add_argument("--tolerance", type=int, default=30, help="SET_CORNER [mm] (30)")
-    args = ap.parse_args()
+    add_strict_flag(ap)
+    args = ap.parse_args(argv)
     rng = random.Random(args.first_seed)
     ratios, nears, bad = [], [], []
     for seed in range(args.first_seed, args.first_seed + args.robots):
@@ -157,20 +160,21 @@ def main() -> None:
     for seed, kind, why in bad:
         print(f"  seed {seed} {kind}: {why}")
     worst_near = max(d for d, _, _ in nears)
-    ok_ratio = worst_ratio <= GOAL_RATIO
-    ok_near = worst_near <= args.tolerance
-    ok_clean = not bad
-    print(
-        f"ratio: worst {worst_ratio:.3f}, mean {mean_ratio:.3f}: {'met' if ok_ratio else 'MISSED'}"
+    goals = Goals("bench/course.py")
+    goals.check(f"time ratio, worst (mean {mean_ratio:.3f})", worst_ratio, "<=", GOAL_RATIO)
+    goals.check("corners: distance from the polyline, worst [mm]", worst_near, "<=", args.tolerance)
+    goals.check(
+        f"tours with a PB, a contact, no DONE or an error beyond the radius (of {2 * args.robots})",
+        len(bad),
+        "==",
+        0,
     )
-    print(f"corners: worst {worst_near:.1f} mm: {'met' if ok_near else 'MISSED'}")
-    print(
-        f"no PB, no contact, DONE, error within the radius: {2 * args.robots - len(bad)} of"
-        f" {2 * args.robots} tours: {'met' if ok_clean else 'MISSED'}"
-    )
-    met = sum((ok_ratio, ok_near, ok_clean))
-    print(f"summary: {met} of 3 goals met over {args.robots} robots")
+    print(f"goals over {args.robots} robots:")
+    for line in goals.lines():
+        print(line)
+    print(goals.summary())
+    return goals.exit_code(args.strict)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

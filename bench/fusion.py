@@ -20,6 +20,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 from asserv.fixes import FixSource
 from asserv.fusion import MatchResult, pool, run_match
+from asserv.goals import Goals, add_strict_flag
 
 SOURCE = dict(rate_hz=10.0, sigma_mm=10.0, sigma_deg=1.0, latency_ms=100.0, latency_jitter_ms=50.0)
 
@@ -30,14 +31,14 @@ def one(args: tuple[int, float, bool]) -> MatchResult:
     return run_match(seed, duration_s, src)
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", type=int, default=50)
     ap.add_argument("--seconds", type=float, default=90.0)
     ap.add_argument("--quick", action="store_true", help="8 robots x 30 s")
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--strict", action="store_true", help="exit 1 when a goal is missed")
-    a = ap.parse_args()
+    add_strict_flag(ap)
+    a = ap.parse_args(argv)
     robots, seconds = (8, 30.0) if a.quick else (a.robots, a.seconds)
     work = [(seed, seconds, f) for seed in range(1, robots + 1) for f in (True, False)]
     with ProcessPoolExecutor(max_workers=a.jobs) as ex:
@@ -49,33 +50,21 @@ def main() -> int:
         f"  without fixes: error p95 {wo.err_p95_mm:.1f} mm, worst {wo.err_max_mm:.1f} mm;"
         f" coverage {wo.coverage_pct:.2f} %, tightness {wo.tightness:.2f}"
     )
-    goals = [
-        ("error p95 with fixes [mm]", w.err_p95_mm, "<= 8", w.err_p95_mm <= 8.0),
-        ("error worst with fixes [mm]", w.err_max_mm, "(reported)", True),
-        ("radius coverage of settled moments [%]", w.coverage_pct, ">= 99", w.coverage_pct >= 99.0),
-        ("radius tightness (mean / p99)", w.tightness, "<= 3", w.tightness <= 3.0),
-        (
-            f"outliers rejected [%] ({w.outliers_rejected} of {w.outliers})",
-            100.0 * w.outliers_rejected / max(1, w.outliers),
-            ">= 95",
-            w.outliers_rejected >= 0.95 * w.outliers,
-        ),
-        (
-            f"good fixes rejected [%] ({w.good_rejected} of {w.good})",
-            100.0 * w.good_rejected / max(1, w.good),
-            "<= 1",
-            w.good_rejected <= 0.01 * w.good,
-        ),
-    ]
-    missed = 0
-    for name, value, goal, ok in goals:
-        missed += not ok
-        print(f"  {name:48s} {value:8.2f}  goal {goal:10s} {'met' if ok else 'MISSED'}")
-    print(
-        f"fusion: {len(goals) - missed} of {len(goals)} goals met"
-        + (", MISSED " + str(missed) if missed else "")
+    print(f"  with fixes: error worst {w.err_max_mm:.1f} mm (no goal)")
+    goals = Goals("bench/fusion.py")
+    goals.check("error p95 with fixes [mm]", w.err_p95_mm, "<=", 8)
+    goals.check("radius coverage of settled moments [%]", w.coverage_pct, ">=", 99)
+    goals.check("radius tightness (mean / p99)", w.tightness, "<=", 3)
+    outliers = 100.0 * w.outliers_rejected / w.outliers if w.outliers else 100.0
+    goals.check(
+        f"outliers rejected [%] ({w.outliers_rejected} of {w.outliers})", outliers, ">=", 95
     )
-    return 1 if a.strict and missed else 0
+    good = 100.0 * w.good_rejected / w.good if w.good else 0.0
+    goals.check(f"good fixes rejected [%] ({w.good_rejected} of {w.good})", good, "<=", 1)
+    for line in goals.lines():
+        print(line)
+    print(goals.summary())
+    return goals.exit_code(a.strict)
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ a turn in place, or just after a pass-through corner. From the PAUSE's last byte
 then sends RESUME and checks that the order (or the tour) arrives at its target: DONE, the truth
 within the error radius of the target.
 
-    python bench/pause.py [--robots N] [--first-seed K]
+    python bench/pause.py [--robots N] [--first-seed K] [--strict]
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import math
 import random
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -27,6 +28,7 @@ import numpy as np
 from asserv import codec, field
 from asserv._protocol import EndReason
 from asserv.driver import Board
+from asserv.goals import Goals, add_strict_flag
 from asserv.sim import Simulator
 
 REST_MM_S = 10.0  # as bench/shock_stop.py: a braked tyre relaxes at ~7 mm/s
@@ -110,11 +112,12 @@ def one(seed: int, kind: str, rng: random.Random) -> Pause:
     )
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", type=int, default=50, help="randomized robots (50)")
     ap.add_argument("--first-seed", type=int, default=0, help="seed of the first robot (0)")
-    args = ap.parse_args()
+    add_strict_flag(ap)
+    args = ap.parse_args(argv)
     rng = random.Random(args.first_seed)
     runs = [
         one(seed, kind, rng)
@@ -142,21 +145,19 @@ def main() -> None:
     worst_ms = max(r.over_ms for r in runs)
     worst_mm = max(r.over_mm for r in runs)
     arrived = sum(r.arrived for r in runs)
-    ok_ms, ok_mm, ok_arr = worst_ms <= GOAL_MS, worst_mm <= GOAL_MM, arrived == len(runs)
-    print(f"rest: worst {worst_ms:+.0f} ms over the braking time: {'met' if ok_ms else 'MISSED'}")
-    print(
-        f"travel: worst {worst_mm:+.1f} mm over the braking distance:"
-        f" {'met' if ok_mm else 'MISSED'}"
-    )
-    print(
-        f"resume: {arrived} of {len(runs)} arrived at their target: {'met' if ok_arr else 'MISSED'}"
-    )
+    goals = Goals("bench/pause.py")
+    goals.check("rest over the braking time, worst [ms]", worst_ms, "<=", GOAL_MS)
+    goals.check("travel over the braking distance, worst [mm]", worst_mm, "<=", GOAL_MM)
+    goals.check(f"RESUMEs that arrived at their target (of {len(runs)})", arrived, "==", len(runs))
     for r in runs:
         if not r.arrived:
             print(f"  seed {r.seed} {r.kind}: {r.why}")
-    met = sum((ok_ms, ok_mm, ok_arr))
-    print(f"summary: {met} of 3 goals met over {len(runs)} pauses")
+    print(f"goals over {len(runs)} pauses:")
+    for line in goals.lines():
+        print(line)
+    print(goals.summary())
+    return goals.exit_code(args.strict)
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -20,9 +20,10 @@ For each, over both motors:
 Each figure is the worst over the robots, beside its goal (issue 32): duty jitter 0.01 RMS or
 less, current RMS at most 1.5 times the needed current + 0.1 A, contact force under 1 N, and the
 following error at cruise at most 1.2 times the figure of the commit before the quiet servo
-(FOLLOWING_BEFORE_MM). The last line says whether every goal is met.
+(FOLLOWING_BEFORE_MM). Each goal is marked met or MISSED; the last line sums them up
+(``bench/quiet.py: goals met: N of M``), and --strict exits 1 on a miss.
 
-    python bench/quiet.py [--robots N] [--jobs J]
+    python bench/quiet.py [--robots N] [--jobs J] [--strict]
 """
 
 from __future__ import annotations
@@ -36,6 +37,7 @@ import numpy as np
 
 from asserv import field
 from asserv.driver import Board
+from asserv.goals import Goals, add_strict_flag
 from asserv.log import following_errors
 from asserv.sim import Simulator
 
@@ -134,18 +136,13 @@ def robot(seed: int) -> dict[str, Window]:
     return out
 
 
-def mark(ok: bool) -> str:
-    return "met" if ok else "MISSED"
-
-
-def report(results: list[dict[str, Window]]) -> bool:
+def report(results: list[dict[str, Window]], goals: Goals) -> None:
     n = len(results)
     print(f"{n} randomized robots (seeds 0..{n - 1}), 1 kHz; the worst robot of each case")
     print(
         f"{'case':<22} {'jitter':>8} {'goal':>6}   {'I rms':>7} {'need':>7} {'goal':>7}   "
         f"{'follow':>7} {'goal':>7}   {'force':>6} {'goal':>5}"
     )
-    all_ok = True
     for case in results[0]:
         ws = [r[case] for r in results]
         jit = max(w.jitter for w in ws)
@@ -154,38 +151,35 @@ def report(results: list[dict[str, Window]]) -> bool:
             key=lambda w: w.current_rms_a - CURRENT_GAIN_GOAL * w.current_need_a,
         )
         i_goal = CURRENT_GAIN_GOAL * worst_i.current_need_a + CURRENT_OFFSET_GOAL_A
-        ok_j, ok_i = jit <= JITTER_GOAL, worst_i.current_rms_a <= i_goal
+        ok_j = goals.check(f"{case}: duty jitter [RMS]", jit, "<=", JITTER_GOAL)
+        ok_i = goals.check(f"{case}: current [A RMS]", worst_i.current_rms_a, "<=", i_goal)
         line = (
-            f"{case:<22} {jit:8.4f} {JITTER_GOAL:6.3f} {mark(ok_j):>6}  "
+            f"{case:<22} {jit:8.4f} {JITTER_GOAL:6.3f} {ok_j.mark:>6}  "
             f"{worst_i.current_rms_a:5.2f} A {worst_i.current_need_a:5.3f} A {i_goal:5.2f} A "
-            f"{mark(ok_i):>6}"
+            f"{ok_i.mark:>6}"
         )
-        all_ok &= ok_j and ok_i
         if case.startswith("cruise"):
             v = round(float(case.split()[1]) * 100)
             fol = max(w.following_mm for w in ws)
             before = FOLLOWING_BEFORE_MM[v]
             goal = FOLLOWING_GROWTH_GOAL * before
             if before > 0:
-                ok_f = fol <= goal
-                all_ok &= ok_f
-                line += f"  {fol:6.3f} mm {goal:6.3f} mm {mark(ok_f):>6}"
+                ok_f = goals.check(f"{case}: following error [mm]", fol, "<=", goal)
+                line += f"  {fol:6.3f} mm {goal:6.3f} mm {ok_f.mark:>6}"
             else:
                 line += f"  {fol:6.3f} mm  (none)          "
         if case.endswith("wall"):
             force = max(w.force_n for w in ws)
-            ok_c = force < FORCE_GOAL_N
-            all_ok &= ok_c
-            line += f"{'':>27}{force:5.1f} N {FORCE_GOAL_N:4.1f} N {mark(ok_c)}"
+            ok_c = goals.check(f"{case}: contact force [N]", force, "<", FORCE_GOAL_N)
+            line += f"{'':>27}{force:5.1f} N {FORCE_GOAL_N:4.1f} N {ok_c.mark}"
         print(line)
-    print(f"quiet servo: {'every goal met' if all_ok else 'goals missed'}")
-    return all_ok
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--robots", type=int, default=50, help="randomized robots (50)")
     ap.add_argument("--jobs", type=int, default=1, help="processes (1)")
+    add_strict_flag(ap)
     args = ap.parse_args(argv)
     seeds = range(args.robots)
     if args.jobs > 1:
@@ -193,8 +187,10 @@ def main(argv: list[str] | None = None) -> int:
             results = pool.map(robot, seeds)
     else:
         results = [robot(s) for s in seeds]
-    report(results)
-    return 0
+    goals = Goals("bench/quiet.py")
+    report(results, goals)
+    print(goals.summary())
+    return goals.exit_code(args.strict)
 
 
 if __name__ == "__main__":

@@ -1,8 +1,6 @@
 """How fast the simulated board runs through the Python API: physics and control core at 1 kHz,
 with a master polling over the simulated bus, in simulated seconds per wall-clock second.
 
-    python bench/sim_speed.py [--robots N] [--jobs J] [--record] [--fine]
-
 Each robot (seeds 0..N-1, randomized) plays the same tour of GOTOs with Board.complete() (a
 CHECK_BUSY poll every 10 ms of simulated time), then runs 20 s of a GOTO with
 Simulator.advance() alone (the drive, then holding the position); one process per core by
@@ -11,7 +9,11 @@ from contacts and from the tyres' grip (docs/simulator.md, "Speed"); ``--fine`` 
 substep everywhere (coarse_substep_ns = 0), as before. Prints the speeds per process against the
 process's CPU time (what the simulator costs, whatever else the machine runs: the figure to
 compare, on a machine shared with other work) and against the wall clock, and the whole
-machine's. The last line is the physics and the core at 1 kHz through Simulator.advance().
+machine's. Then the physics and the core at 1 kHz through Simulator.advance(), per CPU second,
+against issue 4's goal of 2000x real time (bench/README.md), marked met or MISSED, and a summary
+line; --strict exits 1 on a miss. The figure is this machine's: no test compares it.
+
+    python bench/sim_speed.py [--robots N] [--jobs J] [--record] [--fine] [--strict]
 """
 
 from __future__ import annotations
@@ -23,8 +25,11 @@ import statistics
 import sys
 import time
 
+from asserv.goals import Goals, add_strict_flag
+
 TOUR = [(600, -600), (900, 300), (200, 600), (-600, 400), (-900, -400), (0, -700)]
 ADVANCE_S = 20.0
+GOAL_X = 2000.0  # issue 4: simulated seconds per second of one core
 
 
 Run = tuple[float, float, float, float, float, float]
@@ -69,6 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="processes (all cores)")
     ap.add_argument("--record", action="store_true", help="keep the trace of every tick")
     ap.add_argument("--fine", action="store_true", help="100 us substeps everywhere")
+    add_strict_flag(ap)
     args = ap.parse_args(argv)
     if args.jobs < 1 or args.robots < 0:
         print("sim_speed: --jobs must be >= 1 and --robots >= 0", file=sys.stderr)
@@ -91,11 +97,17 @@ def main(argv: list[str] | None = None) -> int:
         f" {sim_total / wall:.0f}x real time"
     )
     per_cpu = [r[3] / r[5] for r in runs]
+    speed = statistics.median(per_cpu)
     print(
         f"speed: physics and core at 1 kHz through Simulator.advance():"
-        f" {statistics.median(per_cpu):.0f}x real time per CPU second (median of {robots} robots)"
+        f" {speed:.0f}x real time per CPU second (median of {robots} robots)"
     )
-    return 0
+    goals = Goals("bench/sim_speed.py")
+    goals.check("Simulator.advance() per CPU second [x real time]", speed, ">=", GOAL_X)
+    for line in goals.lines():
+        print(line)
+    print(goals.summary())
+    return goals.exit_code(args.strict)
 
 
 if __name__ == "__main__":

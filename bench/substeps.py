@@ -2,7 +2,7 @@
 substep everywhere (coarse_substep_ns = 0), the simulator's default (a 1 ms step for whole ticks
 away from contacts and from the grip), and finer substeps as the reference.
 
-    python bench/substeps.py [--quick]
+    python bench/substeps.py [--quick] [--strict]
 
 Prints, in simulated figures (no timing):
   - open floor: the physics alone, open-loop, a randomized robot given ramped duties; how far
@@ -11,6 +11,9 @@ Prints, in simulated figures (no timing):
     path, 1 m/s, 1.5 m/s^2): the time to rest after the contact (ms, slower than 10 mm/s);
   - return after a stop: test_a_shock_at_1_m_s_stops_and_lets_go's nominal run with its start
     moved by 0 to 0.3 mm along x: the most the robot comes back towards the disc (mm).
+
+No goal is stated for these figures (docs/simulator.md weighs them; python/tests/test_sim_coarse.py
+bounds the default's): the summary line says so, and --strict never fails.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import numpy as np
 
 from asserv import field
 from asserv.driver import Board, Status
+from asserv.goals import Goals, add_strict_flag
 from asserv.sim import COARSE_SUBSTEP_NS, SPEC_START, Simulator, lib
 
 FINE = {"coarse_substep_ns": 0}
@@ -91,6 +95,7 @@ def return_mm(cfg: dict[str, object], dx_mm: float) -> float:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--quick", action="store_true", help="fewer cases")
+    add_strict_flag(ap)
     args = ap.parse_args(argv)
     n_moves = 3 if args.quick else 8
     rng = random.Random(1)
@@ -119,7 +124,9 @@ def main(argv: list[str] | None = None) -> int:
     for name, cfg in (("100 us", FINE), ("default", DEFAULT)):
         backs = ", ".join(f"{dx:g}: {return_mm(cfg, dx):.3f}" for dx in shifts)
         print(f"  {name:8s} {backs}")
-    return 0
+    goals = Goals("bench/substeps.py")
+    print(goals.summary())
+    return goals.exit_code(args.strict)
 
 
 if __name__ == "__main__":

@@ -62,5 +62,5 @@ ruff format --check harness/stm32
 mypy --config-file harness/stm32/mypy.ini harness/stm32 bench/stm32.py bench/update_stm32.py
 python -m pytest -p no:cacheprovider harness/stm32
 python bench/stm32.py build-stm32/asserv_stm32.elf
-python bench/stm32.py build-stm32/asserv_stm32.elf --fixes | grep -E 'SET_FIX|busiest period|goal: the busiest'
+python bench/stm32.py build-stm32/asserv_stm32.elf --fixes | grep -E 'SET_FIX|busiest period|goals met'
 python bench/update_stm32.py build-stm32

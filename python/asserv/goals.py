@@ -9,6 +9,9 @@ Every bench that states goals (``asserv bench accuracy``, ``bench/*.py``) keeps 
         print(line)
     print(goals.summary())            # "bench/shock_stop.py: goals met: 1 of 1"
     return goals.exit_code(strict)    # 1 on a miss with --strict, else 0
+
+A bench that states no goal (its figures only) ends with the same line, which says so:
+``bench/substeps.py: goals met: 0 of 0 (no goal stated: figures only)``.
 """
 
 from __future__ import annotations
@@ -52,9 +55,12 @@ class Goal:
         return MET if self.met else MISSED
 
     def text(self, digits: int = 3) -> str:
-        """``5.9 <= 5 mm: MISSED``."""
+        """``5.9 <= 5 mm: MISSED``; a value of more digits whole: ``3510 >= 2000: met``."""
         unit = f" {self.unit}" if self.unit else ""
-        return f"{self.value:.{digits}g} {self.op} {self.limit:g}{unit}: {self.mark}"
+        value = f"{self.value:.{digits}g}"
+        if "e+" in value:
+            value = f"{self.value:.0f}"
+        return f"{value} {self.op} {self.limit:g}{unit}: {self.mark}"
 
 
 class Goals:
@@ -86,6 +92,8 @@ class Goals:
         """The last line of a bench: how many goals were met, and which were missed."""
         n, missed = len(self.goals), self.missed
         line = f"{self.bench}: goals met: {n - len(missed)} of {n}"
+        if n == 0:
+            return f"{line} (no goal stated: figures only)"
         if missed:
             line += f"; MISSED: {'; '.join(g.name for g in missed)}"
         return line

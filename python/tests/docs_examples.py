@@ -19,6 +19,8 @@ how it runs:
   must appear in that output, in order and next to each other; a line ``...`` stands for any
   number of lines left out. A figure quoted in a page is so checked against the command.
   ``<!-- example: output python bench/NAME.py ARGS -->``: the same for a bench script.
+  ``<!-- example: output ./build/PATH ARGS -->``: the same for a program of the C build that
+  ``scripts/test.sh`` makes before pytest (skipped where ``build/`` is not built).
 """
 
 from __future__ import annotations

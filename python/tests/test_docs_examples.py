@@ -77,7 +77,7 @@ def test_every_page_has_its_examples_collected() -> None:
         (e.id, e.marker) for e in EXAMPLES if e.marker not in known
     ]
     assert all(
-        e.marker_arg.startswith(("asserv ", "python bench/"))
+        e.marker_arg.startswith(("asserv ", "python bench/", "./build/"))
         for e in EXAMPLES
         if e.kind == "output"
     )
@@ -99,6 +99,17 @@ def _printed(command: str) -> list[str]:
             env={**os.environ, "MPLBACKEND": "Agg"},
         )
         assert p.returncode == 0, (command, p.stderr[-2000:])
+        _PRINTED[command] = p.stdout.splitlines()
+    if command not in _PRINTED and command.startswith("./build/"):
+        # A C program of the build scripts/test.sh makes before pytest (its tests print figures).
+        argv = shlex.split(command)
+        exe = ROOT / argv[0]
+        if not exe.is_file():
+            pytest.skip(f"{argv[0]} is not built (scripts/test.sh builds build/ before pytest)")
+        p = subprocess.run(
+            [str(exe), *argv[1:]], capture_output=True, text=True, timeout=600, check=False
+        )
+        assert p.returncode == 0, (command, p.stdout[-2000:], p.stderr[-2000:])
         _PRINTED[command] = p.stdout.splitlines()
     if command not in _PRINTED:
         out = io.StringIO()
