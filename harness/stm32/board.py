@@ -333,14 +333,22 @@ class Stm32Board(_Lockstep):
         self.flash.cut(Random(self.watchdog_resets))
         self._restart(Rcc.IWDGRSTF | Rcc.PINRSTF)
 
-    def reset(self, flags: int, scramble: Random | None = None, down_ns: int = 0) -> None:
+    def reset(
+        self,
+        flags: int,
+        scramble: Random | None = None,
+        down_ns: int = 0,
+        cut: Random | None = None,
+    ) -> None:
         """A reset now, between two events, that leaves RCC_CSR's reset ``flags`` (Rcc's, e.g.
         BORRSTF | PINRSTF for a brown-out): the motors off at once, the robot coasting for
         ``down_ns`` (the board down: the reset, the bootloader, the start-up up to the
         encoders counting again), then the firmware booting again. The RAM keeps its contents,
-        or with ``scramble`` is filled with bytes drawn from it (the supply fell too low)."""
+        or with ``scramble`` is filled with bytes drawn from it (the supply fell too low). A
+        flash operation in progress stops part way (RM0390 3.5: its result is not
+        guaranteed), what it leaves drawn from ``cut`` (default: from the count of resets)."""
         self.resets += 1
-        self.flash.cut(Random(self.resets))
+        self.flash.cut(cut if cut is not None else Random(self.resets))
         if scramble is not None:
             self.cpu.uc.mem_write(SRAM_BASE, scramble.randbytes(SRAM_SIZE))
         self.duty = (0, 0)

@@ -2,8 +2,10 @@
 boot (RM0390 6.3.21) and the record the planner keeps in the .noinit RAM (stm32f446re.ld). A
 watchdog reset (the ticks hang until the watchdog fires) or a brown-out at a random moment of a
 GOTO, with the RAM kept or scrambled: the master learns of it at its next poll (PB_MOTEUR,
-RESET_INFO), and the pose is within the radius or refused, never silently wrong. The host's
-soak of the same promise is python/tests/test_resets.py."""
+RESET_INFO), and the pose is within the radius or refused, never silently wrong. The same
+resets during a calibration's write to flash (a record's words, the erase of the log switch):
+the calibration installed is the old one or the new one, never a mix or none. The host's soak
+of the same promise is python/tests/test_resets.py."""
 
 from __future__ import annotations
 
@@ -13,15 +15,28 @@ from pathlib import Path
 from random import Random
 
 import pytest
-from board import Stm32Board, robot
+from board import TICK_NS, Stm32Board, robot
 from boot import BootBoard
 from conftest import ROOT
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, Phase, event, given, settings
 from hypothesis import strategies as st
 from periph import Rcc
+from test_nvm import (
+    SLOTS,
+    START_FREE,
+    Cal,
+    encode,
+    erasing,
+    fill_until_full,
+    installed,
+    newest,
+    ram_board,
+)
 
-from asserv import Board, EndReason, OrderRejected, Reject, ResetCause, Status
+from asserv import Board, Capability, EndReason, OrderRejected, Reject, ResetCause, Status
 from asserv._core import ffi, lib
+from asserv.sim import Simulator
+from asserv.soak import ideal_calibration
 
 BROWN_OUT = Rcc.BORRSTF | Rcc.PINRSTF  # RM0390 6.3.21: a BOR reset, which drives NRST too
 FLAGS = {
@@ -185,3 +200,165 @@ def test_the_bootloader_passes_the_flags_and_the_ram_on(elf: Path, boot_elf: Pat
         f"STM32_START_MS {START_MS}"
     )
     assert start_ms <= START_MS
+
+
+# The moment of the reset after SET_ODOMETRIE: ``us`` microseconds after the n-th control tick
+# to come. The main loop programs one of the record's four words at a tick, for 16 us (0..15
+# lands inside a word's program); more ticks than four reach past the record.
+_TICKS = st.one_of(st.integers(0, 3), st.integers(0, 3), st.integers(0, 8))
+_US = st.one_of(st.integers(0, 15), st.integers(0, 15), st.integers(0, 999))
+
+
+@settings(
+    max_examples=10,
+    deadline=None,
+    phases=[Phase.explicit, Phase.generate],  # no shrinking: each example runs for a second
+    suppress_health_check=[HealthCheck.too_slow],
+)
+@given(
+    seed=st.integers(0, 10_000),
+    kept=st.booleans(),
+    moving=st.booleans(),
+    ticks=_TICKS,
+    us=_US,
+    cause=st.sampled_from([ResetCause.WATCHDOG, ResetCause.BROWN_OUT]),
+    keep_ram=st.booleans(),
+    down_ms=st.integers(0, START_MS),
+    rng_seed=st.integers(0, 2**32 - 1),
+)
+def test_a_reset_during_a_calibration_write_keeps_the_old_or_the_new(
+    elf: Path,
+    seed: int,
+    kept: bool,
+    moving: bool,
+    ticks: int,
+    us: int,
+    cause: ResetCause,
+    keep_ram: bool,
+    down_ms: int,
+    rng_seed: int,
+) -> None:
+    """SET_ODOMETRIE, at rest or in a GOTO, then a watchdog reset or a brown-out at a random
+    moment of its record's write (inside a word's program, what the cut leaves of it drawn at
+    random), the RAM kept or scrambled. At the master's next poll: the reset reported, the order
+    abandoned if one ran (and whenever the record in RAM was lost), the calibration the old one
+    or the new one (the newest whole record of the logs), never a mix, never none once one was
+    kept; the pose within the radius or refused. The master sends the calibration again: kept."""
+    rng = Random(rng_seed)
+    sim = Simulator(seed=seed, randomize=True)
+    ideal = ideal_calibration(sim)
+
+    def near_ideal() -> Cal:  # a calibration as the procedure leaves it (asserv.soak)
+        return (
+            ideal.ratio_ppm + rng.randint(-290, 290),
+            ideal.track_10um + rng.randint(-6, 6),
+            ideal.scale_ppm + rng.randint(-440, 440),
+        )
+
+    old = near_ideal() if kept else None
+    new = near_ideal()
+    bc, sc, f = robot(seed=seed, randomize=True, start_uncertainty=(3, 0.5))
+    b = Stm32Board(elf, sc, f, bc, nvm=None if old is None else encode(old))
+    board = Board(b.bus)
+    assert installed(ram_board(b)) == old
+    if moving:
+        board.set_vitesse_traj(100, 100)
+        board.goto(-200, -500)  # 0.6 s at least: it runs at the reset
+        b.sleep(0.05 + rng.random() * 0.3)
+    board.set_odometrie(*new)
+    b.advance_ns((b.ticks + ticks) * TICK_NS + us * 1000 + 1 - b.now_ns)
+    was_busy = ram_board(b).planner.orders.state != 0
+    assert was_busy == moving
+    before = newest(b.flash)  # the records completed before the reset
+    mid_write = b.flash.busy()
+    event(f"reset {'mid-word' if mid_write else 'between words'}, {ticks} ticks")
+    scramble = None if keep_ram else Random(rng.getrandbits(32))
+    b.reset(FLAGS[cause], scramble, down_ms * 1_000_000, cut=Random(rng.getrandbits(32)))
+
+    # The master's next poll.
+    status = board.check_busy()
+    info = board.reset_info()
+    assert (info.cause, info.count, info.pose_lost) == (cause, 1, not keep_ram)
+    # board_restart(): abandoned when an order ran, or when the record is lost (it cannot tell).
+    assert bool(status & Status.PB_MOTEUR) == (moving or not keep_ram)
+    assert not status & Status.BUSY_TRAJET
+    loaded = installed(ram_board(b))
+    assert loaded == newest(b.flash), "not the newest whole record"
+    assert loaded in (old, new), f"a mix installed: {loaded}"
+    assert loaded == before or (mid_write and loaded == new)
+    assert (Capability.CALIBRATED in board.version().capabilities) == (loaded is not None)
+    if keep_ram:
+        assert error_mm(b, board) <= board.position().radius_mm
+    else:
+        assert board.position().radius_mm == 255
+        with pytest.raises(OrderRejected) as e:
+            board.goto(0, 0)
+        assert e.value.reason == Reject.REFUSED_NO_POSE
+
+    # The board does not finish a torn record (the RAM that held the new one was started
+    # afresh): what it runs with is what the flash holds. The master sends it again.
+    b.sleep(0.02)
+    assert installed(ram_board(b)) == loaded == newest(b.flash)
+    board.set_odometrie(*new)
+    b.sleep(0.3)  # the record written; the robot, motors off, comes to rest
+    assert installed(ram_board(b)) == new == newest(b.flash)
+    if keep_ram:
+        assert error_mm(b, board) <= board.position().radius_mm
+    b.power_cycle(Random(rng.getrandbits(32)))
+    assert installed(ram_board(b)) == new
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_reset_during_the_log_switch_keeps_the_full_logs_record(elf: Path, seed: int) -> None:
+    """The active log full, SET_ODOMETRIE at rest starts the erase of the other sector; a
+    watchdog reset or a brown-out, the RAM kept or scrambled, comes during the erase (the
+    model leaves a random part of its bits erased) or during the first record's words in the
+    erased sector. At the next poll: the reset reported, nothing abandoned (no order ran) but
+    with the record lost, the full log's record or the new one installed, the pose kept or
+    refused; the master's second send is kept."""
+    rng = Random(seed)
+    cause = (ResetCause.WATCHDOG, ResetCause.BROWN_OUT)[seed % 2]
+    keep_ram = seed // 2 % 2 == 0
+    used = SLOTS - START_FREE
+    log = b"".join(encode((i, 28000, 0)) for i in range(used))
+    bc, sc, f = robot()
+    b = Stm32Board(elf, sc, f, bc, nvm=log)
+    board = Board(b.bus)
+    fill_until_full(b, board)
+    last = newest(b.flash)
+    new = (rng.randint(-3000, 3000), rng.randint(27500, 28500), rng.randint(-3000, 3000))
+    board.set_odometrie(*new)
+    while not erasing(b):
+        b.advance_ns(100_000)  # the erase starts in the main loop, after a tick
+        assert b.now_ns < 5e9
+    word = rng.choice([None, 0, 1, 2, 3])  # None: within the erase
+    if word is not None:
+        while erasing(b):
+            b.advance_ns(1_000_000)
+        b.advance_ns((b.ticks + word) * TICK_NS + rng.randint(0, 15) * 1000 + 1 - b.now_ns)
+    before = newest(b.flash)
+    mid_op = b.flash.busy()
+    scramble = None if keep_ram else Random(rng.getrandbits(32))
+    b.reset(FLAGS[cause], scramble, cut=Random(rng.getrandbits(32)))
+    print(
+        f"\nreset {cause.name} in {'the erase' if word is None else f'word {word}'}, "
+        f"RAM {'kept' if keep_ram else 'scrambled'}: erases {b.flash.erased}"
+    )
+
+    status = board.check_busy()
+    info = board.reset_info()
+    assert (info.cause, info.count, info.pose_lost) == (cause, 1, not keep_ram)
+    assert bool(status & Status.PB_MOTEUR) == (not keep_ram)
+    assert b.watchdog_resets == 0  # the start-up's compaction, if any, within the watchdog
+    loaded = installed(ram_board(b))
+    assert loaded == newest(b.flash)
+    assert loaded in (last, new)
+    assert loaded == before or (mid_op and loaded == new)
+    if keep_ram:
+        assert error_mm(b, board) <= board.position().radius_mm
+    else:
+        assert board.position().radius_mm == 255
+    board.set_odometrie(*new)
+    b.sleep(0.05)  # the start-up compacted the logs again: the record goes into sector 7
+    b.power_cycle(Random(rng.getrandbits(32)))
+    assert installed(ram_board(b)) == new == newest(b.flash)
