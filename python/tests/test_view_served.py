@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from asserv import cli, log, view
+from asserv import Status, cli, log, view
 from asserv.driver import Board
 from asserv.server import RemoteBus, SimServer
 from asserv.sim import Simulator
@@ -50,9 +50,21 @@ async def _watch(url: str, until: threading.Event) -> tuple[dict[str, Any], list
         while not until.is_set():
             msg = json.loads(await asyncio.wait_for(ws.recv(), 5))
             rows.extend(msg["rows"])
-        for _ in range(10):  # the last poll after the strategy ended
+        # The polls after the strategy ended, until one shows the robot at rest at its last
+        # point (a loaded machine polls late: wait for the row, not for a count of messages).
+        for _ in range(200):
             rows.extend(json.loads(await asyncio.wait_for(ws.recv(), 5))["rows"])
+            if rows and _at_rest_at_end(dict(zip(hello["info"]["fields"], rows[-1], strict=True))):
+                break
     return hello, rows
+
+
+def _at_rest_at_end(row: dict[str, Any]) -> bool:
+    return (
+        math.hypot(row["est_x_mm"] - 300, row["est_y_mm"] + 300) < 5
+        and abs(row["v_mm_s"]) < 1
+        and not int(row["status"]) & Status.BUSY_TRAJET
+    )
 
 
 def _check_watched(hello: dict[str, Any], rows: list[list[Any]], sim: Simulator) -> None:
