@@ -50,3 +50,68 @@ def test_a_missed_goal_is_marked_and_fails_only_with_strict(
     )
     assert code == 1
     assert run(elf, capsys)[0] == 0
+
+
+def _doc_table() -> dict[str, tuple[str, str]]:
+    """docs/stm32.md's "Figures" table: row name -> (STM32 cell, AVR cell)."""
+    text = (ROOT / "docs" / "stm32.md").read_text()
+    start = text.index("| one rate, 1 kHz | STM32F446RE, 180 MHz | ATmega1284P, 16 MHz |")
+    rows = {}
+    for line in text[start:].splitlines()[2:]:
+        if not line.startswith("|"):
+            break
+        name, st, avr = (c.strip() for c in line.strip("|").split("|"))
+        rows[name] = (st, avr)
+    return rows
+
+
+def _figure(out: list[str], pattern: str, after: str = "") -> re.Match[str]:
+    lines = out[next(i for i, line in enumerate(out) if after in line) :] if after else out
+    m = next((m for m in map(re.compile(pattern).search, lines) if m), None)
+    assert m, f"{pattern!r} not in the bench's output"
+    return m
+
+
+def test_the_figures_in_docs_stm32_md_are_what_the_bench_prints(
+    elf: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Every cell of docs/stm32.md's table of figures, as bench/stm32.py prints it at this commit
+    (the AVR's column from bench_avr's one-rate build, when scripts/test.sh has built it)."""
+    avr_bench = ROOT / "build-avr0" / "harness" / "avr" / "bench_avr"
+    code, out = bench.main([str(elf)]), capsys.readouterr().out.splitlines()
+    fixes_code, fixes = bench.main([str(elf), "--avr-bench", "/nonexistent", "--fixes"]), None
+    fixes = capsys.readouterr().out.splitlines()
+    assert code == 0 and fixes_code == 0
+    cruise = "at 1 m/s ("
+    tick = _figure(out, r"control tick \(SysTick handler\)\s+(\d+) mean\s+(\d+) worst", cruise)
+    servo = _figure(
+        out, r"servo \(the tick without the planner step\)\s+(\d+) mean\s+(\d+) worst", cruise
+    )
+    slow = _figure(out, r"planner \(board_slow: [^)]*\)\s+(\d+) mean\s+(\d+) worst", cruise)
+    busy = _figure(out, r"busiest period at 1 m/s.*: \d+ instructions, ([\d.]+) %")
+    busy_fixes = _figure(fixes, r"busiest period at 1 m/s.*: \d+ instructions, ([\d.]+) %")
+    mem = _figure(out, r"^flash (\d+) bytes .*; RAM (\d+) bytes static")
+    want = {
+        "control tick at 1 m/s, mean": f"{tick[1]} instructions",
+        "control tick at 1 m/s, worst": f"{tick[2]} instructions",
+        "of which the servo, mean / worst": f"{servo[1]} / {servo[2]} instructions",
+        "of which the planner step (`board_slow()`), mean / worst": f"{slow[1]} / {slow[2]} "
+        "instructions",
+        "CPU load of the busiest period": f"{busy[1]} % (estimate)",
+        "the same with a SET_FIX every 100 ms (`--fixes`)": f"{busy_fixes[1]} % (estimate)",
+        "flash": f"{mem[1]} bytes",
+        "RAM, static (`.noinit` included)": f"{mem[2]} bytes",
+    }
+    doc = _doc_table()
+    assert {k: v[0] for k, v in doc.items()} == want
+    if not avr_bench.is_file():
+        return  # the AVR's column needs scripts/test.sh's one-rate AVR build
+    side = _figure(out, r"^one rate, at 1 kHz")  # the side-by-side table follows it
+    i = out.index(side.string)
+    # side_by_side(): the name in 30 columns, then two cells of 24, right-aligned
+    avr = {line[:30].strip(): line[55:].strip() for line in out[i + 1 : i + 6]}
+    assert doc["control tick at 1 m/s, mean"][1] == avr["control tick at 1 m/s, mean"]
+    assert doc["control tick at 1 m/s, worst"][1] == avr["control tick at 1 m/s, worst"]
+    assert doc["CPU load of the busiest period"][1] == avr["CPU load of a period, worst"]
+    assert doc["flash"][1] == f"{avr['flash [bytes]']} bytes"
+    assert doc["RAM, static (`.noinit` included)"][1] == f"{avr['RAM, static [bytes]']} bytes"
