@@ -44,6 +44,7 @@ APP_INFO_OFFSET = 0x200
 APP_INFO_MAGIC = 0x4950_5041  # "APPI"
 HEADER_MAGIC = 0x544F_4F42  # "BOOT"
 CHUNK = 64  # the largest DATA chunk (BOOT_CHUNK_MAX)
+WINDOW = 16  # chunks sent between two STATUS reads (1 KiB)
 PROTO_VERSION = 1  # BOOT_PROTO_VERSION
 FRAME_MAX = 1 + 4 + CHUNK + 1  # BOOT_FRAME_MAX: designation, offset, chunk, PEC
 # The frames and replies on the bus (boot_proto.h), big-endian, PEC excluded; the simulated
@@ -341,10 +342,17 @@ class Updater:
             raise UpdateError(f"BEGIN refused: {st.result.name}")
         total = len(image.data)
         offset = 0
+        stalled = 0
         while offset < total:
-            chunk = image.data[offset : offset + CHUNK]
+            # A window of chunks back to back, then one STATUS: the board programs a chunk
+            # (16 words, 256 us) in less time than the next one takes on the bus, and one it
+            # refused (BUSY, then BAD_OFFSET for those after it) is sent again from its offset.
+            sent = offset
             try:
-                self.data(offset, chunk)
+                while sent < total and sent - offset < WINDOW * CHUNK:
+                    chunk = image.data[sent : sent + CHUNK]
+                    self.data(sent, chunk)
+                    sent += len(chunk)
                 st = self.status()
                 while st.state.busy:
                     self.clock.sleep(self.poll_s)
@@ -355,8 +363,11 @@ class Updater:
                 st = self.wait()  # resume from what the board has
             if st.state != State.RECEIVING:
                 raise UpdateError(f"the download stopped at {st.next} bytes: {st.result.name}")
-            if st.result not in (Result.OK, Result.BUSY, Result.BAD_PEC):
+            if st.result not in (Result.OK, Result.BUSY, Result.BAD_PEC, Result.BAD_OFFSET):
                 raise UpdateError(f"chunk at {offset} refused: {st.result.name}")
+            stalled = stalled + 1 if st.next <= offset else 0
+            if stalled > 20:
+                raise UpdateError(f"the download made no progress past {st.next} bytes")
             offset = st.next
             if progress is not None:
                 progress(offset, total)
