@@ -75,6 +75,9 @@ def test_asserv_flash_through_the_server_updates_the_board(
     new = image(2, 20_000)
     path = tmp_path / "asserv_stm32.bin"
     path.write_bytes(new.data)
+    said: list[str] = []
+    assert sim.boot is not None
+    sim.boot.on_start.append(said.append)  # what `asserv sim serve` prints
     t0 = sim.time_s
     assert main(["--sim", where, "flash", str(path)]) == 0
     out = capsys.readouterr().out.splitlines()
@@ -85,7 +88,11 @@ def test_asserv_flash_through_the_server_updates_the_board(
     assert out[1] == "board 0xf446: runs version 1 (524 bytes)"
     assert out[2].startswith("verified: the board read the 20000 bytes back")
     assert out[3] == "running: application version 2 (protocol 1.0)"
-    assert sim.firmware == new and sim.boot is not None and sim.boot.flash.updates == 1
+    assert sim.firmware == new and sim.boot.flash.updates == 1
+    assert said == [
+        f"the board took an update: version 2, 20000 bytes, CRC-32 0x{new.crc32:08x};"
+        " its application started again"
+    ]
     # Restarted: a power-on whose storage kept the calibration; the new application answers.
     assert sim.calibration == kept
     assert not sim.boot.serving
@@ -287,3 +294,15 @@ def test_each_refusal_names_its_reason(served: tuple[Simulator, str]) -> None:
         bus.clock.sleep(0.1)
         assert sim.boot is not None and not sim.boot.serving
         assert sim.firmware == stand_in_image(1)
+
+
+def test_serve_says_what_the_board_runs(tmp_path: Path, capsys: Any) -> None:
+    fw = tmp_path / "fw.bin"
+    fw.write_bytes(image(7, 2048).data)
+    args = ["sim", "serve", "--port", "0", "--speed", "0", "--duration", "0.2"]
+    assert main([*args, "--firmware", str(fw)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "the board runs version 7 (2048 bytes, CRC-32 0x" in out[1]
+    assert "flash FIRMWARE` updates it" in out[1]
+    assert main(args) == 0
+    assert "the board runs version 1 (524 bytes" in capsys.readouterr().out
