@@ -514,8 +514,9 @@ def test_asserv_flash_refuses_bad_files_in_one_line(
 
 
 def test_asserv_flash_says_when_no_bootloader_answers(elf: Path) -> None:
-    """A board without a bootloader (the AVR's, the simulator's: the host build here) takes
-    BOOTLOADER and carries on; `asserv flash` says so, naming the AVR's ISP route."""
+    """A board without a bootloader (the AVR's, a simulator without ``add_bootloader``: the
+    host build here) takes BOOTLOADER and carries on; `asserv flash` says so, naming the AVR's
+    ISP route."""
     from asserv.sim import Simulator
     from asserv.update import flash
 

@@ -399,6 +399,7 @@ struct planner {
     uint8_t shocks;
     uint8_t calibrated;
     struct board_calibration calibration;
+    uint8_t boot_request;
     ...;
 };
 struct mailbox { ...; };

@@ -539,7 +539,8 @@ class Board:
         """BOOTLOADER (extension): leave the application for the bootloader, which takes a
         firmware update (docs/update.md, ``asserv.update``). Refused (OrderRejected,
         REFUSED_BUSY) while an order runs: stop the robot first. The board leaves at its next
-        control tick; a board without a bootloader (the AVR, the simulator) ignores it."""
+        control tick; a board without a bootloader (the AVR, a Simulator without
+        ``add_bootloader``) ignores it."""
         self._command("BOOTLOADER", 0xB007)
 
     def set_odometrie(self, ratio_ppm: int, track_10um: int, scale_ppm: int = 0) -> None:

@@ -524,6 +524,13 @@ def register(simsub: Any) -> None:
         help="a scenario file without bus commands: robot, field, start, opponents, 'at' events",
     )
     p.add_argument("--duration", default=None, help="stop after this many wall seconds")
+    p.add_argument(
+        "--firmware",
+        default=None,
+        metavar="FIRMWARE",
+        help="the STM32 application (ELF or .bin) the board runs at first, for `asserv flash`"
+        " (default: a stand-in of version 1)",
+    )
     p.set_defaults(func=serve_main)
 
 
@@ -594,6 +601,14 @@ def serve_main(args: argparse.Namespace) -> int:
                     return bad(f"--start: {problem}")
     except (fieldmod.FieldError, ValueError) as e:  # ScenarioError is a ValueError
         return bad(str(e))
+    from .update import UpdateError, load_image
+
+    try:
+        image = None if args.firmware is None else load_image(args.firmware)
+        boot = sim.add_bootloader(image)
+    except (UpdateError, ValueError) as e:
+        return bad(f"--firmware {e}")
+    boot.on_start.append(lambda line: print(f"{prog}: {line}", flush=True))
     try:
         server = SimServer(sim, args.host, port, speed)
     except OSError as e:
@@ -602,6 +617,12 @@ def serve_main(args: argparse.Namespace) -> int:
     host, bound = server.address
     mode = "lockstep" if speed == 0 else f"{speed:g}x real time"
     print(f"{prog}: listening on {host}:{bound} ({mode}); Ctrl-C stops", flush=True)
+    run = boot.flash.run
+    print(
+        f"{prog}: the board runs version {run.version} ({len(run.data)} bytes, CRC-32"
+        f" 0x{run.crc32:08x}); `asserv --sim {host}:{bound} flash FIRMWARE` updates it",
+        flush=True,
+    )
     if not is_loopback(args.host):
         print(
             f"{prog}: {args.host} is not loopback: any machine that reaches this port drives"

@@ -35,6 +35,8 @@ from .lidar import LIDAR, LidarScan, Target, Yielding, crossing_path, scan_targe
 
 if TYPE_CHECKING:
     from .fixes import FixFeed, FixSource
+    from .simboot import SimBootloader
+    from .update import Image
 
 #: The columns of ``Simulator.trace``, in the order of ``struct host_sample`` (host.h).
 TRACE_DTYPE = np.dtype([(name, "<f8") for name in TRACE_FIELDS])
@@ -315,6 +317,8 @@ class Simulator:
         self._crossings = 0
         #: The crossing opponents that stop for our robot, by obstacle index.
         self.yielding: dict[int, Yielding] = {}
+        #: The board's bootloader (``add_bootloader``), or None: BOOTLOADER is then ignored.
+        self.boot: SimBootloader | None = None
 
     # ---- time -------------------------------------------------------------------------------
     #: Sleeping on this clock runs the simulation (asserv.bus.clock_of, Board.sleep).
@@ -396,6 +400,27 @@ class Simulator:
             raise RuntimeError("reset: the board refused its configuration")
         self._tx_open = False
 
+    def _power_cycle_board(self) -> None:
+        lib.host_power_cycle(self._h)
+        self._tx_open = False
+
+    # ---- the bootloader (asserv.simboot) --------------------------------------------------------
+    def add_bootloader(self, image: Image | None = None) -> SimBootloader:
+        """Give the board the STM32 board's bootloader: BOOTLOADER, once taken, leaves the
+        application for it, and ``asserv flash`` updates the board (docs/update.md, "Rehearse
+        in the pits"). ``image`` is what the board runs at first (an ``asserv.update.Image``
+        for board 0xf446; default: a stand-in of version 1, its record alone)."""
+        from .simboot import SimBootloader, stand_in_image
+
+        self.boot = SimBootloader(self, image or stand_in_image())
+        return self.boot
+
+    @property
+    def firmware(self) -> Image | None:
+        """The image in the run slot of the board's bootloader (the last update it took), or
+        None without a bootloader."""
+        return self.boot.flash.run if self.boot is not None else None
+
     @property
     def nvm(self) -> bytes:
         """The board's storage (``NVM_SIZE`` bytes, 0xFF where erased): give it to a new
@@ -414,8 +439,12 @@ class Simulator:
     # ---- I2C device (asserv.bus.I2CDevice) ----------------------------------------------------
     def i2c_write(self, data: bytes, stop: bool) -> None:
         """A write transaction at the bus bit rate: each byte reaches the board's interrupt when
-        its ninth clock ends, while the control ticks go on."""
+        its ninth clock ends, while the control ticks go on. To the bootloader while it serves."""
         data = bytes(data)
+        if self.boot is not None and self.boot.serving:
+            self.boot.i2c_write(data, stop)
+            self._log(Frame(self.time_s, "W", data, stop))
+            return
         if self._in_one_call(len(data)):
             rows = lib.asim_bus_write(
                 self._h, data, len(data), stop, self._byte_ns, *self._rows_buffer()
@@ -429,9 +458,15 @@ class Simulator:
                 self.bus_stop()
         self._tx_open = not stop  # a read by repeated start follows
         self._log(Frame(self.time_s, "W", data, stop))
+        if self.boot is not None:
+            self.boot.watch(data)
 
     def i2c_read(self, n: int) -> bytes:
         """A read transaction of n bytes, ended by NACK and STOP."""
+        if self.boot is not None and self.boot.serving:
+            got = self.boot.i2c_read(n)
+            self._log(Frame(self.time_s, "R", got, True))
+            return got
         if self._in_one_call(n):
             buf = ffi.new("uint8_t[]", max(1, n))
             self._keep_rows(lib.asim_bus_read(self._h, buf, n, self._byte_ns, *self._rows_buffer()))

@@ -43,7 +43,16 @@ IMAGE_MAX = 0x18000 - HEADER_SIZE  # the run slot: sectors 2-4
 APP_INFO_OFFSET = 0x200
 APP_INFO_MAGIC = 0x4950_5041  # "APPI"
 HEADER_MAGIC = 0x544F_4F42  # "BOOT"
-CHUNK = 64
+CHUNK = 64  # the largest DATA chunk (BOOT_CHUNK_MAX)
+WINDOW = 16  # chunks sent between two STATUS reads (1 KiB)
+PROTO_VERSION = 1  # BOOT_PROTO_VERSION
+FRAME_MAX = 1 + 4 + CHUNK + 1  # BOOT_FRAME_MAX: designation, offset, chunk, PEC
+# The frames and replies on the bus (boot_proto.h), big-endian, PEC excluded; the simulated
+# bootloader (asserv.simboot) packs what Updater unpacks with the same formats.
+BEGIN_FORMAT = ">BIIIH"  # BEGIN, length, CRC-32, version, board id
+DATA_FORMAT = ">BI"  # DATA, offset; the chunk follows
+STATUS_FORMAT = ">BBI"  # state, result, next offset
+INFO_FORMAT = ">2sBHBIIIIB"  # "BL", protocol, board, run valid, version, length, CRC, max, state
 BOARD_IDS = {
     0xF446: "STM32F446 (Nucleo-F446RE)",
     0xF401: "STM32F401 (Nucleo-F401RE)",
@@ -168,6 +177,17 @@ def _elf_bytes(raw: bytes, name: str) -> bytes:
     return bytes(out)
 
 
+def read_record(data: bytes) -> tuple[int, int] | None:
+    """(board id, version) of an image's own record (app_info.c, at APP_INFO_OFFSET), or None
+    when it has none: what the bootloader's END and load_image both check."""
+    if len(data) < APP_INFO_OFFSET + 12:
+        return None
+    magic, board, version = struct.unpack_from("<3I", data, APP_INFO_OFFSET)
+    if magic != APP_INFO_MAGIC:
+        return None
+    return board & 0xFFFF, version
+
+
 def load_image(path: str | Path) -> Image:
     """The image of an application ELF (its loadable segments) or .bin (the bytes of the run
     slot from its vector table: objcopy -O binary of the ELF), and its record of board and
@@ -181,13 +201,13 @@ def load_image(path: str | Path) -> Image:
     data += bytes(-len(data) % 4)
     if len(data) < APP_INFO_OFFSET + 12:
         raise UpdateError(f"{p}: {len(data)} bytes, too short to be an application image")
-    magic, board, version = struct.unpack_from("<3I", data, APP_INFO_OFFSET)
-    if magic != APP_INFO_MAGIC:
+    record = read_record(data)
+    if record is None:
         raise UpdateError(
             f"{p}: no application record at offset 0x{APP_INFO_OFFSET:x} "
             "(not an asserv application built for the bootloader)"
         )
-    return Image(data, board & 0xFFFF, version)
+    return Image(data, *record)
 
 
 def header(image: Image) -> bytes:
@@ -241,7 +261,8 @@ class Updater:
         if self._info_selected:
             self._write(bytes([CMD_STATUS]))
             self._info_selected = False
-        state, result, nxt = struct.unpack(">BBI", self._read(6))
+        raw = self._read(struct.calcsize(STATUS_FORMAT))
+        state, result, nxt = struct.unpack(STATUS_FORMAT, raw)
         return BootStatus(State(state), Result(result), nxt)
 
     def info(self) -> BootInfo:
@@ -249,24 +270,24 @@ class Updater:
         answers at the address is not the bootloader (the application, say)."""
         self._write(bytes([CMD_INFO]))
         self._info_selected = True
-        raw = self._read(23)
+        raw = self._read(struct.calcsize(INFO_FORMAT))
         if raw[:2] != b"BL":
             raise UpdateError(
                 f"the board at 0x{self.address:02x} is not in its bootloader (it answered "
                 f"{raw[:4].hex()}); enter it first (`asserv flash` does)"
             )
-        ver, board, valid, rver, rlen, rcrc, imax, state = struct.unpack(">BHBIIIIB", raw[2:])
+        _, ver, board, valid, rver, rlen, rcrc, imax, state = struct.unpack(INFO_FORMAT, raw)
         return BootInfo(ver, board, bool(valid), rver, rlen, rcrc, imax, State(state))
 
     def begin(self, image: Image) -> None:
         self._write(
             struct.pack(
-                ">BIIIH", CMD_BEGIN, len(image.data), image.crc32, image.version, image.board_id
+                BEGIN_FORMAT, CMD_BEGIN, len(image.data), image.crc32, image.version, image.board_id
             )
         )
 
     def data(self, offset: int, chunk: bytes) -> None:
-        self._write(struct.pack(">BI", CMD_DATA, offset) + chunk)
+        self._write(struct.pack(DATA_FORMAT, CMD_DATA, offset) + chunk)
 
     def end(self) -> None:
         self._write(bytes([CMD_END]))
@@ -321,10 +342,17 @@ class Updater:
             raise UpdateError(f"BEGIN refused: {st.result.name}")
         total = len(image.data)
         offset = 0
+        stalled = 0
         while offset < total:
-            chunk = image.data[offset : offset + CHUNK]
+            # A window of chunks back to back, then one STATUS: the board programs a chunk
+            # (16 words, 256 us) in less time than the next one takes on the bus, and one it
+            # refused (BUSY, then BAD_OFFSET for those after it) is sent again from its offset.
+            sent = offset
             try:
-                self.data(offset, chunk)
+                while sent < total and sent - offset < WINDOW * CHUNK:
+                    chunk = image.data[sent : sent + CHUNK]
+                    self.data(sent, chunk)
+                    sent += len(chunk)
                 st = self.status()
                 while st.state.busy:
                     self.clock.sleep(self.poll_s)
@@ -335,8 +363,11 @@ class Updater:
                 st = self.wait()  # resume from what the board has
             if st.state != State.RECEIVING:
                 raise UpdateError(f"the download stopped at {st.next} bytes: {st.result.name}")
-            if st.result not in (Result.OK, Result.BUSY, Result.BAD_PEC):
+            if st.result not in (Result.OK, Result.BUSY, Result.BAD_PEC, Result.BAD_OFFSET):
                 raise UpdateError(f"chunk at {offset} refused: {st.result.name}")
+            stalled = stalled + 1 if st.next <= offset else 0
+            if stalled > 20:
+                raise UpdateError(f"the download made no progress past {st.next} bytes")
             offset = st.next
             if progress is not None:
                 progress(offset, total)
