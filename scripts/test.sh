@@ -30,8 +30,8 @@ cmake -S . -B build -G Ninja -DASSERV_SANITIZE=ON >/dev/null
 cmake --build build
 ctest --test-dir build --output-on-failure
 
-step "Python: pytest"
-python -m pytest
+step "Python: pytest (pytest-xdist: one worker per core)"
+python -m pytest -n auto
 
 step "install: sdist and wheel built, installed outside the checkout (driver alone, no compiler; asserv[sim])"
 bash scripts/check_install.sh
@@ -60,7 +60,7 @@ cmake --build build-stm32
 ruff check harness/stm32
 ruff format --check harness/stm32
 mypy --config-file harness/stm32/mypy.ini harness/stm32 bench/stm32.py bench/update_stm32.py
-python -m pytest -p no:cacheprovider harness/stm32
+python -m pytest -p no:cacheprovider -n auto harness/stm32
 python bench/stm32.py build-stm32/asserv_stm32.elf
 python bench/stm32.py build-stm32/asserv_stm32.elf --fixes | grep -E 'SET_FIX|busiest period|goals met'
 python bench/update_stm32.py build-stm32
