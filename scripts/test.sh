@@ -46,13 +46,13 @@ cmake --build build-avr
 cmake -S cmake/cortex-m4 -B build-avr/m4 -G Ninja -DCMAKE_TOOLCHAIN_FILE="$ROOT/cmake/arm-none-eabi.cmake" >/dev/null
 cmake --build build-avr/m4
 build-avr/harness/avr/bench_avr build-avr/harness/avr/firmware/asserv_avr.elf
-ctest --test-dir build-avr -L avr --output-on-failure
+ctest --test-dir build-avr -L avr --output-on-failure -j "$(nproc)"
 
 step "AVR, one rate (the whole tick in the main loop, ASSERV_AVR_SLOW_SHIFT=0): the same tests"
 cmake -S . -B build-avr0 -G Ninja -DASSERV_AVR_HARNESS=ON -DASSERV_TESTS=OFF \
 	-DASSERV_AVR_SLOW_SHIFT=0 >/dev/null
 cmake --build build-avr0
-ctest --test-dir build-avr0 -L avr --output-on-failure
+ctest --test-dir build-avr0 -L avr --output-on-failure -j "$(nproc)"
 
 step "STM32: build the firmware and its bootloader for a Nucleo-F446RE, run the ELFs in unicorn (harness/stm32, docs/stm32.md, docs/update.md)"
 cmake -S firmware/ports/stm32 -B build-stm32 -G Ninja -DCMAKE_TOOLCHAIN_FILE="$ROOT/cmake/stm32f4.cmake" >/dev/null

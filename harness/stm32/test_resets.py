@@ -177,7 +177,7 @@ def boot_board(elf: Path, boot_elf: Path) -> BootBoard:
 def test_the_bootloader_passes_the_flags_and_the_ram_on(elf: Path, boot_elf: Path) -> None:
     """Through the bootloader (which runs first at every reset): the flags are the reset's, the
     record in .noinit is whole, and the start-up fits STM32_START_MS: from the reset to the
-    application's main loop asleep (past stm32_io_init(), from which the encoders count), its
+    application's main loop asleep (past stm32_encoder_init(), from which the encoders count), its
     instructions at 4 cycles each (a taken branch's most, PM0214 3.3.1; loads take 2), all at
     the HSI's 16 MHz, plus 1 ms for what the emulator does not wait for (the PLL's lock, the
     over-drive, the watchdog's registers)."""

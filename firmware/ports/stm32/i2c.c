@@ -18,6 +18,8 @@
 
 void hal_i2c_slave_init(uint8_t address)
 {
+	RCC_AHB1ENR |= RCC_AHB1ENR_GPIOBEN;
+	RCC_APB1ENR |= RCC_APB1ENR_I2C1EN;
 	GPIO_OTYPER(GPIOB_BASE) |= 1u << PIN_I2C_SCL | 1u << PIN_I2C_SDA;
 	GPIO_AFRH(GPIOB_BASE) = (GPIO_AFRH(GPIOB_BASE) & ~(0xFFu << (4u * (PIN_I2C_SCL - 8u)))) |
 				0x44u << (4u * (PIN_I2C_SCL - 8u));

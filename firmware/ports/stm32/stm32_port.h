@@ -23,11 +23,15 @@ struct stm32_layout {
 };
 extern const struct stm32_layout stm32_layout;
 
-/* Set-up, once, interrupts off (the clocks first: clock.c; then io.c). */
+/* Set-up, once, interrupts off: the clocks first (clock.c), then the encoders (encoder.c), the
+ * motors and their current sense (motor.c), the switches and sensors (sensors.c). Each enables
+ * its own peripherals' clocks; hal_i2c_slave_init() (i2c.c) and hal_tick_start() (tick.c) too. */
 void stm32_clock_init(void);
-void stm32_io_init(void);
+void stm32_encoder_init(void);
+void stm32_motor_init(void);
+void stm32_sensors_init(void);
 
-/* The current-sense conversions of both motors, at the start of each tick (io.c). */
+/* The current-sense conversions of both motors, at the start of each tick (motor.c). */
 void stm32_adc_sample(void);
 
 /* The robot this binary drives (robot.c). */
@@ -57,7 +61,7 @@ void stm32_watchdog_set(uint32_t pr, uint32_t rlr);
 uint8_t stm32_reset_cause(void);
 
 /* The longest the board is down at a reset [ms], from the last record the planner kept
- * (keep.h) to the encoders counting again (stm32_io_init()): STM32_START_MS for the start-up,
+ * (keep.h) to the encoders counting again (stm32_encoder_init()): STM32_START_MS for the start-up,
  * the bootloader's checks included (harness/stm32/test_resets.py measures it), and for a
  * watchdog reset the hang before it, STM32_WDG_MAX_MS: the 60 ms window (STM32_WDG_RLR) at
  * the LSI's slowest, 17 kHz: 480 * 4 / 17000 s. */
