@@ -18,8 +18,8 @@ step "style: clang-format, ruff, mypy"
 mapfile -t c_files < <(git ls-files -co --exclude-standard '*.c' '*.h' |
 	grep -v -e '_gen\.h$' -e 'protocol_defs\.h$' -e 'field_defs\.h$' -e 'robot_defs\.h$' -e 'protocol_table\.c$')
 clang-format --dry-run --Werror "${c_files[@]}"
-ruff check python protocol field bench fuzz scripts firmware/ports/host/gen_trace.py
-ruff format --check python protocol field bench fuzz scripts firmware/ports/host/gen_trace.py
+ruff check python protocol field bench fuzz scripts firmware/ports/host/gen_trace.py harness/avr
+ruff format --check python protocol field bench fuzz scripts firmware/ports/host/gen_trace.py harness/avr
 mypy
 
 step "structure: no function of firmware/core over 80 lines (Universal Ctags)"

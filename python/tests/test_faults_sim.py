@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -346,3 +348,118 @@ def test_a_master_that_writes_keeps_the_robot_going() -> None:
     assert board.debug().end_reason == EndReason.DONE
     x, y, _ = sim.true_pose()
     assert abs(x - TARGET[0]) < 1 and abs(y - TARGET[1]) < 1
+
+
+# ---- docs/failure-model.md's table of section 2 is what the benches print ------------------------
+
+DOC = Path(__file__).resolve().parents[2] / "docs" / "failure-model.md"
+HEADER = "| Fault | Detected by | Detected within (`bench/detection.py`) |"
+# The table's rows (the start of their first cell) and the bench/detection.py line each quotes;
+# None: a row with no figure of its own (bounds, with the test that asserts them).
+ROWS = {
+    "a shock sensor closes": "shock sensor",
+    "a wall no shock sensor sees": "wall, no shock sensor",
+    "a stalled motor": "stalled motor",
+    "both drive wheels jammed": "both drive wheels jammed",
+    "a free-wheel encoder wire cut": "free-wheel encoder wire cut",
+    "a motor-encoder wire cut": "motor-encoder wire cut",
+    "a low-friction patch": None,
+    "battery sag": "battery sag",
+    "three motor problems": None,
+    "a free wheel jumping": None,
+}
+
+
+def doc_table() -> dict[str, list[str]]:
+    """Section 2's table: the row's key in ROWS -> its six cells."""
+    lines = DOC.read_text().splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith(HEADER))
+    rows: dict[str, list[str]] = {}
+    for line in lines[start + 2 :]:
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip("|").split(" | ")]
+        key = next(k for k in ROWS if cells[0].startswith(k))
+        assert len(cells) == 6 and key not in rows, line
+        rows[key] = cells
+    assert list(rows) == list(ROWS)  # every row known, in order
+    return rows
+
+
+def doc_block(command: str) -> list[str]:
+    """The lines of the page's output block of command (test_docs_examples compares them with
+    what the command prints)."""
+    lines = DOC.read_text().splitlines()
+    i = lines.index(f"<!-- example: output {command} -->") + 2
+    block = []
+    while i < len(lines) and lines[i].startswith("    "):
+        block.append(lines[i].strip())
+        i += 1
+    assert block, command
+    return block
+
+
+def test_the_detection_table_is_what_the_bench_prints() -> None:
+    """Each figure of the table is a line of bench/detection.py's block, and the shock's rest and
+    force bench/shock_stop.py's line at 100 cm/s: the table cannot drift from them."""
+    bench = {}
+    for line in doc_block("python bench/detection.py")[1:-1]:
+        key, figures = line.split(": ", 1)
+        bench[key] = figures.split("   (goal")[0]
+    rows = doc_table()
+    quoted = {k: bench[v] for k, v in ROWS.items() if v is not None}
+    assert {k: rows[k][2] for k in quoted} == quoted
+    # Every line of the bench in the table; the next order after a cut, in its recovery.
+    assert set(bench) == {*ROWS.values(), "the next order after a free-wheel cut"} - {None}
+    assert (
+        bench["the next order after a free-wheel cut"] in rows["a free-wheel encoder wire cut"][5]
+    )
+    # The rows that quote no bench quote no time of their own but their bound.
+    for key in ("three motor problems", "a free wheel jumping"):
+        assert not re.search(r"\d+ ms", " ".join(rows[key])), rows[key]
+    assert re.findall(r"\d+ ms", rows["a low-friction patch"][2]) == ["100 ms"]
+    shock = next(
+        line
+        for line in doc_block("python bench/shock_stop.py --random 150")
+        if line.startswith("limit 100 cm/s:")
+    )
+    m = re.search(r"rest +(\d+) ms .* ([\d.]+) N", shock)
+    assert m, shock
+    assert (
+        f"from 1 m/s into a 150 mm disc, at rest {m[1]} ms after the contact, {m[2]} N from "
+        "300 ms on" in rows["a shock sensor closes"][4]
+    )
+
+
+def test_the_thresholds_in_the_table_are_the_board_s() -> None:
+    """The column "Detected by" (and the repeated rule) against board_default_config()."""
+    cfg = Simulator().board_config  # kept: f points into it
+    f = cfg.faults
+    rows = doc_table()
+    words = {2: "two", 3: "three", 4: "four", 5: "five"}
+    assert (
+        f"overcurrent (above {f.current_max_ma / 1000:g} A for {f.current_ms} ms)"
+        in (rows["both drive wheels jammed"][1])
+    )
+    assert (
+        f"following error ({f.following_max_um / 1000:g} mm for {f.following_ms} ms)"
+        in (rows["battery sag"][1])
+    )
+    assert (
+        f"while its motor turns {f.lost_min_um / 1000:g} mm"
+        in (rows["a free-wheel encoder wire cut"][1])
+    )
+    within = f"within {f.repeat_window_ms / 1000:g} s"
+    assert rows["three motor problems"][0] == f"{words[f.repeat_max]} motor problems {within}"
+    assert (
+        f"the {'third' if f.repeat_max == 3 else '?'} {within} is PB_GRAVE"
+        in (rows["a motor-encoder wire cut"][5])
+    )
+    # The encoder range: ODOMETRY_STEP_Q16_MAX [um * 2^16] (firmware/core/odometry.h).
+    header = (DOC.parents[1] / "firmware" / "core" / "odometry.h").read_text()
+    step = re.search(r"#define ODOMETRY_STEP_Q16_MAX (\S+)", header)
+    assert step and step[1] == "INT32_MAX"
+    assert (
+        f"more than {(2**31 - 1) / 2**16 / 1000:.1f} mm in one tick"
+        in (rows["a free wheel jumping"][0])
+    )

@@ -72,6 +72,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
         ("soak", ["--matches", "2", "--seconds", "3", "--jobs", "1"]),
         ("shock_stop", ["--random", "2"]),
         ("slip_latency", []),
+        ("detection", []),
         ("poll_rate", []),
         ("sim_speed", ["--robots", "1", "--jobs", "1"]),  # a wall-clock goal: marked, not asserted
         ("course", ["--robots", "1"]),
