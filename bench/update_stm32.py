@@ -10,7 +10,8 @@ emulator models them. Printed for each rate:
   limit: the frames a download cannot do without (address, designation, offset, the image in
   64-byte chunks, PEC; BEGIN and END), 9 bits a byte. Goal (issue 29): 1.5x the limit or less,
   each marked met or MISSED (asserv.goals), the last line sums them up, --strict exits 1 on a
-  miss; where the rest goes: the download slot's erase at BEGIN (1 s), the copy after START;
+  miss; where the rest goes: the download slot's erase at BEGIN (1 s) past what the bootloader
+  holds in RAM meanwhile (24 KiB), the copy after START;
 - then the bootloader's flash, and the time from reset to the application's first control tick
   (instructions counted by unicorn, at 1.5 cycles each: the bootloader at the HSI's 16 MHz, the
   application's start-up at 16 MHz until its clock set-up, then 180 MHz; plus SysTick's first
@@ -106,11 +107,11 @@ def reset_to_tick(elf: Path, boot_elf: Path) -> tuple[int, int, int, float]:
     return counts["boot"], counts["app16"], counts["app180"], ms
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("build", nargs="?", default=str(ROOT / "build-stm32"), help="the build")
     add_strict_flag(ap)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     build = Path(args.build)
     elf, boot_elf = build / "asserv_stm32.elf", build / "asserv_boot.elf"
     goals = Goals("bench/update_stm32.py")

@@ -1,8 +1,8 @@
 """The bootloader's binary (firmware/boot/stm32) with the application's (docs/update.md): updates
-over the emulated I2C bus driven by asserv.update, power cuts at every step of an update,
-refusals, and the promises as properties (hypothesis): a power cut at any instant leaves a valid
-application that starts, and keeps the calibration; chunks lost, resent or refused on a flaky bus
-never corrupt the image."""
+over the emulated I2C bus driven by asserv.update, power cuts at every step of an update (the
+chunks held in RAM while the download slot erases too), refusals, and the promises as
+properties (hypothesis): a power cut at any instant leaves a valid application that starts, and
+keeps the calibration; chunks lost, resent or refused on a flaky bus never corrupt the image."""
 
 from __future__ import annotations
 
@@ -35,6 +35,8 @@ from asserv import Board, OrderRejected, Reject, Status
 from asserv.codec import crc8, message
 from asserv.scenario import load
 from asserv.update import (
+    BUFFER,
+    CHUNK,
     IMAGE_MAX,
     Image,
     Result,
@@ -47,13 +49,17 @@ from asserv.update import (
 
 NVM = encode(CAL)  # a calibration record in sector 1 from the factory
 NVM_B = encode((-2000, 27990, 400), 255)  # and an older one in sector 7 (generation 255 < 0)
+BYTE_NS = {100_000: 90_000, 400_000: 22_500}  # 9 bits a byte at the bus's rate [Hz]
+STAGE = STAGE_BASE - FLASH_BASE + 0x200  # the download's first byte in the flash image
 
 
-def new_board(elf: Path, boot_elf: Path, image: bytes | None = None) -> BootBoard:
+def new_board(
+    elf: Path, boot_elf: Path, image: bytes | None = None, rate: int = 100_000
+) -> BootBoard:
     bc, sc, f = robot()
     if image is None:
         image = factory_flash(boot_elf, load_image(elf), NVM, NVM_B)
-    return BootBoard(elf, boot_elf, sc, f, bc, flash_image=image)
+    return BootBoard(elf, boot_elf, sc, f, bc, flash_image=image, byte_ns=BYTE_NS[rate])
 
 
 def nvm_of(b: BootBoard) -> bytes:
@@ -246,6 +252,174 @@ def test_refusals_leave_the_old_application_running(elf: Path, boot_elf: Path) -
     assert b.wflash.faults == []
 
 
+def in_ram(b: BootBoard) -> tuple[State, int, int]:
+    """The bootloader's state, its next offset and the first byte it holds in RAM, not yet
+    programmed (boot.c's boot.state, boot.next, held_from), read from its RAM."""
+    sym = b.cpu.boot_symbols
+    raw = bytes(b.cpu.uc.mem_read(sym["boot"], 8))
+    return State(raw[0]), int.from_bytes(raw[4:8], "little"), b.cpu.read32(sym["held_from"])
+
+
+def kept_ram(b: BootBoard) -> bytes:
+    """The application's RAM that survives a reset (its .noinit, from 0x20008000): the
+    bootloader's own, its buffer included, ends below it."""
+    return bytes(b.cpu.uc.mem_read(0x2000_8000, b.cpu.sections[".noinit"]))
+
+
+def test_the_bootloaders_ram_ends_below_the_applications_kept_ram(
+    elf: Path, boot_elf: Path
+) -> None:
+    with boot_elf.open("rb") as f:
+        symtab = ELFFile(f).get_section_by_name(".symtab")
+        end = {s.name: s["st_value"] for s in symtab.iter_symbols()}  # type: ignore[union-attr]
+    with elf.open("rb") as f:
+        noinit = ELFFile(f).get_section_by_name(".noinit")
+    assert noinit is not None and noinit["sh_addr"] == 0x2000_8000
+    assert end["held"] + BUFFER == end["_ebuffer"] <= noinit["sh_addr"]
+    assert end["_ebss"] <= noinit["sh_addr"]
+
+
+def write_bad_pec(b: BootBoard, offset: int, chunk: bytes) -> None:
+    """DATA with a byte flipped on the bus after its PEC was computed."""
+    frame = bytes([0xB2]) + offset.to_bytes(4, "big") + chunk
+    pec = crc8(bytes([4]) + frame)
+    bad = bytearray(frame)
+    bad[10] ^= 0x10
+    b.bus.i2c_rdwr(i2c_msg.write(2, bytes(bad) + bytes([pec])))
+
+
+def test_chunks_are_held_in_ram_while_the_download_slot_erases(elf: Path, boot_elf: Path) -> None:
+    """At 400 kHz the bus brings the BUFFER bytes the bootloader holds in 0.6 s, before the
+    download slot's 1 s erase is over: chunks are taken and held in RAM, with every check of a
+    chunk (a bad PEC, past the next offset, sent again the same or different), until RAM is
+    full (BUSY); nothing is programmed before the erase's end, and BEGIN sent again does not
+    erase again. After the erase the held words are programmed, the rest follows, and the
+    application's kept RAM is what it was."""
+    b = new_board(elf, boot_elf, rate=400_000)
+    b.request_bootloader()
+    noinit = kept_ram(b)
+    new = with_version(load_image(elf), 2)
+    u = Updater(b.bus)
+    n0 = len(b.wflash.log)
+    u.begin(new)
+    assert u.status() == (State.ERASING, Result.OK, 0)
+    u.data(0, new.data[:64])
+    assert u.status() == (State.ERASING, Result.OK, 64)
+    write_bad_pec(b, 64, new.data[64:128])
+    assert u.status() == (State.ERASING, Result.BAD_PEC, 64)
+    u.data(128, new.data[128:192])
+    assert u.status() == (State.ERASING, Result.BAD_OFFSET, 64)
+    u.data(0, bytes(64))
+    assert u.status() == (State.ERASING, Result.MISMATCH, 64)
+    u.data(0, new.data[:64])
+    assert u.status() == (State.ERASING, Result.OK, 64)
+    u.end()
+    assert u.status() == (State.ERASING, Result.BUSY, 64)
+    u.begin(with_version(new, 3))  # another download: after this erase
+    assert u.status() == (State.ERASING, Result.BUSY, 64)
+    u.begin(new)  # this one again (its acknowledge lost): the same download, kept
+    assert u.status() == (State.ERASING, Result.OK, 64)
+    for off in range(64, BUFFER, CHUNK):
+        u.data(off, new.data[off : off + CHUNK])
+    assert u.status() == (State.ERASING, Result.OK, BUFFER)
+    u.data(BUFFER, new.data[BUFFER : BUFFER + CHUNK])
+    assert u.status() == (State.ERASING, Result.BUSY, BUFFER)  # RAM full: not taken
+    held = bytes(b.cpu.uc.mem_read(b.cpu.boot_symbols["held"], BUFFER))
+    assert held == new.data[:BUFFER]
+    assert b.wflash.log[n0:] == [("erase", 0x20000, 0x20000, 0)]  # and nothing programmed
+    assert u.wait() == (State.RECEIVING, Result.BUSY, BUFFER)
+    b.sleep(0.15)  # 6144 words, 16 us each
+    assert in_ram(b) == (State.RECEIVING, BUFFER, BUFFER)
+    assert bytes(b.wflash.image[STAGE : STAGE + BUFFER]) == new.data[:BUFFER]
+    for off in range(BUFFER, len(new.data), CHUNK):
+        u.data(off, new.data[off : off + CHUNK])
+    assert u.status() == (State.RECEIVING, Result.OK, len(new.data))
+    u.end()
+    assert u.wait() == (State.READY, Result.OK, len(new.data))
+    assert kept_ram(b) == noinit and b.boot_stalled_ns == 0
+    u.start()
+    b.sleep(2.0)
+    app_runs(b, 2)
+    assert b.wflash.faults == []
+
+
+def test_a_held_word_that_does_not_take_stops_the_download(elf: Path, boot_elf: Path) -> None:
+    """A word of the download held in RAM whose flash is not blank after the erase (a worn
+    word, say): read back wrong, it stops the download (IDLE, FLASH_ERROR), nothing after it
+    is programmed, and START runs the old application."""
+    b = new_board(elf, boot_elf, rate=400_000)
+    b.request_bootloader()
+    new = with_version(load_image(elf), 2)
+    u = Updater(b.bus)
+    u.begin(new)
+    for off in range(0, BUFFER, CHUNK):
+        u.data(off, new.data[off : off + CHUNK])
+    assert u.wait() == (State.RECEIVING, Result.OK, BUFFER)
+    bad = next(o for o in range(20_000, BUFFER, 4) if new.data[o : o + 4] != bytes(4))
+    assert in_ram(b)[2] < bad
+    b.wflash.image[STAGE + bad : STAGE + bad + 4] = bytes(4)
+    b.wflash._mirror(STAGE + bad, 4)
+    b.sleep(0.15)
+    assert u.status() == (State.IDLE, Result.FLASH_ERROR, BUFFER)
+    assert bytes(b.wflash.image[STAGE : STAGE + bad]) == new.data[:bad]
+    assert bytes(b.wflash.image[STAGE + bad + 4 : STAGE + BUFFER]) == b"\xff" * (BUFFER - bad - 4)
+    u.data(BUFFER, new.data[BUFFER : BUFFER + CHUNK])
+    assert u.status() == (State.IDLE, Result.NOT_BEGUN, BUFFER)
+    u.start()
+    b.sleep(0.1)
+    app_runs(b, 1)
+
+
+class CutError(Exception):
+    """The power cut, raised at the master between two transactions."""
+
+
+class CutWhen:
+    """The board's bus until ``when(state, next, held_from)`` of the bootloader's RAM holds
+    before a transaction: then CutError."""
+
+    def __init__(self, b: BootBoard, when: Any) -> None:
+        self.b = b
+        self.clock = b.bus.clock
+        self.when = when
+
+    def i2c_rdwr(self, *msgs: Any) -> None:
+        if self.b.in_boot() and self.when(*in_ram(self.b)):
+            raise CutError
+        self.b.bus.i2c_rdwr(*msgs)
+
+
+HELD_CUTS = {
+    # the erase runs, RAM holds chunks
+    "erasing": lambda state, nxt, held: state == State.ERASING and nxt >= 4096,
+    # the erase runs, RAM full: the master waits
+    "full": lambda state, nxt, held: state == State.ERASING and nxt == BUFFER,
+    # after the erase: the held words being programmed while more chunks arrive
+    "programming": lambda state, nxt, held: state == State.RECEIVING and 8192 <= held < nxt - 4096,
+}
+
+
+@pytest.mark.parametrize("moment", sorted(HELD_CUTS))
+def test_a_power_cut_while_chunks_are_held_in_ram(elf: Path, boot_elf: Path, moment: str) -> None:
+    """A power cut at 400 kHz while the bootloader holds chunks in RAM (lost with it): in the
+    download slot's erase, with RAM holding chunks or full, and while the held words are
+    programmed (a word cut part way, if one was). The old application starts, calibrated; the
+    update again ends on the new one."""
+    b = new_board(elf, boot_elf, rate=400_000)
+    b.request_bootloader()
+    new = with_version(load_image(elf), 2)
+    with pytest.raises(CutError):
+        Updater(CutWhen(b, HELD_CUTS[moment])).update(new)
+    b.power_cycle(Random(sorted(HELD_CUTS).index(moment)))
+    assert not b.in_boot() and b.running_version() == 1
+    assert kept(b) and b.wflash.faults == []
+    b.request_bootloader()
+    Updater(b.bus).update(new)
+    Updater(b.bus).start()
+    b.sleep(2.0)
+    app_runs(b, 2)
+
+
 def test_a_start_up_switch_of_logs_outlasts_the_bootloaders_watchdog(
     elf: Path, boot_elf: Path
 ) -> None:
@@ -378,11 +552,15 @@ class FlakyBus:
 
 
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(faults=st.lists(st.sampled_from([0, 0, 0, 0, 0, 0, 1, 2, 3, 4]), min_size=5, max_size=40))
+@given(
+    faults=st.lists(st.sampled_from([0, 0, 0, 0, 0, 0, 1, 2, 3, 4]), min_size=5, max_size=40),
+    rate=st.sampled_from([100_000, 400_000]),
+)
 def test_lost_resent_and_garbled_frames_never_corrupt_the_image(
-    elf: Path, boot_elf: Path, faults: list[int]
+    elf: Path, boot_elf: Path, faults: list[int], rate: int
 ) -> None:
-    b = new_board(elf, boot_elf)
+    """At 400 kHz, faults also fall on chunks held in RAM during the erase, and on RAM full."""
+    b = new_board(elf, boot_elf, rate=rate)
     b.request_bootloader()
     new = with_version(load_image(elf), 2)
     flaky = FlakyBus(b.bus, faults)
@@ -403,22 +581,22 @@ def test_lost_resent_and_garbled_frames_never_corrupt_the_image(
     phase=st.sampled_from(["download", "copy"]),
     at=st.floats(0.0, 1.0),
     seed=st.integers(0, 2**32 - 1),
+    rate=st.sampled_from([100_000, 400_000]),
 )
 def test_a_power_cut_at_any_instant_then_the_update_again(
-    elf: Path, boot_elf: Path, phase: str, at: float, seed: int
+    elf: Path, boot_elf: Path, phase: str, at: float, seed: int, rate: int
 ) -> None:
     """A power cut at a random instant of a live update (the download over the bus, or the
     bootloader's copy after START), mid-operation included: the board then starts a valid
-    application with its calibration, and the same update, done again, gets the new one."""
-    b = new_board(elf, boot_elf)
+    application with its calibration, and the same update, done again, gets the new one. At
+    400 kHz the download's first 1 s is the erase with chunks held in RAM."""
+    b = new_board(elf, boot_elf, rate=rate)
     b.request_bootloader()
     new = with_version(load_image(elf), 2)
     u = Updater(b.bus)
     if phase == "download":
-        cut_ns = b.now_ns + int(at * 6.5e9)  # the download takes 6.8 s at 100 kHz
-
-        class CutError(Exception):
-            pass
+        # The download takes 5.7 s at 100 kHz, 1.8 s at 400 kHz.
+        cut_ns = b.now_ns + int(at * (5.6e9 if rate == 100_000 else 1.75e9))
 
         def progress(done: int, total: int) -> None:
             if b.now_ns >= cut_ns:

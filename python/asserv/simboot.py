@@ -12,10 +12,12 @@ built from: its record of board and version, its CRC) and the download slot, in 
   the address after its start-up (the run slot's CRC: ``START_S``; a NACK before);
 - the writes and replies of boot.c and boot_i2c.c, byte for byte: the PEC mandatory, the same
   checks (board id, length, offsets, chunks sent again, CRC, the image's own record and
-  version), the same states and results, a write while busy refused with BUSY;
+  version), the same states and results, a write while busy refused with BUSY; DATA taken
+  while the download slot erases, held in RAM (BUFFER bytes; refused with BUSY when full) and
+  programmed after, while more arrives;
 - the flash's data-sheet times (docs/update.md, the harness's flash model): the download slot
   erased in 1 s, a word in 16 us, the copy's erases; busy states last that long in simulated
-  time;
+  time, and the held words are programmed at a word each 16 us from the erase's end;
 - START: the download copied into the run slot when it is newer (COPYING, then a reset), then
   the application started by a power-on of the simulated board, whose storage (the calibration)
   is kept, as the real board's sectors 1 and 7 are.
@@ -40,6 +42,7 @@ from .update import (
     APP_INFO_MAGIC,
     APP_INFO_OFFSET,
     BEGIN_FORMAT,
+    BUFFER,
     CMD_BEGIN,
     CMD_DATA,
     CMD_END,
@@ -134,6 +137,9 @@ class SimBootloader:
         self.sim = sim
         self.flash = SimFlash(image)
         self.on_start: list[Callable[[str], None]] = []
+        #: BOOT_PROTO_VERSION of the bootloader modelled: 1 is a board flashed before DATA was
+        #: taken during the erase (refused BUSY then; busy PROGRAMMING while a chunk programs).
+        self.protocol = PROTO_VERSION
         self.serving = False  # the bootloader has the bus (or is starting: NACK until _up_s)
         self._up_s = 0.0
         self._leaving = False  # an application start is scheduled
@@ -144,7 +150,8 @@ class SimBootloader:
         self.result = Result.OK
         self.next = 0
         self._busy_until = 0.0
-        self._pending_next = 0
+        self._held_from = 0  # the download's bytes [_held_from, next) wait in RAM
+        self._held_s = 0.0  # when the held word being programmed began (boot.c op_start)
         self._info = False
         self._pec_carry: int | None = None
         self._length = self._crc = self._version = 0
@@ -244,7 +251,7 @@ class SimBootloader:
             return struct.pack(
                 INFO_FORMAT,
                 b"BL",
-                PROTO_VERSION,
+                self.protocol,
                 BOARD_ID,
                 1,
                 r.version,
@@ -256,20 +263,24 @@ class SimBootloader:
         return struct.pack(STATUS_FORMAT, self.state, self.result, self.next)
 
     def _settle(self) -> None:
-        """The flash job the state started, over when its time has passed (boot.c job_done)."""
-        if not self.state.busy or self.state == State.COPYING:
-            return
-        if self.sim.time_s < self._busy_until:
-            return
-        if self.state == State.ERASING:
-            self.state = State.RECEIVING
-        elif self.state == State.PROGRAMMING:
-            self.next = self._pending_next
-            self.state = State.RECEIVING
-        elif self.state == State.WRITING_HEADER:
+        """The flash job the state started, over when its time has passed (boot.c job_done),
+        and the held words programmed since (boot.c op_start), a word each WORD_S."""
+        now = self.sim.time_s
+        if self.state == State.ERASING and now >= self._busy_until:
+            self.state = State.RECEIVING  # the result stays the last write's
+            self._held_s = self._busy_until
+        if self.state == State.PROGRAMMING and now >= self._busy_until:
+            self.state = State.RECEIVING  # protocol 1: the chunk programmed, then the next
+            self.result = Result.OK
+            self._held_from, self._held_s = self.next, now
+        if self.state == State.RECEIVING:
+            words = min(int((now - self._held_s) / WORD_S), (self.next - self._held_from) // 4)
+            self._held_from += 4 * words
+            self._held_s = now if self._held_from == self.next else self._held_s + words * WORD_S
+        if self.state == State.WRITING_HEADER and now >= self._busy_until:
             self.flash.stage_header = (self._length, self._crc, self._version)
             self.state = State.READY
-        self.result = Result.OK
+            self.result = Result.OK
 
     def _busy(self, state: State, seconds: float) -> None:
         self.state = state
@@ -290,12 +301,18 @@ class SimBootloader:
         if len(f) == 1 and f[0] in (CMD_INFO, CMD_STATUS):
             self._info = f[0] == CMD_INFO
             return
-        if self.state.busy:
+        erasing = self.state == State.ERASING and self.protocol > 1
+        if self.state.busy and not (erasing and f[0] in (CMD_DATA, CMD_BEGIN)):
             self.result = Result.BUSY
             return
         if f[0] == CMD_BEGIN:
             if len(f) != struct.calcsize(BEGIN_FORMAT):
                 self.result = Result.BAD_LENGTH
+            elif erasing:  # sent again (the same download), or another's: after this erase
+                same = (self._length, self._crc, self._version, BOARD_ID)
+                self.result = (
+                    Result.OK if struct.unpack(BEGIN_FORMAT, f)[1:] == same else Result.BUSY
+                )
             else:
                 self._begin(*struct.unpack(BEGIN_FORMAT, f)[1:])
         elif f[0] == CMD_DATA:
@@ -321,20 +338,20 @@ class SimBootloader:
             self.result = Result.TOO_LARGE
             return
         self._length, self._crc, self._version = length, crc, version
-        self.next = 0
+        self.next = self._held_from = 0
         self.flash.stage[:] = b"\xff" * IMAGE_MAX
         self.flash.stage_header = None
         self._busy(State.ERASING, STAGE_ERASE_S)
 
     def _data(self, off: int, chunk: bytes) -> None:
-        if self.state != State.RECEIVING:
+        if self.state not in (State.RECEIVING, State.ERASING):
             self.result = Result.NOT_BEGUN
             return
         n = len(chunk)
         if n % 4 or off % 4 or off > self.next or off + n > self._length:
             self.result = Result.BAD_OFFSET
             return
-        if off < self.next:  # sent again (its reply was lost): it must be what was programmed
+        if off < self.next:  # sent again (its reply was lost): it must be what was received
             have = min(self.next - off, n)
             if self.flash.stage[off : off + have] != chunk[:have]:
                 self.result = Result.MISMATCH
@@ -343,9 +360,15 @@ class SimBootloader:
                 self.result = Result.OK
                 return
             chunk, off = chunk[have:], off + have
+        if off + len(chunk) - self._held_from > BUFFER:
+            self.result = Result.BUSY  # RAM is full (the erase is not over): send it again
+            return
+        # Held in RAM, then programmed (_settle); kept here at once: no cut is modelled.
         self.flash.stage[off : off + len(chunk)] = chunk
-        self._pending_next = off + len(chunk)
-        self._busy(State.PROGRAMMING, len(chunk) // 4 * WORD_S)
+        self.next = off + len(chunk)
+        self.result = Result.OK
+        if self.protocol == 1:
+            self._busy(State.PROGRAMMING, len(chunk) // 4 * WORD_S)
 
     def _end(self) -> None:
         if self.state != State.RECEIVING:
@@ -362,5 +385,10 @@ class SimBootloader:
         elif record[1] != self._version:
             self.result = Result.BAD_VERSION
         else:
-            # Read back at 16 MHz, then the header's words: one busy span, as seen on the bus.
-            self._busy(State.WRITING_HEADER, self._length * CRC_S_PER_BYTE + HEADER_WORDS * WORD_S)
+            # The held words programmed, the image read back at 16 MHz, then the header's
+            # words: one busy span, as seen on the bus.
+            held = (self.next - self._held_from) // 4 * WORD_S
+            self._busy(
+                State.WRITING_HEADER,
+                held + self._length * CRC_S_PER_BYTE + HEADER_WORDS * WORD_S,
+            )

@@ -45,7 +45,8 @@ APP_INFO_MAGIC = 0x4950_5041  # "APPI"
 HEADER_MAGIC = 0x544F_4F42  # "BOOT"
 CHUNK = 64  # the largest DATA chunk (BOOT_CHUNK_MAX)
 WINDOW = 16  # chunks sent between two STATUS reads (1 KiB)
-PROTO_VERSION = 1  # BOOT_PROTO_VERSION
+PROTO_VERSION = 2  # BOOT_PROTO_VERSION: 2 takes DATA while the download slot erases
+BUFFER = 0x6000  # BOOT_BUFFER_SIZE: bytes of the download the bootloader holds in RAM
 FRAME_MAX = 1 + 4 + CHUNK + 1  # BOOT_FRAME_MAX: designation, offset, chunk, PEC
 # The frames and replies on the bus (boot_proto.h), big-endian, PEC excluded; the simulated
 # bootloader (asserv.simboot) packs what Updater unpacks with the same formats.
@@ -124,7 +125,7 @@ class Image:
 class BootStatus(NamedTuple):
     state: State
     result: Result
-    next: int  # bytes of the download received and programmed
+    next: int  # bytes of the download received (held in RAM, or programmed)
 
 
 @dataclass(frozen=True)
@@ -336,17 +337,16 @@ class Updater:
             raise UpdateError(
                 f"the image is {len(image.data)} bytes; the board's slot takes {info.image_max}"
             )
-        self._retry(lambda: self.begin(image))
-        st = self.wait()
-        if st.result != Result.OK or st.state != State.RECEIVING:
-            raise UpdateError(f"BEGIN refused: {st.result.name}")
+        self._begin(image)
         total = len(image.data)
         offset = 0
         stalled = 0
         while offset < total:
-            # A window of chunks back to back, then one STATUS: the board programs a chunk
-            # (16 words, 256 us) in less time than the next one takes on the bus, and one it
-            # refused (BUSY, then BAD_OFFSET for those after it) is sent again from its offset.
+            # A window of chunks back to back, then one STATUS. The board holds them in RAM
+            # while its download slot erases (BEGIN), and programs them after, each in less
+            # time than the next one takes on the bus: while it takes them, nothing waits. A
+            # chunk it refused (BUSY: RAM full; BAD_PEC), and those after it (BAD_OFFSET), are
+            # sent again from the next offset STATUS gives.
             sent = offset
             try:
                 while sent < total and sent - offset < WINDOW * CHUNK:
@@ -354,14 +354,17 @@ class Updater:
                     self.data(sent, chunk)
                     sent += len(chunk)
                 st = self.status()
-                while st.state.busy:
-                    self.clock.sleep(self.poll_s)
-                    st = self.status()
             except OSError:
                 self.retries += 1
                 self.clock.sleep(0.002)
-                st = self.wait()  # resume from what the board has
-            if st.state != State.RECEIVING:
+                st = self._retry(self.status)  # resume from what the board has
+            # Busy, it takes nothing: a write not yet handled (QUEUED), a chunk programming (a
+            # bootloader of protocol 1), or the erase with RAM full (or a bootloader of protocol
+            # 1, which takes nothing while it erases). Wait until it takes chunks again.
+            while st.state.busy and not (st.state == State.ERASING and st.next > offset):
+                self.clock.sleep(self.poll_s)
+                st = self._retry(self.status)
+            if st.state not in (State.RECEIVING, State.ERASING):
                 raise UpdateError(f"the download stopped at {st.next} bytes: {st.result.name}")
             if st.result not in (Result.OK, Result.BUSY, Result.BAD_PEC, Result.BAD_OFFSET):
                 raise UpdateError(f"chunk at {offset} refused: {st.result.name}")
@@ -371,11 +374,32 @@ class Updater:
             offset = st.next
             if progress is not None:
                 progress(offset, total)
+        self.wait()  # a small image may be whole before the erase is over
         self._retry(self.end)
         st = self.wait()
         if st.state != State.READY:
             raise UpdateError(f"END refused: {st.result.name} (the application that ran stays)")
         return st
+
+    def _begin(self, image: Image) -> None:
+        """BEGIN, until the board takes it: ERASING (or RECEIVING, once the erase is over),
+        OK. Sent again while the board's erase runs (its acknowledge lost), it is the same
+        download (OK); refused BUSY (an earlier BEGIN's erase, or a bootloader of protocol 1,
+        for which BEGIN sent again is another one), it is sent again after that erase; a frame
+        that failed its PEC on the way, sent again. Raises UpdateError on a refusal."""
+        for _ in range(5):
+            self._retry(lambda: self.begin(image))
+            st: BootStatus = self._retry(self.status)
+            while st.state == State.QUEUED:
+                self.clock.sleep(self.poll_s)
+                st = self._retry(self.status)
+            if st.result == Result.OK and st.state in (State.ERASING, State.RECEIVING):
+                return
+            if st.result == Result.BUSY and st.state.busy:
+                self.wait()
+            elif st.result != Result.BAD_PEC:
+                break
+        raise UpdateError(f"BEGIN refused: {st.result.name}")
 
 
 class Progress:

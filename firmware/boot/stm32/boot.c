@@ -165,62 +165,33 @@ void FLASH_IRQHandler(void)
 	FLASH_SR = FLASH_SR_EOP; /* the end wakes the main loop, which finishes the operation */
 }
 
-/* ---- The work of the main loop: a list of flash operations ---- */
+/* ---- The work of the main loop: flash operations, then the download's held words ---- */
 struct boot_job {
 	uint8_t sectors[4]; /* to erase, in order */
 	uint8_t n_sectors;
 	uint32_t dst;       /* then words to program from src */
 	const uint8_t *src; /* RAM or flash */
 	uint32_t n_words;
-	uint8_t op; /* 1 while an operation runs */
+	uint8_t op;   /* 1 while an operation runs */
+	uint8_t held; /* 1: that operation programs a word of the download held in RAM */
 	uint8_t err;
 };
 
 static struct boot_job job;
 struct boot_state boot;
 
+/* The download's bytes from held_from to boot.next: received, held in RAM at their offset modulo
+ * BOOT_BUFFER_SIZE, and programmed in order once the download slot's erase is over, while more
+ * arrive (a word programs in 16 us; its 4 bytes take 90 us on the bus at 400 kHz). So the
+ * master sends during the erase (1 s), until RAM is full. A power cut loses them with the rest
+ * of the download: nothing of it counts before its header, written last. */
+static uint8_t held[BOOT_BUFFER_SIZE] __attribute__((aligned(4), section(".boot_buffer")));
+static uint32_t held_from;
+
 static uint32_t word_of(const uint8_t *p)
 {
 	return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
-
-/* One step: finish the operation that ended, start the next. Returns 1 while work is left. */
-static int job_step(void)
-{
-	if (job.op) {
-		if (flash_busy())
-			return 1;
-		job.err |= flash_finish() != 0;
-		job.op = 0;
-	}
-	if (job.n_sectors) {
-		flash_erase_start(job.sectors[0]);
-		for (uint8_t i = 1; i < job.n_sectors; i++)
-			job.sectors[i - 1] = job.sectors[i];
-		job.n_sectors--;
-		job.op = 1;
-		return 1;
-	}
-	if (job.n_words) {
-		uint32_t w = word_of(job.src);
-
-		/* An erased word stays erased: skipped, as programming 0xFFFFFFFF changes nothing.
-		 */
-		if (w != 0xFFFFFFFFu) {
-			flash_program_start(job.dst, w);
-			job.op = 1;
-		}
-		job.dst += 4u;
-		job.src += 4u;
-		job.n_words--;
-		return 1;
-	}
-	return 0;
-}
-
-/* ---- The update (boot_proto.h) ---- */
-static uint8_t chunk[BOOT_CHUNK_MAX];
-static uint32_t hdr_words[BOOT_HEADER_WORDS];
 
 static void set_state(uint8_t state, uint8_t result)
 {
@@ -229,6 +200,90 @@ static void set_state(uint8_t state, uint8_t result)
 	boot.result = result;
 	__asm__ volatile("cpsie i" ::: "memory");
 }
+
+/* A word of the download that did not take (not blank, a flash error), or an erase that
+ * failed: nothing more is programmed; begin again. */
+static void download_failed(void)
+{
+	job.n_sectors = 0;
+	job.n_words = 0;
+	held_from = boot.next;
+	set_state(BOOT_S_IDLE, BOOT_R_FLASH_ERROR);
+}
+
+/* A held word, at the flash, read back: it must be what RAM holds. */
+static void held_word_done(int err)
+{
+	const uint8_t *at = image_at(BOOT_STAGE_BASE) + held_from;
+
+	if (err || word_of(at) != word_of(held + held_from % BOOT_BUFFER_SIZE))
+		download_failed();
+	else
+		held_from += 4u;
+}
+
+/* The operation that ran, once it is over: its errors. */
+static void op_finish(void)
+{
+	uint32_t err;
+
+	if (!job.op || flash_busy())
+		return;
+	err = flash_finish();
+	job.op = 0;
+	if (job.held) {
+		job.held = 0;
+		held_word_done(err != 0);
+	} else {
+		job.err |= err != 0;
+	}
+}
+
+/* The next operation: the job's erases, its words, then the download's held words. Returns 1 when
+ * it moved on without starting one (an erased word skipped: the main loop goes on at once). */
+static int op_start(void)
+{
+	uint32_t w;
+
+	if (job.op)
+		return 0;
+	if (job.n_sectors) {
+		flash_erase_start(job.sectors[0]);
+		for (uint8_t i = 1; i < job.n_sectors; i++)
+			job.sectors[i - 1] = job.sectors[i];
+		job.n_sectors--;
+		job.op = 1;
+		return 0;
+	}
+	if (job.n_words) {
+		/* An erased word stays erased: skipped, as programming 0xFFFFFFFF changes nothing.
+		 */
+		w = word_of(job.src);
+		if (w != 0xFFFFFFFFu) {
+			flash_program_start(job.dst, w);
+			job.op = 1;
+		}
+		job.dst += 4u;
+		job.src += 4u;
+		job.n_words--;
+		return !job.op;
+	}
+	if ((boot.state == BOOT_S_RECEIVING || boot.state == BOOT_S_CHECKING) &&
+	    held_from != boot.next) {
+		w = word_of(held + held_from % BOOT_BUFFER_SIZE);
+		if (w == 0xFFFFFFFFu) {
+			held_word_done(0);
+			return 1;
+		}
+		flash_program_start(BOOT_STAGE_BASE + BOOT_HEADER_SIZE + held_from, w);
+		job.op = 1;
+		job.held = 1;
+	}
+	return 0;
+}
+
+/* ---- The update (boot_proto.h) ---- */
+static uint32_t hdr_words[BOOT_HEADER_WORDS];
 
 static uint32_t be32(const uint8_t *p)
 {
@@ -268,18 +323,35 @@ static void cmd_begin(const uint8_t *a)
 	boot.crc = crc;
 	boot.version = version;
 	boot.next = 0;
+	held_from = 0;
 	job.sectors[0] = BOOT_STAGE_SECTOR;
 	job.n_sectors = 1;
+	job.n_words = 0;
+	job.err = 0;
 	set_state(BOOT_S_ERASING, BOOT_R_OK);
+}
+
+/* BEGIN sent again while its erase runs (its acknowledge was lost): the same download. */
+static int same_begin(const uint8_t *a)
+{
+	return be32(a) == boot.length && be32(a + 4) == boot.crc && be32(a + 8) == boot.version &&
+	       ((uint32_t)a[12] << 8 | a[13]) == BOOT_BOARD_ID;
+}
+
+/* A byte of the download received: in RAM while held, else in the download slot (no operation
+ * runs when this is called: the main loop takes no frame while a held word programs). */
+static uint8_t received(uint32_t off)
+{
+	return off < held_from ? image_at(BOOT_STAGE_BASE)[off] : held[off % BOOT_BUFFER_SIZE];
 }
 
 static void cmd_data(const uint8_t *a, uint32_t n)
 {
 	uint32_t off = be32(a);
-	const uint8_t *dst = image_at(BOOT_STAGE_BASE) + off;
+	const uint8_t *d = a + 4;
 	uint32_t i;
 
-	if (boot.state != BOOT_S_RECEIVING) {
+	if (boot.state != BOOT_S_RECEIVING && boot.state != BOOT_S_ERASING) {
 		set_state(boot.state, BOOT_R_NOT_BEGUN);
 		return;
 	}
@@ -288,11 +360,11 @@ static void cmd_data(const uint8_t *a, uint32_t n)
 		return;
 	}
 	if (off < boot.next) {
-		/* Sent again (its reply was lost): what is in flash must be this chunk. */
+		/* Sent again (its reply was lost): what was received must be this chunk. */
 		uint32_t have = boot.next - off < n ? boot.next - off : n;
 
 		for (i = 0; i < have; i++)
-			if (dst[i] != a[4 + i]) {
+			if (received(off + i) != d[i]) {
 				set_state(boot.state, BOOT_R_MISMATCH);
 				return;
 			}
@@ -300,18 +372,21 @@ static void cmd_data(const uint8_t *a, uint32_t n)
 			set_state(boot.state, BOOT_R_OK);
 			return;
 		}
-		a += have;
+		d += have;
 		off += have;
 		n -= have;
 	}
+	if (off + n - held_from > BOOT_BUFFER_SIZE) {
+		/* RAM is full (the erase is not over): not taken; the master polls, sends again. */
+		set_state(boot.state, BOOT_R_BUSY);
+		return;
+	}
 	for (i = 0; i < n; i++)
-		chunk[i] = a[4 + i];
-	job.dst = (uint32_t)(uintptr_t)(image_at(BOOT_STAGE_BASE) + off);
-	job.src = chunk;
-	job.n_words = n / 4u;
-	job.err = 0;
-	boot.pending_next = off + n;
-	set_state(BOOT_S_PROGRAMMING, BOOT_R_OK);
+		held[(off + i) % BOOT_BUFFER_SIZE] = d[i];
+	__asm__ volatile("cpsid i" ::: "memory");
+	boot.next = off + n;
+	boot.result = BOOT_R_OK;
+	__asm__ volatile("cpsie i" ::: "memory");
 }
 
 /* The image read back: its CRC, and its own record of board and version. */
@@ -334,16 +409,25 @@ static uint8_t check_stage(void)
 	return BOOT_R_OK;
 }
 
+/* END: CHECKING until the main loop has programmed what RAM holds, then end_check(). */
 static void cmd_end(void)
 {
-	uint8_t r;
-
 	if (boot.state != BOOT_S_RECEIVING) {
 		set_state(boot.state, boot.state == BOOT_S_READY ? BOOT_R_OK : BOOT_R_NOT_BEGUN);
 		return;
 	}
+	if (boot.next != boot.length) {
+		set_state(boot.state, BOOT_R_INCOMPLETE);
+		return;
+	}
 	set_state(BOOT_S_CHECKING, BOOT_R_OK);
-	r = check_stage();
+}
+
+/* The whole download programmed: read back, then its header written, last. */
+static void end_check(void)
+{
+	uint8_t r = check_stage();
+
 	if (r != BOOT_R_OK) {
 		set_state(BOOT_S_RECEIVING, r);
 		return;
@@ -367,7 +451,12 @@ static void system_reset(void)
 /* A frame the I2C interrupt took (boot_i2c.c): its PEC and length already checked. */
 static void run_command(const uint8_t *f, uint8_t n)
 {
-	if (boot_busy(boot.state)) {
+	uint8_t erasing = boot.state == BOOT_S_ERASING;
+
+	/* While the download slot erases, DATA is held in RAM and BEGIN may come again; anything
+	 * else waits for the erase. */
+	if (boot_busy(boot.state) &&
+	    !(erasing && (f[0] == BOOT_CMD_DATA || f[0] == BOOT_CMD_BEGIN))) {
 		set_state(boot.state, BOOT_R_BUSY); /* not applied: poll, then send it again */
 		return;
 	}
@@ -375,6 +464,8 @@ static void run_command(const uint8_t *f, uint8_t n)
 	case BOOT_CMD_BEGIN:
 		if (n != BOOT_LEN_BEGIN)
 			set_state(boot.state, BOOT_R_BAD_LENGTH);
+		else if (erasing) /* another download's: not taken before this erase ends */
+			set_state(boot.state, same_begin(f + 1) ? BOOT_R_OK : BOOT_R_BUSY);
 		else
 			cmd_begin(f + 1);
 		break;
@@ -403,25 +494,12 @@ static void job_done(void)
 {
 	switch (boot.state) {
 	case BOOT_S_ERASING:
-		set_state(job.err ? BOOT_S_IDLE : BOOT_S_RECEIVING,
-			  job.err ? BOOT_R_FLASH_ERROR : BOOT_R_OK);
+		/* The result stays the last write's: a chunk held meanwhile, or refused. */
+		if (job.err)
+			download_failed();
+		else
+			set_state(BOOT_S_RECEIVING, boot.result);
 		break;
-	case BOOT_S_PROGRAMMING: {
-		uint32_t from = boot.next;
-		int ok = !job.err;
-
-		/* Read back: a word that did not take (not blank, a flash error) spoils the slot.
-		 */
-		for (uint32_t i = from; ok && i < boot.pending_next; i++)
-			ok = image_at(BOOT_STAGE_BASE)[i] == chunk[i - from];
-		__asm__ volatile("cpsid i" ::: "memory");
-		if (ok)
-			boot.next = boot.pending_next;
-		boot.state = ok ? BOOT_S_RECEIVING : BOOT_S_IDLE;
-		boot.result = ok ? BOOT_R_OK : BOOT_R_FLASH_ERROR; /* a bad word: begin again */
-		__asm__ volatile("cpsie i" ::: "memory");
-		break;
-	}
 	case BOOT_S_WRITING_HEADER:
 		set_state(job.err || !slot_valid(BOOT_STAGE_BASE) ? BOOT_S_IDLE : BOOT_S_READY,
 			  job.err ? BOOT_R_FLASH_ERROR : BOOT_R_OK);
@@ -538,17 +616,33 @@ void boot_main(void)
 
 	for (;;) {
 		uint8_t n;
+		int again;
 
-		if (!job_step() && boot.state != BOOT_S_IDLE && boot.state != BOOT_S_RECEIVING &&
-		    boot.state != BOOT_S_READY && boot.state != BOOT_S_CHECKING)
-			job_done();
-		n = boot_i2c_take(boot.frame);
-		if (n)
-			run_command(boot.frame, n);
+		op_finish();
+		/* A frame, but not while a held word programs (16 us): a chunk sent again may be
+		 * compared with the flash, whose reads stall the CPU meanwhile. */
+		if (!job.held) {
+			n = boot_i2c_take(boot.frame);
+			if (n) {
+				run_command(boot.frame, n);
+				boot_i2c_done();
+			}
+		}
+		again = op_start();
+		if (!job.op && !job.n_sectors && !job.n_words) {
+			if (boot.state == BOOT_S_CHECKING && held_from == boot.next) {
+				end_check();
+				again = 1;
+			} else if (boot.state == BOOT_S_ERASING ||
+				   boot.state == BOOT_S_WRITING_HEADER ||
+				   boot.state == BOOT_S_COPYING) {
+				job_done();
+				again = 1;
+			}
+		}
 		IWDG_KR = IWDG_KR_RELOAD;
-		if (!job.op && (job.n_sectors || job.n_words))
-			continue; /* an erased word skipped: the next one at once */
-		boot_idle();
+		if (!again)
+			boot_idle();
 	}
 }
 

@@ -2,8 +2,9 @@
  * (firmware/ports/stm32/i2c.c) but for its own protocol (boot_proto.h). The interrupt never holds
  * the clock for longer than its own entry: it checks a write's PEC and length at its STOP, hands
  * a flash command to the main loop, and answers reads from RAM only (the flash may be erasing:
- * a read of it would stall the bus). A write the main loop has not taken yet, or that comes
- * while an operation runs, is answered busy. */
+ * a read of it would stall the bus). A write that comes while the main loop has not handled the
+ * last one, or while an operation runs (but the download slot's erase, during which DATA is
+ * taken), is answered busy. */
 #include "boot_layout.h"
 #include "boot_proto.h"
 #include "stm32f4_regs.h"
@@ -19,7 +20,7 @@ static uint8_t rx_len, rx_over, in_write, pec;
 static uint8_t reply[BOOT_INFO_LEN + 1u];
 static uint8_t reply_len, reply_pos;
 static uint8_t select_info;
-static volatile uint8_t queued; /* 1: rx_frame holds a frame for the main loop */
+static volatile uint8_t queued; /* 1: q_frame holds a frame the main loop has not handled */
 static uint8_t q_frame[BOOT_FRAME_MAX];
 static uint8_t q_len;
 
@@ -61,8 +62,12 @@ uint8_t boot_i2c_take(uint8_t *f)
 	n = q_len;
 	for (uint8_t i = 0; i < n; i++)
 		f[i] = q_frame[i];
-	queued = 0;
 	return n;
+}
+
+void boot_i2c_done(void)
+{
+	queued = 0;
 }
 
 static void put32(uint8_t *p, uint32_t v)
@@ -129,7 +134,7 @@ static void end_write(void)
 		select_info = rx[0] == BOOT_CMD_INFO;
 		return;
 	}
-	if (queued || boot_busy(boot.state)) {
+	if (queued || (boot_busy(boot.state) && boot.state != BOOT_S_ERASING)) {
 		boot.result = BOOT_R_BUSY;
 		return;
 	}

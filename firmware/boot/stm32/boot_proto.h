@@ -8,7 +8,9 @@
 
 #include <stdint.h>
 
-#define BOOT_PROTO_VERSION 1u
+/* 2: DATA is taken while the download slot erases (held in RAM, programmed after); 1 refused it
+ * (BUSY) until the erase was over, and was busy (PROGRAMMING) while a chunk programmed. */
+#define BOOT_PROTO_VERSION 2u
 
 /* Writes: designation, parameters, PEC. */
 #define BOOT_CMD_INFO 0xB0u   /* select the INFO reply; no parameter */
@@ -20,18 +22,21 @@
 #define BOOT_LEN_BEGIN 15u    /* designation and parameters, PEC excluded */
 #define BOOT_CHUNK_MAX 64u
 #define BOOT_FRAME_MAX (1u + 4u + BOOT_CHUNK_MAX + 1u)
-/* Replies, PEC excluded. STATUS: state, result, next offset u32 (bytes of the download received
- * and programmed, from its start). INFO: 'B' 'L', protocol version, board id u16, run slot valid,
- * its version u32, length u32, crc32 u32, the largest image u32, state. */
+/* [bytes] of the download held in RAM, received but not yet programmed: what the master can send
+ * while the download slot erases (a multiple of 4: a word never wraps). */
+#define BOOT_BUFFER_SIZE 0x6000u
+/* Replies, PEC excluded. STATUS: state, result, next offset u32 (bytes of the download received,
+ * from its start: held in RAM or programmed). INFO: 'B' 'L', protocol version, board id u16, run
+ * slot valid, its version u32, length u32, crc32 u32, the largest image u32, state. */
 #define BOOT_STATUS_LEN 6u
 #define BOOT_INFO_LEN 23u
 
 enum boot_s {
 	BOOT_S_IDLE,           /* no download begun (or the last one failed: begin again) */
-	BOOT_S_ERASING,        /* busy: the download slot is being erased (BEGIN) */
-	BOOT_S_RECEIVING,      /* DATA and END accepted */
-	BOOT_S_PROGRAMMING,    /* busy: a chunk being programmed */
-	BOOT_S_CHECKING,       /* busy: the download read back (END) */
+	BOOT_S_ERASING,        /* busy: the download slot is being erased (BEGIN); DATA taken */
+	BOOT_S_RECEIVING,      /* DATA and END accepted; what RAM holds is programmed meanwhile */
+	BOOT_S_PROGRAMMING,    /* busy: a chunk being programmed (protocol 1 only) */
+	BOOT_S_CHECKING,       /* busy: the rest programmed, the download read back (END) */
 	BOOT_S_WRITING_HEADER, /* busy: its header being programmed */
 	BOOT_S_READY,          /* the download is whole, checked and its header written: START */
 	BOOT_S_COPYING,        /* busy: the download being copied into the run slot (start-up) */
@@ -49,7 +54,7 @@ enum boot_r {
 	BOOT_R_BAD_PEC,        /* the frame's PEC is wrong or missing: nothing done */
 	BOOT_R_BAD_LENGTH,     /* too long, or not the designation's length */
 	BOOT_R_UNKNOWN,        /* no such designation */
-	BOOT_R_BUSY,           /* the last operation is not over: poll, then send again */
+	BOOT_R_BUSY,           /* not over, or DATA with no room in RAM: poll, send again */
 	BOOT_R_WRONG_BOARD,    /* the image is for another board (BEGIN, or its own record) */
 	BOOT_R_TOO_LARGE,      /* longer than the run slot, empty, or not a multiple of 4 */
 	BOOT_R_NOT_BEGUN,      /* DATA or END without a BEGIN */
@@ -70,8 +75,8 @@ struct boot_state {
 	uint8_t run_valid;
 	uint32_t run_version, run_length, run_crc; /* the run slot's header, read at start */
 	uint8_t copy_stage;
-	uint32_t pending_next, length, crc, version; /* the download (BEGIN) */
-	uint8_t frame[BOOT_FRAME_MAX];               /* the frame the main loop handles */
+	uint32_t length, crc, version; /* the download (BEGIN) */
+	uint8_t frame[BOOT_FRAME_MAX]; /* the frame the main loop handles */
 };
 extern struct boot_state boot;
 
@@ -79,8 +84,10 @@ extern struct boot_state boot;
 #define BOOT_I2C_ADDRESS 2u
 void boot_i2c_init(void);
 /* The frame the interrupt took (designation and parameters, PEC checked and removed) copied into
- * f, and its length; 0 if none. Main loop only. */
+ * f, and its length; 0 if none. It stays queued (STATUS says QUEUED, another write is refused
+ * with BUSY) until boot_i2c_done(), once it is handled. Main loop only. */
 uint8_t boot_i2c_take(uint8_t *f);
+void boot_i2c_done(void);
 void I2C1_EV_IRQHandler(void);
 void I2C1_ER_IRQHandler(void);
 
