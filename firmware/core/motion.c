@@ -215,7 +215,8 @@ static void corner_limits(const struct orders *o, int64_t lim[6])
  * cos_q30, sin_q30: v^2 within the centripetal acceleration, v r / h within the heading's wheel
  * speed; the clothoids (the curvature's rise at the heading's acceleration: h v^2 / (r a)
  * long) within the turn's arc and within the tolerance's share (their shift p = L^2 / 24 r).
- * The curve starts reach_um before the point, and strays dev_um from the lines at most. */
+ * The curve starts reach_um before the point, and passes dev_um from the point (its middle,
+ * on the bisector: the farthest it strays from the point and, by cos_q30 less, from the lines). */
 static void corner_shape(struct corner_shape *sh, const int64_t lim[6], uint32_t theta,
 			 int32_t cos_q30, int32_t sin_q30, int64_t p_max)
 {
@@ -240,13 +241,15 @@ static void corner_shape(struct corner_shape *sh, const int64_t lim[6], uint32_t
 	sh->v_um_s = v;
 	sh->arc_um = arc - sh->clothoid_um;
 	sh->reach_um = (r + p) * sin_q30 / (cos_q30 > 0 ? cos_q30 : 1) + sh->clothoid_um / 2;
-	sh->dev_um = r * (Q30 - cos_q30) / Q30 + p;
+	sh->dev_um = (r + p) * Q30 / (cos_q30 > 0 ? cos_q30 : 1) - r;
 }
 
 /* The curve through a turn theta [turn32] between a line whose point is len1_um ahead and one
- * len2_um long: the largest radius within five eighths of the tolerance, the clothoids'
- * shift within what that leaves of seven eighths, and the curve within half of either line
- * (its radius smaller until it is). 0, or -1 when no curve fits. */
+ * len2_um long, passing within the tolerance of the point (and so of the lines): the largest
+ * radius whose arc alone passes within five eighths of the tolerance, ((r / cos) - r), the
+ * clothoids' shift p within what that leaves of seven eighths (the curve passes (r + p) / cos
+ * - r from the point), and the curve within half of either line (its radius smaller until it
+ * is). 0, or -1 when no curve fits. */
 static int corner_fit(struct corner_shape *sh, const struct orders *o, int32_t tol_um,
 		      uint32_t theta, int64_t len1_um, int64_t len2_um, int64_t free_um)
 {
@@ -259,7 +262,7 @@ static int corner_fit(struct corner_shape *sh, const struct orders *o, int32_t t
 		return 0;
 	}
 	fx_sincos(theta / 2u, &s, &c);
-	sh->r_um = Q30 - c > 0 ? dev * Q30 / (Q30 - c) : CORNER_R_MAX_UM;
+	sh->r_um = Q30 - c > 0 ? dev * c / (Q30 - c) : CORNER_R_MAX_UM;
 	if (sh->r_um > CORNER_R_MAX_UM)
 		sh->r_um = CORNER_R_MAX_UM;
 	for (uint8_t i = 0; i < 6; i++) {
@@ -271,7 +274,8 @@ static int corner_fit(struct corner_shape *sh, const struct orders *o, int32_t t
 		 * encoder of faults.c. An arc a sixteenth of their half track inside instead. */
 		if (sh->r_um > free_um - free_um / 16 && sh->r_um < free_um + free_um / 16)
 			sh->r_um = free_um - free_um / 16;
-		corner_shape(sh, lim, theta, c, s, tol_um * 7 / 8 - sh->r_um * (Q30 - c) / Q30);
+		corner_shape(sh, lim, theta, c, s,
+			     (int64_t)tol_um * 7 / 8 * c / Q30 - sh->r_um * (Q30 - c) / Q30);
 		if (sh->reach_um <= half)
 			break;
 		tail = sh->clothoid_um / 2;
