@@ -18,7 +18,11 @@ The goal (issue 19, docs/stm32.md): the busiest control period at 1 m/s, the tic
 interrupts up to the next, 5 % of the CPU or less, every feature at the servo rate; marked met or
 MISSED, with a summary line last; --strict exits 1 on a miss.
 
-    python bench/stm32.py [build-stm32/asserv_stm32.elf] [--fixes] [--strict]
+--corners: a tour of five points queued at once with PASS_THROUGH (APPEND | PASS_THROUGH, the
+curves of docs/control.md "Corners"): the busiest period is then over the whole tour, the
+curves' planning and following included, with the same goal.
+
+    python bench/stm32.py [build-stm32/asserv_stm32.elf] [--fixes | --corners] [--strict]
                           [--avr-bench PATH --avr-elf PATH]
 """
 
@@ -53,6 +57,8 @@ EXCEPTION_CYCLES = 24  # entry 12 + return 12 (Cortex-M4 interrupt latency, no F
 CRUISE_MM_S, CRUISE_END_MM_S = 950.0, 900.0
 # --fixes: the ages of the fixes in turn [ms], up to SET_FIX's 500 (a camera's 350 among them).
 FIX_AGES_MS = (0, 100, 350, 500, 50, 200)
+# --corners: the tour from (-1300, 0) [mm], every point queued with PASS_THROUGH.
+CORNER_TOUR = ((-600, 0), (-100, 500), (400, 0), (700, 400), (1100, 0))
 # The goal (docs/stm32.md): the busiest control period at 1 m/s, every feature on.
 GOAL_LOAD_PCT = 5.0
 
@@ -91,6 +97,7 @@ class Bench(Stm32Board):
         self.cruise_ticks: dict[int, int] = {}  # tick number -> its instructions, at 1 m/s
         self.i2c_after: dict[int, int] = {}  # I2C instructions while self.ticks == k
         self.phase = "move"
+        self.whole = False  # --corners: every tick of the move counts in the busiest period
         self.truth = ffi.new("struct sim_truth *")
         # The true pose after each tick [mm, mm, degrees]: the fixes of --fixes are measured
         # there, as a lidar's would be.
@@ -120,7 +127,7 @@ class Bench(Stm32Board):
             self.phase = "cruise"
         elif self.phase == "cruise" and v < CRUISE_END_MM_S:
             self.phase = "after"
-        if self.phase == "cruise":
+        if self.phase == "cruise" or self.whole:
             self.cruise_ticks[self.ticks] = tick
         parts = [self.parts["move"]] + ([self.parts["cruise"]] if self.phase == "cruise" else [])
         for p in parts:
@@ -137,8 +144,8 @@ class Bench(Stm32Board):
         return out
 
     def worst_period(self) -> int:
-        """The busiest control period at 1 m/s: its tick and the I2C interrupts up to the
-        next tick [instructions]."""
+        """The busiest control period at 1 m/s (with --corners, of the whole tour): its tick
+        and the I2C interrupts up to the next tick [instructions]."""
         return max(
             (n + self.i2c_after.get(k + 1, 0) for k, n in self.cruise_ticks.items()), default=0
         )
@@ -259,8 +266,17 @@ def main(argv: list[str] | None = None) -> int:
         help="a SET_FIX every 100 ms of the move (10 mm, 1 degree, 0 to 500 ms old): the "
         "fusion's cost",
     )
+    ap.add_argument(
+        "--corners",
+        action="store_true",
+        help="a tour of five points queued with PASS_THROUGH: the curves' cost, the busiest "
+        "period over the whole tour",
+    )
     add_strict_flag(ap)
     args = ap.parse_args(argv)
+    if args.fixes and args.corners:
+        print("bench/stm32.py: --fixes and --corners: one at a time", file=sys.stderr)
+        return 2
     if not Path(args.elf).is_file():
         print(
             f"bench/stm32.py: {args.elf}: no such file (build it: docs/stm32.md)", file=sys.stderr
@@ -275,9 +291,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     board = Board(b.bus)
     board.set_vitesse_traj(100, 100)
-    board.goto(1100, 0)
+    if args.corners:
+        b.whole = True
+        for x, y in CORNER_TOUR:
+            board.goto(x, y, append=True, through=True)
+    else:
+        board.goto(1100, 0)
     polls = 0
-    while b.now_ns < 10_000_000_000:
+    while b.now_ns < (30 if args.corners else 10) * 1_000_000_000:
         b.sleep(0.01)
         polls += 1
         if not board.check_busy() & Status.BUSY_TRAJET:
@@ -299,7 +320,11 @@ def main(argv: list[str] | None = None) -> int:
         f"flash {flash} bytes (vectors + .text + .data); "
         f"RAM {ram} bytes static (.data + .bss + .noinit)"
     )
-    print(f"{b.ticks} ticks ({b.ticks / 1000:.2f} s), 2.4 m at 1 m/s, 1 m/s^2")
+    if args.corners:
+        tour = " ".join(f"({x}, {y})" for x, y in CORNER_TOUR)
+        print(f"{b.ticks} ticks ({b.ticks / 1000:.2f} s), a tour through {tour} (PASS_THROUGH)")
+    else:
+        print(f"{b.ticks} ticks ({b.ticks / 1000:.2f} s), 2.4 m at 1 m/s, 1 m/s^2")
     if args.fixes:
         print(f"with a SET_FIX every 100 ms: {board.fix_info()}")
     if "board_slow" not in b.cpu.symbols:
@@ -321,13 +346,16 @@ def main(argv: list[str] | None = None) -> int:
             f"{load_pct(t.mean()):.2f} % mean, {load_pct(t.worst()):.2f} % worst"
         )
     busiest = load_pct(b.worst_period())
+    where = "of the tour" if args.corners else "at 1 m/s"
     print(
-        f"  busiest period at 1 m/s, the tick and the I2C interrupts up to the next: "
+        f"  busiest period {where}, the tick and the I2C interrupts up to the next: "
         f"{b.worst_period()} instructions, {busiest:.2f} %"
     )
     what = "with a position fix every 100 ms" if args.fixes else "without position fixes"
+    if args.corners:
+        what = "through PASS_THROUGH corners"
     goals = Goals("bench/stm32.py")
-    goals.check(f"goal: the busiest period at 1 m/s, {what}", busiest, "<=", GOAL_LOAD_PCT, "%")
+    goals.check(f"goal: the busiest period {where}, {what}", busiest, "<=", GOAL_LOAD_PCT, "%")
     for line in goals.lines():
         print(line)
     ev = b.i2c_events

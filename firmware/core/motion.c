@@ -176,29 +176,113 @@ static int32_t corner_reach_um(const struct planner *pl, const struct board_conf
 	return e;
 }
 
-void motion_before(struct planner *pl, const struct board_config *cfg)
-{
-	struct motion *mo = &pl->motion;
-	struct orders *o = &pl->orders;
-	int32_t e;
+/* A curve's radius at most [um] (a corner of less than a degree: the line goes on). */
+#define CORNER_R_MAX_UM 10000000
+/* Slower than this, a curve is not worth it [um/s]: the corner as before the curves. */
+#define CORNER_V_MIN_UM_S 50000
+#define Q30 ((int64_t)1 << 30)
 
-	if (!CONFIG_MOTION_CORNERS || !mo->through)
-		return;
-	if (!mo->running || mo->count == 0 || mo->paused || o->designation != PROTO_GOTO ||
-	    o->state != ORDER_STATE_TRANSLATE) {
-		o->through_um = 0;
-		return;
+/* What a curve of radius r_um is, at the corner's limits (docs/control.md "Corners"). */
+struct corner_shape {
+	int64_t r_um, v_um_s, clothoid_um, arc_um, reach_um, dev_um;
+};
+
+/* A speed limit at the speed scale, as apply_limits() (orders.c) gives it outside a curve. */
+static int32_t scaled(const struct orders *o, int32_t v_um_s)
+{
+	v_um_s = v_um_s * o->scale_percent / 100;
+	return v_um_s < 1 ? 1 : v_um_s;
+}
+
+/* The limits a corner's curve keeps, from the orders' present ones: [0] the line's speed,
+ * [1] the heading's wheel speed, [2] the centripetal acceleration (a quarter of the grip), [3]
+ * the heading's wheel acceleration on the clothoids (half of 7/8 of the grip at most), [4]
+ * half the drive track, [5] k times it (the yaw's share of a wheel's grip). */
+static void corner_limits(const struct orders *o, int64_t lim[6])
+{
+	int64_t g7 = o->cfg.grip_um_s2 - (o->cfg.grip_um_s2 >> 3);
+	int64_t rot = g7 * 160 / o->cfg.rot_grip_q8; /* 5/8 of g7 over k */
+
+	lim[0] = scaled(o, o->traj.v_max_um_s);
+	lim[1] = scaled(o, o->rot.v_max_um_s);
+	lim[2] = o->cfg.grip_um_s2 / 3;
+	lim[3] = o->rot.a_max_um_s2 < rot ? o->rot.a_max_um_s2 : rot;
+	lim[4] = o->cfg.drive_track_um / 2u;
+	lim[5] = lim[4] * o->cfg.rot_grip_q8 / 256;
+}
+
+/* The fastest curve of radius sh->r_um through a turn theta whose half has the cosine and sine
+ * cos_q30, sin_q30: v^2 within the centripetal acceleration, v r / h within the heading's wheel
+ * speed; the clothoids (the curvature's rise at the heading's acceleration: h v^2 / (r a)
+ * long) within the turn's arc and within the tolerance's share (their shift p = L^2 / 24 r).
+ * The curve starts reach_um before the point, and passes dev_um from the point (its middle,
+ * on the bisector: the farthest it strays from the point and, by cos_q30 less, from the lines). */
+static void corner_shape(struct corner_shape *sh, const int64_t lim[6], uint32_t theta,
+			 int32_t cos_q30, int32_t sin_q30, int64_t p_max)
+{
+	int64_t r = sh->r_um, v = lim[0], l_max, vv, p;
+	int64_t arc = (int64_t)((uint64_t)theta * (uint64_t)r * 710u / 113u >> 32);
+
+	if ((int64_t)fx_isqrt64((uint64_t)(lim[2] * r)) < v)
+		v = fx_isqrt64((uint64_t)(lim[2] * r));
+	if (lim[1] * r / lim[4] < v)
+		v = lim[1] * r / lim[4];
+	vv = v * v;
+	l_max = fx_isqrt64((uint64_t)(24 * r * (p_max > 0 ? p_max : 0)));
+	if (l_max > arc)
+		l_max = arc;
+	sh->clothoid_um = lim[4] * vv / (r * lim[3]);
+	if (sh->clothoid_um > l_max) { /* a slower curve: the clothoid's length goes as v^2 */
+		vv = l_max * lim[3] / lim[4] * r;
+		v = fx_isqrt64((uint64_t)vv);
+		sh->clothoid_um = l_max;
 	}
-	e = corner_reach_um(pl, cfg);
-	o->through_um = e;
-	if (profile_get_target_um(&o->dist) - o->sp_dist.pos_um > e)
-		return;
-	/* At the corner: this order is done, the next one turns while the line brakes. */
-	mo->running = 0;
-	mo->last_seq = mo->running_seq;
-	mo->last_end = END_REASON_DONE;
-	pl->status &= (uint8_t)~STATUS_END_BITS;
-	run_next(pl);
+	p = sh->clothoid_um * sh->clothoid_um / (24 * r);
+	sh->v_um_s = v;
+	sh->arc_um = arc - sh->clothoid_um;
+	sh->reach_um = (r + p) * sin_q30 / (cos_q30 > 0 ? cos_q30 : 1) + sh->clothoid_um / 2;
+	sh->dev_um = (r + p) * Q30 / (cos_q30 > 0 ? cos_q30 : 1) - r;
+}
+
+/* The curve through a turn theta [turn32] between a line whose point is len1_um ahead and one
+ * len2_um long, passing within the tolerance of the point (and so of the lines): the largest
+ * radius whose arc alone passes within five eighths of the tolerance, ((r / cos) - r), the
+ * clothoids' shift p within what that leaves of seven eighths (the curve passes (r + p) / cos
+ * - r from the point), and the curve within half of either line (its radius smaller until it
+ * is). 0, or -1 when no curve fits. */
+static int corner_fit(struct corner_shape *sh, const struct orders *o, int32_t tol_um,
+		      uint32_t theta, int64_t len1_um, int64_t len2_um, int64_t free_um)
+{
+	int64_t lim[6], half = (len1_um < len2_um ? len1_um : len2_um) / 2, dev = tol_um * 5 / 8;
+	int32_t s, c;
+
+	corner_limits(o, lim);
+	if (theta < ((uint32_t)1 << 22)) { /* a third of a degree: the line goes on */
+		*sh = (struct corner_shape){.r_um = CORNER_R_MAX_UM, .v_um_s = lim[0]};
+		return 0;
+	}
+	fx_sincos(theta / 2u, &s, &c);
+	sh->r_um = Q30 - c > 0 ? dev * c / (Q30 - c) : CORNER_R_MAX_UM;
+	if (sh->r_um > CORNER_R_MAX_UM)
+		sh->r_um = CORNER_R_MAX_UM;
+	for (uint8_t i = 0; i < 6; i++) {
+		int64_t tail;
+
+		if (sh->r_um < 1000)
+			return -1;
+		/* An arc about a free wheel would leave it still while its motor turns: the lost
+		 * encoder of faults.c. An arc a sixteenth of their half track inside instead. */
+		if (sh->r_um > free_um - free_um / 16 && sh->r_um < free_um + free_um / 16)
+			sh->r_um = free_um - free_um / 16;
+		corner_shape(sh, lim, theta, c, s,
+			     (int64_t)tol_um * 7 / 8 * c / Q30 - sh->r_um * (Q30 - c) / Q30);
+		if (sh->reach_um <= half)
+			break;
+		tail = sh->clothoid_um / 2;
+		sh->r_um = half > tail ? sh->r_um * (half - tail) / (sh->reach_um - tail) - 1
+				       : sh->r_um / 2;
+	}
+	return sh->reach_um <= half && sh->v_um_s >= CORNER_V_MIN_UM_S ? 0 : -1;
 }
 
 /* The robot at rest: an order that ended on a contact (a basket) ended at speed, held where it
@@ -248,15 +332,15 @@ void motion_after(struct planner *pl)
  * division but by 1000, 16 x 16-bit products (the AVR's planner runs it every period): 1 / a is
  * the init's (motion_init()). */
 static uint16_t braking(const struct motion *mo, const struct profile *p, int32_t v_um_s,
-			uint8_t axis, uint16_t *dist_mm)
+			uint16_t ms_per_mm_s_q8, uint16_t *dist_mm)
 {
 	uint32_t mag = fx_mag32(v_um_s);
 	uint16_t v = (uint16_t)(fx_udiv1000(mag > 4095000u ? 4095000u : mag) + 1u); /* [mm/s] */
 	uint32_t lag =
 		(fx_mul_u16((uint16_t)(p->prm.n_filt + mo->latency_ticks), mo->ms_per_tick_q8) +
 		 255u) >>
-		8;                                                                 /* [ms] */
-	uint32_t t = ((fx_mul_u16(v, mo->ms_per_mm_s_q8[axis]) + 255u) >> 8) + 1u; /* v / a */
+		8;                                                       /* [ms] */
+	uint32_t t = ((fx_mul_u16(v, ms_per_mm_s_q8) + 255u) >> 8) + 1u; /* v / a */
 	uint32_t d;
 
 	if (lag > 0xFFFFu)
@@ -315,6 +399,10 @@ static void update_braking(struct motion *mo, const struct orders *o)
 	kd = (int32_t)((fx_mag32(o->sp_dist.vel_um_s) + 16383u) >> 14);
 	ka = (int32_t)((fx_mag32(o->sp_angle.vel_um_s) + 16383u) >> 14);
 	kf = o->dist.prm.n_filt + o->angle.prm.n_filt;
+	if (CONFIG_MOTION_CORNERS && o->curve) { /* the heading brakes with the line */
+		ka = 0;
+		kf += 1 << 20;
+	}
 	if (kd == mo->braking_key[0] && ka == mo->braking_key[1] && kf == mo->braking_key[2])
 		return;
 	mo->braking_key[0] = kd;
@@ -323,10 +411,131 @@ static void update_braking(struct motion *mo, const struct orders *o)
 	mo->braking_mm = 0;
 	mo->braking_ms = 0;
 	if (kd != 0)
-		mo->braking_ms = braking(mo, &o->dist, kd << 14, 0, &mo->braking_mm);
+		mo->braking_ms =
+			braking(mo, &o->dist, kd << 14,
+				kf >> 20 ? mo->curve_ms_per_mm_s_q8 : mo->ms_per_mm_s_q8[0],
+				&mo->braking_mm);
 	if (ka != 0) {
-		ta = braking(mo, &o->angle, ka << 14, 1, NULL);
+		ta = braking(mo, &o->angle, ka << 14, mo->ms_per_mm_s_q8[1], NULL);
 		if (ta > mo->braking_ms)
 			mo->braking_ms = ta;
+	}
+}
+
+/* The running order's corner with the next one waiting, k (motion.h), planned again when either
+ * order, a limit or the tolerance changed: the next order a GOTO without recalibration, the
+ * trapezoid (no jerk limit), the line able to brake to the curve's speed before the curve. The
+ * curve's speed, its deceleration (the line's share of half of 7/8 of the grip, with the
+ * heading's part of the wheel's: a (1 + k h / r)), its shape, and where it starts. */
+static void corner_plan(struct planner *pl, const struct board_config *cfg,
+			const struct motion_entry *next, struct motion_corner *k)
+{
+	const struct orders *o = &pl->orders;
+	int64_t dx = (int64_t)next->msg.arg[ARG_GOTO_X_MM] * UM_PER_MM - o->target_x_um;
+	int64_t dy = (int64_t)next->msg.arg[ARG_GOTO_Y_MM] * UM_PER_MM - o->target_y_um;
+	int64_t px = (int64_t)o->target_x_um - pl->m.pose.x_um, lim[6], g7, u, a, v, len2;
+	int64_t py = (int64_t)o->target_y_um - pl->m.pose.y_um;
+	/* On a curve, the line after it; else from the estimate to the point, along the bearing */
+	int32_t len1 =
+		o->curve ? o->cv.rest_um : (int32_t)fx_isqrt64((uint64_t)(px * px + py * py));
+	uint32_t line = o->curve ? pl->motion.line_turn32 : o->bearing_turn32;
+	struct corner_shape sh;
+
+	k->ok = 0;
+	if (k->seq != pl->motion.running_seq || k->next_seq != next->seq)
+		k->len1_um = len1;
+	k->seq = pl->motion.running_seq;
+	k->next_seq = next->seq;
+	if (next->msg.designation != PROTO_GOTO || o->cfg.jerk_um_s3 != 0 || o->frozen ||
+	    (!o->curve && !o->bearing_valid) ||
+	    (next->msg.arg[ARG_GOTO_OPTIONS] & (ORDERS_OPT_LINE | ORDERS_OPT_BORDER)))
+		return;
+	k->heading_turn32 = fx_atan2((int32_t)dy, (int32_t)dx);
+	len2 = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
+	if (corner_fit(&sh, o, pl->motion.corner_um, fx_angle_dist(k->heading_turn32, line),
+		       k->len1_um, len2,
+		       (int64_t)(cfg->orders.drive_track_um / 2u) * 65536 / pl->free_ratio_q16) < 0)
+		return;
+	corner_limits(o, lim);
+	g7 = cfg->orders.grip_um_s2 - (cfg->orders.grip_um_s2 >> 3);
+	a = g7 / 4 * sh.r_um / (sh.r_um + lim[5]);
+	k->c.a_um_s2 = (int32_t)(a < o->grip_a_um_s2[0] ? a : o->grip_a_um_s2[0]);
+	if (k->c.a_um_s2 < PROFILE_A_MIN_UM_S2)
+		k->c.a_um_s2 = PROFILE_A_MIN_UM_S2;
+	v = sh.v_um_s;
+	a = o->grip_a_um_s2[0]; /* the line's, out of the curve */
+	u = o->sp_dist.vel_um_s;
+	if (u * u - v * v > 2 * a * (len1 - sh.reach_um)) /* too late to slow down for it */
+		return;
+	k->c.v_um_s = (int32_t)v;
+	k->c.clothoid_um = (int32_t)sh.clothoid_um;
+	k->c.arc_um = (int32_t)sh.arc_um;
+	k->reach_um = (int32_t)sh.reach_um;
+	k->c.rest_um = (int32_t)(len2 - sh.reach_um);
+	k->brake_um = (int32_t)(v * v / (2 * a));
+	k->ok = 1;
+}
+
+/* The corner planned for the running order and the next, kept while neither they, the limits
+ * nor the tolerance change. 1 when it was planned just now. */
+static int corner_current(struct planner *pl, const struct board_config *cfg)
+{
+	struct motion *mo = &pl->motion;
+	const struct orders *o = &pl->orders;
+	const struct motion_entry *next = &mo->queue[mo->head];
+	int32_t key[4] = {o->traj.v_max_um_s, o->grip_a_um_s2[0], o->rot.v_max_um_s,
+			  mo->corner_um + ((int32_t)o->scale_percent << 24)};
+	struct motion_corner *k = &mo->corner;
+
+	if (k->seq == mo->running_seq && k->next_seq == next->seq && k->key[0] == key[0] &&
+	    k->key[1] == key[1] && k->key[2] == key[2] && k->key[3] == key[3])
+		return 0;
+	for (uint8_t i = 0; i < 4; i++)
+		k->key[i] = key[i];
+	corner_plan(pl, cfg, next, k);
+	return 1;
+}
+
+void motion_before(struct planner *pl, const struct board_config *cfg)
+{
+	struct motion *mo = &pl->motion;
+	struct orders *o = &pl->orders;
+	const struct motion_corner *k = &mo->corner;
+	int32_t e;
+
+	if (!CONFIG_MOTION_CORNERS || !mo->through)
+		return;
+	if (!mo->running || mo->count == 0 || mo->paused || o->designation != PROTO_GOTO ||
+	    (o->state != ORDER_STATE_TRANSLATE && !o->curve)) {
+		o->through_um = 0;
+		return;
+	}
+	if (corner_current(pl, cfg) || o->curve) {
+		/* The line aims past the point by what braking to the curve's speed takes, less
+		 * the curve's start, from this very update on (on a curve, from its target). */
+		o->through_um = k->ok ? k->brake_um - k->reach_um : corner_reach_um(pl, cfg);
+		o->aim_wait = 1;
+		return;
+	}
+	e = k->ok ? k->brake_um : corner_reach_um(pl, cfg);
+	if (!k->ok)
+		o->through_um = e;
+	if (profile_get_target_um(&o->dist) - o->sp_dist.pos_um > e)
+		return;
+	/* At the corner: this order is done, the next one starts on the curve (or turns while
+	 * the line brakes). */
+	mo->running = 0;
+	mo->last_seq = mo->running_seq;
+	mo->last_end = END_REASON_DONE;
+	pl->status &= (uint8_t)~STATUS_END_BITS;
+	run_next(pl);
+	if (k->ok && mo->running) {
+		uint32_t a = (uint32_t)k->c.a_um_s2 / 1000u;
+		uint32_t r = ((1000u << 8) + a - 1u) / (a > 0 ? a : 1u);
+
+		orders_curve_start(o, &pl->m, &k->c, k->heading_turn32);
+		mo->line_turn32 = k->heading_turn32;
+		mo->curve_ms_per_mm_s_q8 = (uint16_t)(r > 0xFFFFu ? 0xFFFFu : r);
+		mo->braking_vel[0] = INT32_MIN; /* MOTION's figures again, at the curve's */
 	}
 }

@@ -8,12 +8,26 @@
 
 #include <stdint.h>
 
+#include "orders.h"
 #include "protocol.h"
 
 /* An order waiting in the queue: the message as it came, with its sequence number. */
 struct motion_entry {
 	struct proto_msg msg;
 	uint8_t seq;
+};
+
+/* A pass-through corner's curve, planned for the running order and the next one (motion.c). */
+struct motion_corner {
+	uint8_t seq;             /* the running order's sequence number it is for */
+	uint8_t next_seq;        /* ... and the next one's */
+	uint8_t ok;              /* 1: a curve; 0: none fits (the corner as before the curves) */
+	int32_t key[4];          /* the limits and the tolerance it was planned with */
+	int32_t len1_um;         /* the line left to the point when first planned */
+	int32_t reach_um;        /* the curve starts this far before the point */
+	int32_t brake_um;        /* the line's braking to the curve's speed [um] */
+	uint32_t heading_turn32; /* the next line's */
+	struct orders_curve c;
 };
 
 struct motion {
@@ -33,7 +47,10 @@ struct motion {
 	uint8_t appends_done;  /* APPEND orders started or dropped, wrapping (protocol.h) */
 	uint8_t latency_ticks; /* [planner periods] from a message's last byte to its set points */
 	int32_t corner_um;     /* SET_CORNER's tolerance [um] */
-	uint16_t ms_per_tick_q8; /* a planner period [ms * 2^8] */
+	struct motion_corner corner;
+	uint32_t line_turn32;          /* the heading of the line after the running curve */
+	uint16_t curve_ms_per_mm_s_q8; /* 1 / the curve's deceleration, as ms_per_mm_s_q8 */
+	uint16_t ms_per_tick_q8;       /* a planner period [ms * 2^8] */
 	/* 1 / PAUSE's deceleration of each axis [ms / (mm/s) * 2^8], exact down to 3.9 mm/s^2 */
 	uint16_t ms_per_mm_s_q8[2];
 	uint16_t braking_mm; /* MOTION's, and the set points' speeds and smoothing they are of */

@@ -149,6 +149,11 @@ static void apply_limits(struct orders *o)
 	}
 	d.a_max_um_s2 = o->grip_a_um_s2[o->paused ? 2 : 0];
 	r.a_max_um_s2 = o->grip_a_um_s2[o->paused ? 3 : 1];
+	if (CONFIG_MOTION_CORNERS && o->curve) { /* paused too: braking along the curve */
+		if (d.v_max_um_s > o->cv.v_um_s)
+			d.v_max_um_s = o->cv.v_um_s;
+		d.a_max_um_s2 = o->cv.a_um_s2;
+	}
 	profile_set_limits(&o->dist, &d);
 	profile_set_limits(&o->angle, &r);
 }
@@ -184,8 +189,19 @@ static void enter(struct orders *o, uint8_t state)
 	apply_limits(o);
 }
 
+/* The curve left before its end (a new order, an abort): the angle profile takes over the
+ * heading's motion where the curve has it. */
+static void curve_leave(struct orders *o)
+{
+	if (!CONFIG_MOTION_CORNERS || !o->curve)
+		return;
+	o->curve = 0;
+	profile_follow(&o->angle, o->sp_angle.pos_um, o->sp_angle.vel_um_s);
+}
+
 static void begin(struct orders *o, uint8_t designation)
 {
+	curve_leave(o);
 	o->designation = designation;
 	o->frozen = 0;
 	o->bearing_valid = 0; /* a new target */
@@ -200,6 +216,7 @@ static void begin(struct orders *o, uint8_t designation)
 
 static void end(struct orders *o, uint8_t reason)
 {
+	curve_leave(o);
 	o->border = 0;
 	o->state = ORDER_STATE_IDLE;
 	o->end_reason = reason;
@@ -324,6 +341,7 @@ void orders_stop(struct orders *o)
 
 static void hold_measured(struct orders *o, const struct orders_measure *m)
 {
+	o->curve = 0;
 	profile_reset(&o->dist, m->dist_um);
 	profile_reset(&o->angle, m->angle_um);
 	o->sp_dist.pos_um = m->dist_um;
@@ -523,6 +541,85 @@ static void step_goto(struct orders *o, const struct orders_measure *m)
 	aim(o, m, bearing(o, &m->pose));
 	if (o->state == ORDER_STATE_TRANSLATE)
 		profile_set_target(&o->dist, m->dist_um + projection(o, &m->pose) + o->through_um);
+}
+
+/* The curve's length [um]: a clothoid in, the arc, a clothoid out. */
+static int32_t curve_length(const struct orders *o)
+{
+	return 2 * o->cv.clothoid_um + o->cv.arc_um;
+}
+
+void orders_curve_start(struct orders *o, const struct orders_measure *m,
+			const struct orders_curve *c, uint32_t heading_turn32)
+{
+	if (!CONFIG_MOTION_CORNERS || o->designation != PROTO_GOTO ||
+	    o->state != ORDER_STATE_ROTATE || o->frozen)
+		return;
+	o->curve = 1;
+	o->cv = *c;
+	o->curve_d0 = o->sp_dist.pos_um;
+	o->curve_a0 = o->sp_angle.pos_um;
+	/* The heading of the next line, as aim() would turn to it from the set point. */
+	o->cv.turn_um = m->angle_um - o->curve_a0 +
+			orders_arc_um(o, fx_angle_diff(heading_turn32, m->pose.heading_turn32));
+	apply_limits(o);
+	o->through_um = 0;
+}
+
+/* On a curve: the line aims at the point along the curve and the line after it (and past it at
+ * the next corner); at its end, the heading is the next line's, and the line aims at its point
+ * from the estimate. */
+static void step_curve(struct orders *o, const struct orders_measure *m)
+{
+	if (o->sp_dist.pos_um - o->curve_d0 < curve_length(o)) {
+		profile_set_target(&o->dist, fx_sat32((int64_t)o->curve_d0 + curve_length(o) +
+						      o->cv.rest_um + o->through_um));
+		return;
+	}
+	o->curve = 0;
+	profile_reset(&o->angle, o->curve_a0 + o->cv.turn_um);
+	o->sp_angle.pos_um = o->curve_a0 + o->cv.turn_um;
+	enter(o, ORDER_STATE_TRANSLATE);
+	o->aim_wait = 0; /* the distance target, now */
+	step_goto(o, m);
+}
+
+/* The angle set point on the curve, from the distance set point s along it: the heading's
+ * curvature (as wheel arc per um of line, turn / (clothoid + arc) at most) rises linearly over
+ * the first clothoid, holds on the arc, and falls over the last. Its velocity is the curvature
+ * times the line's, its acceleration the curvature times the line's plus the curvature's rate
+ * times the line's speed squared. 64-bit: the AVR has no corners (CONFIG_MOTION_CORNERS). */
+static void curve_angle(struct orders *o)
+{
+	const struct orders_curve *c = &o->cv;
+	int64_t s = (int64_t)o->sp_dist.pos_um - o->curve_d0, len = curve_length(o);
+	int64_t v = o->sp_dist.vel_um_s, a = o->sp_dist.acc_um_s2, turn = c->turn_um;
+	int64_t w = (int64_t)c->clothoid_um + c->arc_um, den = 2 * (int64_t)c->clothoid_um * w;
+	int64_t pos, k_num, k_den = w, sigma = 0; /* curvature k_num / k_den; sigma [.. / den] */
+
+	s = s < 0 ? 0 : s > len ? len : s;
+	if (w == 0 || c->clothoid_um == 0) {
+		pos = turn;
+		k_num = 0;
+		k_den = 1;
+	} else if (s <= c->clothoid_um) {
+		pos = fx_div_round64(turn * s * s, den);
+		k_num = turn * s;
+		k_den = (int64_t)c->clothoid_um * w;
+		sigma = 2 * turn;
+	} else if (s <= w) {
+		pos = fx_div_round64(turn * (2 * s - c->clothoid_um), 2 * w);
+		k_num = turn;
+	} else {
+		pos = turn - fx_div_round64(turn * (len - s) * (len - s), den);
+		k_num = turn * (len - s);
+		k_den = (int64_t)c->clothoid_um * w;
+		sigma = -2 * turn;
+	}
+	o->sp_angle.pos_um = o->curve_a0 + (int32_t)pos;
+	o->sp_angle.vel_um_s = fx_sat32(fx_div_round64(k_num * v, k_den));
+	o->sp_angle.acc_um_s2 = fx_sat32(fx_div_round64(k_num * a, k_den) +
+					 (sigma ? fx_div_round64(sigma * v * v, den) : 0));
 }
 
 /* The heading that faces border side (0 +X, 1 +Y, 2 -X, 3 -Y): a quarter turn per side. */
@@ -744,7 +841,9 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 	o->aimed = 0;
 #endif
 	if (o->state != ORDER_STATE_IDLE) {
-		if (!o->paused)
+		if (CONFIG_MOTION_CORNERS && o->curve && !o->paused)
+			step_curve(o, m);
+		else if (!o->paused)
 			reason = update_state(o, m);
 	} else if (o->give_way) {
 		o->braking = 0;
@@ -757,7 +856,10 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 		profile_reset(&o->angle,
 			      m->angle_um); /* the heading loop relaxed: no angle error */
 	copy_out(&o->sp_dist, profile_update(&o->dist));
-	copy_out(&o->sp_angle, profile_update(&o->angle));
+	if (CONFIG_MOTION_CORNERS && o->curve)
+		curve_angle(o);
+	else
+		copy_out(&o->sp_angle, profile_update(&o->angle));
 	if (o->braking) { /* after a shock (give_way_axis()): against the motion */
 		if (o->braking & 1u)
 			o->sp_dist.acc_um_s2 = brake_acc(o, 0);
@@ -822,9 +924,9 @@ void orders_pause(struct orders *o)
 	o->paused = 1;
 	o->paused_target_um[0] = profile_get_target_um(&o->dist);
 	o->paused_target_um[1] = profile_get_target_um(&o->angle);
-	apply_limits(o); /* the grip's accelerations */
+	apply_limits(o); /* the grip's accelerations; on a curve, the curve's */
 	profile_stop(&o->dist);
-	profile_stop(&o->angle);
+	profile_stop(&o->angle); /* on a curve, the heading follows the line to rest */
 }
 
 void orders_resume(struct orders *o)

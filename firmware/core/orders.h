@@ -87,6 +87,19 @@ struct orders_axis {
 	int32_t acc_um_s2;
 };
 
+/* A pass-through corner's curve (docs/control.md "Corners"), planned by motion.c: the distance
+ * axis at most v_um_s, accelerating at most a_um_s2, and the heading slaved to the distance
+ * travelled along a clothoid (clothoid_um), an arc (arc_um) and a clothoid back, turn_um in all
+ * on the angle axis (signed; the heading of the next line, set when the curve starts). */
+struct orders_curve {
+	int32_t v_um_s;
+	int32_t a_um_s2;
+	int32_t clothoid_um;
+	int32_t arc_um;
+	int32_t turn_um;
+	int32_t rest_um; /* the line after the curve, to its point */
+};
+
 /* What the state machine needs to know of the robot this tick. */
 struct orders_measure {
 	struct odometry_pose pose; /* estimate */
@@ -170,6 +183,13 @@ struct orders {
 	uint8_t scale_percent;
 	int32_t paused_target_um[2];
 	int32_t through_um;
+	/* A GOTO that started on a pass-through corner's curve (orders_curve_start()): in ROTATE,
+	 * the angle set point a function of the distance set point from (curve_d0, curve_a0) on,
+	 * until the curve's length; then TRANSLATE. */
+	uint8_t curve;
+	struct orders_curve cv;
+	int32_t curve_d0;
+	int32_t curve_a0;
 #if CONFIG_FIX
 	/* The last orders_update() re-aimed a GOTO: a heavy period, which a position fix's fusion
 	 * does not share (planner.c, step 6). */
@@ -246,6 +266,13 @@ void orders_pause(struct orders *o);
 /* RESUME: the paused order goes on to the same targets from where the robot stands (a GOTO
  * re-aims at its next update). Nothing when not paused. Interrupt-safe: no. */
 void orders_resume(struct orders *o);
+
+/* A GOTO that has just started (ROTATE) from the moving robot at a pass-through corner turns on
+ * curve c instead of in place: the distance axis keeps going at c's speed while the heading
+ * turns to heading_turn32 along the curve (docs/control.md "Corners"), then TRANSLATE. Nothing
+ * for another order or state. Interrupt-safe: no. */
+void orders_curve_start(struct orders *o, const struct orders_measure *m,
+			const struct orders_curve *c, uint32_t heading_turn32);
 
 /* SET_SPEED_SCALE: both axes' speed limits times percent / 100 (at least 1 um/s), at once,
  * also for the running order (it slows down at its acceleration limit). Interrupt-safe: no. */

@@ -421,6 +421,22 @@ void profile_reset(struct profile *p, int32_t pos_um)
 	p->out.done = 1;
 }
 
+void profile_follow(struct profile *p, int32_t pos_um, int32_t vel_um_s)
+{
+	/* [um/tick * 2^16], rounded towards zero: the braking never longer than the speed's */
+	int64_t v = (int64_t)vel_um_s * Q16 / p->prm.tick_hz;
+
+	p->pos_in_q16 = fx48_make(pos_um, 0);
+	p->vel_in_q16 = fx_sat32(v);
+	p->hold = 0;
+	p->hold_sign = 0;
+	p->quiet = p->vel_in_q16 != 0 ? 0 : p->prm.n_filt;
+	p->out.pos_um = pos_um;
+	p->out.vel_um_s = vel_um_s;
+	p->out.acc_um_s2 = 0;
+	profile_stop(p);
+}
+
 /* s v for a sign s of +-1. */
 static int32_t signed_by(int s, int32_t v)
 {

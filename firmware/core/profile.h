@@ -131,6 +131,11 @@ int32_t profile_stop(struct profile *p);
  * recalibration moved the frame). Interrupt-safe: no (same context as profile_update). */
 void profile_reset(struct profile *p, int32_t pos_um);
 
+/* Trapezoid only (j_max 0): take over a motion made elsewhere, at pos_um [um] and vel_um_s
+ * [um/s] now, braking to rest from there at a_max (as profile_stop()) until a new target.
+ * Interrupt-safe: no (same context as profile_update). */
+void profile_follow(struct profile *p, int32_t pos_um, int32_t vel_um_s);
+
 /* One control tick: advance the set point and return it (also kept in p->out). Bounded time: far
  * from the target additions only; when braking limits the motion, a 32 / 16-bit division, and
  * a square root only when the target or the limits jumped; in S-curve mode three 64-bit

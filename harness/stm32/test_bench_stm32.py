@@ -81,7 +81,9 @@ def test_the_figures_in_docs_stm32_md_are_what_the_bench_prints(
     code, out = bench.main([str(elf)]), capsys.readouterr().out.splitlines()
     fixes_code, fixes = bench.main([str(elf), "--avr-bench", "/nonexistent", "--fixes"]), None
     fixes = capsys.readouterr().out.splitlines()
-    assert code == 0 and fixes_code == 0
+    corners_code = bench.main([str(elf), "--avr-bench", "/nonexistent", "--corners"])
+    corners = capsys.readouterr().out.splitlines()
+    assert code == 0 and fixes_code == 0 and corners_code == 0
     cruise = "at 1 m/s ("
     tick = _figure(out, r"control tick \(SysTick handler\)\s+(\d+) mean\s+(\d+) worst", cruise)
     servo = _figure(
@@ -90,6 +92,7 @@ def test_the_figures_in_docs_stm32_md_are_what_the_bench_prints(
     slow = _figure(out, r"planner \(board_slow: [^)]*\)\s+(\d+) mean\s+(\d+) worst", cruise)
     busy = _figure(out, r"busiest period at 1 m/s.*: \d+ instructions, ([\d.]+) %")
     busy_fixes = _figure(fixes, r"busiest period at 1 m/s.*: \d+ instructions, ([\d.]+) %")
+    busy_corners = _figure(corners, r"busiest period of the tour.*: \d+ instructions, ([\d.]+) %")
     mem = _figure(out, r"^flash (\d+) bytes .*; RAM (\d+) bytes static")
     want = {
         "control tick at 1 m/s, mean": f"{tick[1]} instructions",
@@ -99,6 +102,9 @@ def test_the_figures_in_docs_stm32_md_are_what_the_bench_prints(
         "instructions",
         "CPU load of the busiest period": f"{busy[1]} % (estimate)",
         "the same with a SET_FIX every 100 ms (`--fixes`)": f"{busy_fixes[1]} % (estimate)",
+        "a tour through PASS_THROUGH corners (`--corners`), its busiest period": (
+            f"{busy_corners[1]} % (estimate)"
+        ),
         "flash": f"{mem[1]} bytes",
         "RAM, static (`.noinit` included)": f"{mem[2]} bytes",
     }
