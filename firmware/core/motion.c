@@ -401,7 +401,7 @@ static void update_braking(struct motion *mo, const struct orders *o)
 	kf = o->dist.prm.n_filt + o->angle.prm.n_filt;
 	if (CONFIG_MOTION_CORNERS && o->curve) { /* the heading brakes with the line */
 		ka = 0;
-		kf += 1 << 20;
+		kf += (int32_t)1 << 20;
 	}
 	if (kd == mo->braking_key[0] && ka == mo->braking_key[1] && kf == mo->braking_key[2])
 		return;
