@@ -65,6 +65,49 @@ def _doc_table() -> dict[str, tuple[str, str]]:
     return rows
 
 
+def _calibration_table() -> dict[str, str]:
+    """docs/stm32.md's table "the calibration in flash": row name -> cell."""
+    text = (ROOT / "docs" / "stm32.md").read_text()
+    start = text.index("| the calibration in flash | STM32F446RE |")
+    rows = {}
+    for line in text[start:].splitlines()[2:]:
+        if not line.startswith("|"):
+            break
+        name, cell = (c.strip() for c in line.strip("|").split("|"))
+        rows[name] = cell
+    return rows
+
+
+def _calibration_want(out: list[str]) -> dict[str, str]:
+    """That table as bench/stm32.py's section "the calibration in flash" prints it."""
+    record = _figure(out, r"^a record: (\d+) words of 32 bits, written ([\d.]+) ms after")
+    stall = _figure(out, r"stalls the CPU's flash fetches (\d+) us \(data sheet typical, (\d+) us")
+    switch = {
+        sector: _figure(
+            out,
+            rf"^a run-time switch to sector {sector} .*the CPU stalled (\d+) ms .*, (\d+) control "
+            r"ticks lost, (\d+) watchdog resets",
+        )
+        for sector in (7, 1)
+    }
+    start = _figure(out, r"^start-up with fewer than (\d+) free slots: sector 7 .* (\d+) ms longer")
+
+    def resets(n: str) -> str:
+        return "no watchdog reset" if n == "0" else f"{n} watchdog resets"
+
+    return {
+        "a record": f"{record[1]} words, written {record[2]} ms after SET_ODOMETRIE's last byte",
+        "stall of the CPU per word": f"{stall[1]} us (data sheet typical; {stall[2]} us at most)",
+        "a run-time switch to sector 7 (log full, no order, motors off)": (
+            f"{switch[7][1]} ms stall, {switch[7][2]} ticks lost, {resets(switch[7][3])}"
+        ),
+        "a run-time switch to sector 1": (
+            f"{switch[1][1]} ms stall, {switch[1][2]} ticks lost, {resets(switch[1][3])}"
+        ),
+        f"start-up with fewer than {start[1]} free slots (to sector 7)": f"{start[2]} ms longer",
+    }
+
+
 def _figure(out: list[str], pattern: str, after: str = "") -> re.Match[str]:
     lines = out[next(i for i, line in enumerate(out) if after in line) :] if after else out
     m = next((m for m in map(re.compile(pattern).search, lines) if m), None)
@@ -110,6 +153,13 @@ def test_the_figures_in_docs_stm32_md_are_what_the_bench_prints(
     }
     doc = _doc_table()
     assert {k: v[0] for k, v in doc.items()} == want
+    assert _calibration_table() == _calibration_want(out)
+    # The prose's quotes of the same lines: a record's write, and --fixes's goal line.
+    text = (ROOT / "docs" / "stm32.md").read_text()
+    record = _figure(out, r"^a record: (\d+) words of 32 bits, written ([\d.]+) ms after")
+    assert f"it is written {record[2]} ms after\nSET_ODOMETRIE's last byte" in text
+    goal = _figure(fixes, r"^  (goal: the busiest period at 1 m/s, .*: [\d.]+ <= 5 %: met)$")
+    assert f"(`{goal[1]}`)" in " ".join(text.split())
     if not avr_bench.is_file():
         return  # the AVR's column needs scripts/test.sh's one-rate AVR build
     side = _figure(out, r"^one rate, at 1 kHz")  # the side-by-side table follows it
