@@ -293,8 +293,8 @@ def main(argv: list[str] | None = None) -> int:
     board.set_vitesse_traj(100, 100)
     if args.corners:
         b.whole = True
-        for x, y in CORNER_TOUR:
-            board.goto(x, y, append=True, through=True)
+        for px, py in CORNER_TOUR:
+            board.goto(px, py, append=True, through=True)
     else:
         board.goto(1100, 0)
     polls = 0
