@@ -6,7 +6,8 @@ bootloader's, is never written (a program or an erase there is a fault: the harn
 run). The end of an operation raises the flash interface's interrupt when EOPIE is set.
 ``BootBoard`` is Stm32Board started from the bootloader: the system reset the bootloader and
 the application request (SCB AIRCR), the bootloader's 1 ms SysTick, its flash operations ended
-at their instant (the CPU runs from RAM meanwhile: no stall), and the application once it runs.
+at their instant (the CPU runs from RAM meanwhile: no stall), and the application once it runs,
+from either slot (A/B: the same code linked twice, whose symbols both ELFs give).
 """
 
 from __future__ import annotations
@@ -30,10 +31,10 @@ from emu import (
     EmuError,
 )
 from periph import SECTOR_ERASE_NS, Flash, Rcc
-from unicorn import UC_HOOK_MEM_WRITE_PROT
+from unicorn import UC_HOOK_CODE, UC_HOOK_MEM_WRITE_PROT
 
 from asserv._core import lib
-from asserv.update import Image, load_image, slot_bytes
+from asserv.update import SLOT_BASES, Image, load_image, slot_bytes
 
 IRQ_FLASH = 4  # RM0390 Table 38
 # (offset, size) of each sector: RM0390 3.3, Table 4.
@@ -48,8 +49,7 @@ SECTORS = [
     (0x6_0000, 0x2_0000),
 ]
 ERASE_NS = SECTOR_ERASE_NS  # by sector size: periph.py
-RUN_BASE = 0x0800_8000
-STAGE_BASE = 0x0802_0000
+SLOT_A, SLOT_B = SLOT_BASES  # boot_layout.h: sectors 2-4, sector 5
 REQUEST_ADDR = 0x2001_FFF8  # boot_layout.h: BOOT_REQUEST_ADDR, BOOT_REQUEST_MAGIC
 REQUEST_MAGIC = 0xB007_1E57
 SYSTEM_RESET = Rcc.SFTRSTF | Rcc.PINRSTF  # RCC_CSR's flags after SYSRESETREQ (RM0390 6.3.21)
@@ -200,24 +200,61 @@ def with_version(image: Image, version: int) -> Image:
 
 
 def factory_flash(
-    boot_elf: str | Path, app: Image | None, nvm: bytes = b"", nvm_b: bytes = b""
+    boot_elf: str | Path,
+    app: Image | None,
+    nvm: bytes = b"",
+    nvm_b: bytes = b"",
+    sequence: int = 1,
 ) -> bytes:
-    """The flash as an ST-LINK leaves it: the bootloader in sector 0, the calibration's sectors
-    1 and 7 (``nvm``, ``nvm_b``), the run slot with its header and ``app`` (or erased), the rest
-    erased."""
+    """The flash as an ST-LINK leaves it (flash.sh): the bootloader in sector 0, the
+    calibration's sectors 1 and 7 (``nvm``, ``nvm_b``), ``app`` with its header (``sequence``)
+    in the slot it is linked for (or none), the rest erased."""
     image = bytearray(b"\xff" * FLASH_SIZE)
     image[: SECTORS[0][1]] = elf_bytes_at(boot_elf, FLASH_BASE, SECTORS[0][1])
     image[0x4000 : 0x4000 + len(nvm)] = nvm
     image[NVM_B_BASE - FLASH_BASE : NVM_B_BASE - FLASH_BASE + len(nvm_b)] = nvm_b
     if app is not None:
-        slot = slot_bytes(app)
-        image[RUN_BASE - FLASH_BASE : RUN_BASE - FLASH_BASE + len(slot)] = slot
+        put_slot(image, app, sequence)
     return bytes(image)
+
+
+def put_slot(image: bytearray, app: Image, sequence: int) -> None:
+    """``app`` and its header (``sequence``) into the slot of ``image`` it is linked for."""
+    if app.slot is None:
+        raise ValueError("the image is linked for no slot")
+    off = SLOT_BASES[app.slot] - FLASH_BASE
+    slot = slot_bytes(app, sequence)
+    image[off : off + len(slot)] = slot
+
+
+def elf_of_slot_b(elf: str | Path) -> Path:
+    """Slot B's ELF beside slot A's (the build makes both)."""
+    return Path(elf).parent / "asserv_stm32_b.elf"
+
+
+def elf_symbols(path: str | Path, names: tuple[str, ...]) -> dict[str, int]:
+    with Path(path).open("rb") as f:
+        symtab = ELFFile(f).get_section_by_name(".symtab")
+        return {
+            s.name: int(s["st_value"])
+            for s in symtab.iter_symbols()  # type: ignore[union-attr]
+            if s.name in names
+        }
+
+
+def symbol_words(path: str | Path, name: str, n: int) -> tuple[int, ...]:
+    """``n`` words of a constant in an ELF's flash image, by its symbol."""
+    image = load_image(path)
+    off = elf_symbols(path, (name,))[name] - image.link
+    return tuple(
+        int.from_bytes(image.data[off + 4 * i : off + 4 * i + 4], "little") for i in range(n)
+    )
 
 
 class BootBoard(Stm32Board):
     """The chip from its reset vector: the bootloader, then the application it starts. The
-    application's symbols come from ``elf`` (an image of the same code whatever its version)."""
+    application's symbols come from ``elf`` (slot A's: an image of the same code whatever its
+    version) and ``elf_b`` (slot B's, beside it by default): the same RAM, the code elsewhere."""
 
     def __init__(
         self,
@@ -228,10 +265,13 @@ class BootBoard(Stm32Board):
         bc: Any = None,
         flash_image: bytes | None = None,
         byte_ns: int = 90_000,
+        elf_b: str | Path | None = None,
     ) -> None:
         self._initial = (
             flash_image if flash_image is not None else factory_flash(boot_elf, load_image(elf))
         )
+        self.elf_b = Path(elf_b) if elf_b is not None else elf_of_slot_b(elf)
+        self._layout_words = symbol_words(elf, "stm32_layout", 3)
         self._ready = False
         self.reset_requested = False
         self.system_resets = 0
@@ -247,10 +287,26 @@ class BootBoard(Stm32Board):
         assert isinstance(self.flash, WholeFlash)
         return self.flash
 
+    def _layout(self) -> tuple[int, int, int]:
+        a, b, c = self._layout_words  # the same in both slots' images: read from the ELF
+        return a, b, c
+
     def _setup(self) -> None:
         if self._ready:
             return
         self._ready = True
+        # Slot B's image: where its main loop sleeps, and its board_restart() for the robot's
+        # configuration (the RAM symbols are slot A's: the same addresses).
+        cpu = self.cpu
+        b_sym = elf_symbols(self.elf_b, ("stm32_idle", "board_restart", "asserv_board"))
+        if b_sym["asserv_board"] != cpu.symbols["asserv_board"]:
+            raise EmuError("slot B's image puts the board elsewhere in RAM than slot A's")
+        at = b_sym["stm32_idle"] & ~1
+        cpu.idle_pcs.add(at)
+        cpu.uc.hook_add(UC_HOOK_CODE, lambda uc, a, s, u: uc.emu_stop(), begin=at, end=at)
+        if self.config_override is not None:
+            at = b_sym["board_restart"] & ~1
+            cpu.uc.hook_add(UC_HOOK_CODE, self._inject_config, begin=at, end=at)
         self.scs.on_reset = self._on_reset
         # The bootloader runs from RAM; the application it starts from flash, its start-up too.
         self.flash.code_in_flash = lambda: not self.in_boot()
@@ -361,10 +417,18 @@ class BootBoard(Stm32Board):
         self.wflash._mirror(0, FLASH_SIZE)
         self.power_cycle()
 
-    def running_version(self) -> int | None:
-        """The version of the application running (its record in the run slot), or None in
-        the bootloader."""
+    def running_slot(self) -> int | None:
+        """The slot whose application runs (0 A, 1 B: its vector table is the current one), or
+        None in the bootloader."""
         if self.in_boot():
             return None
-        off = RUN_BASE - FLASH_BASE + 0x200 + 0x208
+        return SLOT_BASES.index(self.cpu.vtor - 0x200)
+
+    def running_version(self) -> int | None:
+        """The version of the application running (its record in its slot), or None in the
+        bootloader."""
+        slot = self.running_slot()
+        if slot is None:
+            return None
+        off = SLOT_BASES[slot] - FLASH_BASE + 0x200 + 0x208
         return int.from_bytes(self.wflash.image[off : off + 4], "little")

@@ -36,3 +36,12 @@ def boot_elf(elf: Path) -> Path:
     if not path.is_file():
         pytest.fail(f"{path}: no bootloader; it is built with the STM32 firmware (see above)")
     return path
+
+
+@pytest.fixture(scope="session")
+def elf_b(elf: Path) -> Path:
+    """The application linked for the bootloader's slot B, built beside slot A's (``elf``)."""
+    path = elf.parent / "asserv_stm32_b.elf"
+    if not path.is_file():
+        pytest.fail(f"{path}: no slot B image; it is built with the STM32 firmware (see above)")
+    return path

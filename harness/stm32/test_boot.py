@@ -1,12 +1,14 @@
-"""The bootloader's binary (firmware/boot/stm32) with the application's (docs/update.md): updates
-over the emulated I2C bus driven by asserv.update, power cuts at every step of an update (the
-chunks held in RAM while the download slot erases too), refusals, and the promises as
-properties (hypothesis): a power cut at any instant leaves a valid application that starts, and
-keeps the calibration; chunks lost, resent or refused on a flaky bus never corrupt the image."""
+"""The bootloader's binary (firmware/boot/stm32) with the application's, linked for its two slots
+(docs/update.md): updates over the emulated I2C bus driven by asserv.update, into slot B then
+back into slot A, power cuts at every step of them (the chunks held in RAM while the download's
+slot erases too), the fall-back to the other slot, refusals, and the promises as properties
+(hypothesis): a power cut at any instant leaves a valid application that starts, and keeps the
+calibration; chunks lost, resent or refused on a flaky bus never corrupt the image."""
 
 from __future__ import annotations
 
 import ctypes
+import zlib
 from pathlib import Path
 from random import Random
 from typing import Any
@@ -14,11 +16,13 @@ from typing import Any
 import pytest
 from board import Reference, robot
 from boot import (
-    RUN_BASE,
-    STAGE_BASE,
+    SLOT_A,
+    SLOT_B,
     BootBoard,
     WholeFlash,
+    elf_of_slot_b,
     factory_flash,
+    put_slot,
     sector_of,
     with_version,
 )
@@ -43,6 +47,7 @@ from asserv.update import (
     State,
     UpdateError,
     Updater,
+    WrongSlotError,
     header,
     load_image,
 )
@@ -50,7 +55,12 @@ from asserv.update import (
 NVM = encode(CAL)  # a calibration record in sector 1 from the factory
 NVM_B = encode((-2000, 27990, 400), 255)  # and an older one in sector 7 (generation 255 < 0)
 BYTE_NS = {100_000: 90_000, 400_000: 22_500}  # 9 bits a byte at the bus's rate [Hz]
-STAGE = STAGE_BASE - FLASH_BASE + 0x200  # the download's first byte in the flash image
+STAGE = SLOT_B - FLASH_BASE + 0x200  # the first download's first byte in the flash image
+
+
+def image_for(elf: Path, slot: int, version: int) -> Image:
+    """The application of ``version`` linked for ``slot`` (0 A: ``elf``; 1 B: beside it)."""
+    return with_version(load_image(elf_of_slot_b(elf) if slot else elf), version)
 
 
 def new_board(
@@ -104,10 +114,12 @@ def test_power_on_without_an_application_enters_the_bootloader(elf: Path, boot_e
     assert info.board_id == 0xF446 and not info.run_valid and info.image_max == IMAGE_MAX
     u.start()  # nothing to start: refused with its reason
     assert u.status().result == Result.NO_APPLICATION and b.in_boot()
+    assert info.dl_slot == 0  # nothing runs: slot A
     u.update(load_image(elf))
     u.start()
-    b.sleep(2.0)  # the copy into the run slot: 3 erases and the image
+    b.sleep(0.1)  # nothing copied: the reset, the image's CRC
     app_runs(b, 1)
+    assert b.running_slot() == 0
     assert b.boot_stalled_ns == 0  # no flash stall while the bootloader ran: the bus never held
 
 
@@ -148,21 +160,24 @@ def updated(elf: Path, boot_elf: Path) -> tuple[BootBoard, Image]:
     Board(b.bus).bootloader()  # BOOTLOADER: the application leaves for the bootloader
     b.sleep(0.01)
     assert b.in_boot()
-    new = with_version(load_image(elf), 2)
+    assert Updater(b.bus).info().dl_slot == 1  # slot A runs: the download goes into B
+    new = image_for(elf, 1, 2)
+    old = bytes(b.wflash.image[SLOT_A - FLASH_BASE : SLOT_B - FLASH_BASE])
     seen: list[int] = []
     st = Updater(b.bus).update(new, progress=lambda done, total: seen.append(done))
     assert st.state == State.READY and st.next == len(new.data)
     assert seen[-1] == len(new.data) and seen == sorted(seen)
-    # The download slot holds the header and the image; the run slot still the old one.
+    # Slot B holds the header (sequence 2: one more than slot A's) and the image.
     img = b.wflash.image
-    stage = STAGE_BASE - FLASH_BASE
-    assert bytes(img[stage : stage + 32]) == header(new)
+    stage = SLOT_B - FLASH_BASE
+    assert bytes(img[stage : stage + 32]) == header(new, 2)
     assert bytes(img[stage + 0x200 : stage + 0x200 + len(new.data)]) == new.data
     Updater(b.bus).start()
-    b.sleep(2.0)
+    b.sleep(0.1)  # the reset, nothing copied
     app_runs(b, 2)
-    run = RUN_BASE - FLASH_BASE
-    assert bytes(img[run + 0x200 : run + 0x200 + len(new.data)]) == new.data
+    assert b.running_slot() == 1
+    # Slot A is as it was: the old application, to fall back to.
+    assert bytes(img[SLOT_A - FLASH_BASE : SLOT_B - FLASH_BASE]) == old
     assert b.boot_stalled_ns == 0 and b.watchdog_resets == 0
     assert b.wflash.faults == []
     return b, new
@@ -182,7 +197,7 @@ def test_an_update_over_the_bus_then_the_annex_session_is_bit_identical(
 
     bc, sc, f = of_simulator(scn.simulator())
     nb = BootBoard(elf, boot_elf, sc, f, bc, flash_image=bytes(image))
-    assert nb.boot_modes == ["app"] and nb.running_version() == 2
+    assert nb.boot_modes == ["app"] and nb.running_version() == 2 and nb.running_slot() == 1
     r = Reference(bc, sc, f)
     r.padding = nb.padding
     nb.trace, r.trace = [], []
@@ -190,6 +205,31 @@ def test_an_update_over_the_bus_then_the_annex_session_is_bit_identical(
     ends_r = play(r, scn)
     assert_same_runs(nb, r)
     assert nb.ticks > 3000 and ends_b == ends_r
+
+
+def test_slot_bs_image_is_slot_as_code_at_another_address(elf: Path, elf_b: Path) -> None:
+    """The build links the same objects twice: the two images are as long, their sections
+    the same, and every word where they differ is an address in the image, 0x18000 (slot B's
+    base less slot A's) further in slot B's; RAM is laid out the same."""
+    a, b = load_image(elf), load_image(elf_b)
+    assert (a.slot, b.slot) == (0, 1) and len(a.data) == len(b.data)
+    assert (a.board_id, a.version) == (b.board_id, b.version)
+    shift = SLOT_B - SLOT_A
+    differ = [o for o in range(0, len(a.data), 4) if a.data[o : o + 4] != b.data[o : o + 4]]
+    assert len(differ) > 50  # the vector table, the literal pools' addresses
+    for o in differ:
+        wa = int.from_bytes(a.data[o : o + 4], "little")
+        wb = int.from_bytes(b.data[o : o + 4], "little")
+        assert wb - wa == shift and SLOT_A <= wa < SLOT_B, f"offset 0x{o:x}"
+    sections = []
+    for path in (elf, elf_b):
+        with path.open("rb") as f:
+            secs = {s.name: (s["sh_size"], s["sh_addr"]) for s in ELFFile(f).iter_sections()}
+        sections.append(secs)
+    for name in (".text", ".data", ".bss", ".noinit"):
+        (size_a, addr_a), (size_b, addr_b) = sections[0][name], sections[1][name]
+        assert size_a == size_b
+        assert addr_b - addr_a == (shift if name == ".text" else 0)
 
 
 class WrongCrc(Image):
@@ -204,7 +244,7 @@ def test_refusals_leave_the_old_application_running(elf: Path, boot_elf: Path) -
     b = new_board(elf, boot_elf)
     b.request_bootloader()
     u = Updater(b.bus)
-    good = with_version(load_image(elf), 2)
+    good = image_for(elf, 1, 2)  # slot A runs: slot B's
 
     # Another board's image: refused by BEGIN, and by the driver before it.
     other = Image(good.data, 0xF401, 2)
@@ -224,6 +264,17 @@ def test_refusals_leave_the_old_application_running(elf: Path, boot_elf: Path) -
     # A wrong CRC: every chunk goes in, END reads the image back and refuses it.
     with pytest.raises(UpdateError, match="BAD_CRC"):
         u.update(WrongCrc(good.data, 0xF446, 2))
+    # The image linked for slot A, which runs: the driver refuses it, and so does END.
+    wrong = image_for(elf, 0, 2)
+    with pytest.raises(WrongSlotError, match="writes slot B, the image is linked for slot A"):
+        u.update(wrong)
+    u.begin(wrong)
+    u.wait()
+    for off in range(0, len(wrong.data), CHUNK):
+        u.data(off, wrong.data[off : off + CHUNK])
+    assert u.wait().next == len(wrong.data)
+    u.end()
+    assert u.wait() == (State.RECEIVING, Result.WRONG_SLOT, len(wrong.data))
     # A corrupted chunk (a byte flipped on the bus, its PEC the sent one's): not applied.
     u.begin(good)
     u.wait()
@@ -298,7 +349,7 @@ def test_chunks_are_held_in_ram_while_the_download_slot_erases(elf: Path, boot_e
     b = new_board(elf, boot_elf, rate=400_000)
     b.request_bootloader()
     noinit = kept_ram(b)
-    new = with_version(load_image(elf), 2)
+    new = image_for(elf, 1, 2)
     u = Updater(b.bus)
     n0 = len(b.wflash.log)
     u.begin(new)
@@ -338,7 +389,7 @@ def test_chunks_are_held_in_ram_while_the_download_slot_erases(elf: Path, boot_e
     assert u.wait() == (State.READY, Result.OK, len(new.data))
     assert kept_ram(b) == noinit and b.boot_stalled_ns == 0
     u.start()
-    b.sleep(2.0)
+    b.sleep(0.1)
     app_runs(b, 2)
     assert b.wflash.faults == []
 
@@ -349,7 +400,7 @@ def test_a_held_word_that_does_not_take_stops_the_download(elf: Path, boot_elf: 
     is programmed, and START runs the old application."""
     b = new_board(elf, boot_elf, rate=400_000)
     b.request_bootloader()
-    new = with_version(load_image(elf), 2)
+    new = image_for(elf, 1, 2)
     u = Updater(b.bus)
     u.begin(new)
     for off in range(0, BUFFER, CHUNK):
@@ -407,7 +458,7 @@ def test_a_power_cut_while_chunks_are_held_in_ram(elf: Path, boot_elf: Path, mom
     update again ends on the new one."""
     b = new_board(elf, boot_elf, rate=400_000)
     b.request_bootloader()
-    new = with_version(load_image(elf), 2)
+    new = image_for(elf, 1, 2)
     with pytest.raises(CutError):
         Updater(CutWhen(b, HELD_CUTS[moment])).update(new)
     b.power_cycle(Random(sorted(HELD_CUTS).index(moment)))
@@ -416,7 +467,7 @@ def test_a_power_cut_while_chunks_are_held_in_ram(elf: Path, boot_elf: Path, mom
     b.request_bootloader()
     Updater(b.bus).update(new)
     Updater(b.bus).start()
-    b.sleep(2.0)
+    b.sleep(0.1)
     app_runs(b, 2)
 
 
@@ -458,48 +509,56 @@ class NoCpu:
         pass
 
 
+def update_to(b: BootBoard, elf: Path, version: int, bus: Any = None) -> None:
+    """From the bootloader: ``version`` linked for the slot it writes, downloaded, started."""
+    u = Updater(bus or b.bus)
+    u.update(image_for(elf, u.info().dl_slot, version))
+    u.start()
+    b.sleep(0.1)
+
+
 def test_a_power_cut_at_every_step_of_an_update_leaves_a_valid_application(
     elf: Path, boot_elf: Path
 ) -> None:
-    """The update's flash operations, recorded, then replayed to each step with a power cut in
-    it: in every erase, in one word of every chunk of the download, in every word of both
-    headers, and in a word of every 8 KiB of the bootloader's copy (each cut there costs a whole
-    copy, 7 s of the harness: test_a_power_cut_at_any_instant_then_the_update_again draws more).
-    Each time the chip boots a valid application, the old or the new, and the calibration's
-    sector is untouched."""
+    """Two updates' flash operations, recorded (version 1 in slot A to 2 in slot B, then to 3
+    back in slot A, whose three sectors erase), then replayed to each step with a power cut in
+    it: in every erase, in one word of every chunk of the first download and of every 16th of
+    the second, in every word of both headers. Each time the chip boots a valid application:
+    the one that ran until the download's header is whole, the new one after, never the
+    bootloader alone; the calibration's sectors are untouched."""
     b = new_board(elf, boot_elf)
-    b.request_bootloader()
     before = bytes(b.wflash.image)
     n0 = len(b.wflash.log)
-    new = with_version(load_image(elf), 2)
-    u = Updater(b.bus)
-    u.update(new)
-    u.start()
-    b.sleep(2.0)
-    app_runs(b, 2)
+    ends = []
+    for version in (2, 3):
+        b.request_bootloader()
+        update_to(b, elf, version)
+        app_runs(b, version)
+        assert b.running_slot() == version % 2 ^ 1
+        ends.append(len(b.wflash.log) - n0)
     log = b.wflash.log[n0:]
     erases = [k for k, op in enumerate(log) if op[0] == "erase"]
+    # Slot B's sector 5, then slot A's sectors 2, 3, 4 (the header's first): nothing else.
     assert [log[k][1] for k in erases] == [0x20000, 0x8000, 0xC000, 0x10000]
-    assert all(sector_of(op[1]) in (2, 3, 4, 5) for op in log)  # never sector 0 or 1
+    assert all(sector_of(op[1]) in (2, 3, 4, 5) for op in log)  # never sector 0, 1 or 7
     programs = [k for k, op in enumerate(log) if op[0] == "program"]
-    stage_hdr = [k for k in programs if 0x20000 <= log[k][1] < 0x20200]
-    run_hdr = [k for k in programs if 0x8000 <= log[k][1] < 0x8200]
-    # The headers' words but the two reserved ones, erased (0xFFFFFFFF is not programmed); the
-    # download's header after its image, the run slot's last of all.
-    assert len(stage_hdr) == len(run_hdr) == 6 and run_hdr[-1] == len(log) - 1
-    assert stage_hdr[0] > max(k for k in programs if log[k][1] >= 0x20200)
+    hdr_b = [k for k in programs if 0x20000 <= log[k][1] < 0x20200]
+    hdr_a = [k for k in programs if 0x8000 <= log[k][1] < 0x8200]
+    # Each header's words (0xFFFFFFFF is not programmed) after its image, last of its update.
+    assert len(hdr_b) == len(hdr_a) == 8 and hdr_b[-1] == ends[0] - 1 and hdr_a[-1] == ends[1] - 1
+    assert hdr_b[0] > max(k for k in programs if 0x20200 <= log[k][1] < 0x40000)
+    assert hdr_a[0] > max(k for k in programs if 0x8200 <= log[k][1] < 0x20000)
     rng = Random(29)
-    chunks: dict[int, list[int]] = {}
+    chunks: dict[tuple[int, int], list[int]] = {}
     for k in programs:
-        if log[k][1] >= 0x20200:
-            chunks.setdefault(log[k][1] // 64, []).append(k)
-    copy: dict[int, list[int]] = {}
-    for k in programs:
-        if 0x8200 <= log[k][1] < 0x20000:
-            copy.setdefault(log[k][1] // 8192, []).append(k)
-    cuts = set(erases + stage_hdr + run_hdr)
-    cuts |= {rng.choice(ks) for ks in chunks.values()} | {rng.choice(ks) for ks in copy.values()}
-    assert len(chunks) == -(-len(new.data) // 64)
+        off = log[k][1]
+        if 0x20200 <= off < 0x40000:
+            chunks.setdefault((0, (off - 0x20200) // 64), []).append(k)
+        elif 0x8200 <= off < 0x20000 and (off - 0x8200) // 64 % 16 == 0:
+            chunks.setdefault((1, (off - 0x8200) // 64), []).append(k)
+    cuts = set(erases + hdr_b + hdr_a) | {rng.choice(ks) for ks in chunks.values()}
+    size = len(load_image(elf).data)
+    assert sum(1 for u, _ in chunks if u == 0) == -(-size // 64)
     f = WholeFlash(0x4002_3C00, before)  # the flash replayed, one operation at a time
     f.uc = g_uc = NoCpu()
     seen = []
@@ -509,17 +568,61 @@ def test_a_power_cut_at_every_step_of_an_update_leaves_a_valid_application(
             g.uc, g.op = g_uc, op
             g.cut(rng)
             b.power_on(bytes(g.image))
-            if b.in_boot():
-                b.sleep(2.0)  # a checked download: copied, then started
             assert not b.in_boot(), f"cut in step {k} ({op[:2]}): no application starts"
             v = b.running_version()
-            assert v in (1, 2) and kept(b), f"cut in step {k}"
-            assert b.wflash.faults == []
+            assert kept(b) and b.wflash.faults == [], f"cut in step {k}"
+            # Before an update's header is whole, what ran runs; after it, the new one.
+            first = k < ends[0]
+            hdr = hdr_b if first else hdr_a
+            old, new = (1, 2) if first else (2, 3)
+            if k < hdr[0]:
+                assert v == old, f"cut in step {k}"
+            elif k > hdr[-1]:
+                assert v == new, f"cut in step {k}"
+            else:
+                assert v in (old, new), f"cut in step {k}"  # a torn header: almost always old
+            assert b.running_slot() == (v % 2 ^ 1)
             seen.append(v)
         f.op = op
         f.finish()
-    # Before the download's header is whole the old application runs; after, the new one.
-    assert set(seen) == {1, 2} and len(seen) == len(cuts)
+    assert set(seen) == {1, 2} and len(seen) == len(cuts)  # 3 only once its header is whole:
+    b.power_on(bytes(f.image))  # the whole log, no cut
+    app_runs(b, 3)
+    assert b.running_slot() == 0
+
+
+def test_the_newest_slot_that_fails_its_checks_falls_back_to_the_other(
+    elf: Path, boot_elf: Path
+) -> None:
+    """Both slots valid, B the newest (sequence 2): B starts. B's image with a flipped byte, its
+    header torn, or its header saying slot A's link: A starts, by itself; and the next update
+    goes into B, which does not run. The sequence wraps: 0 is newer than 0xFFFFFFFF."""
+    image = bytearray(factory_flash(boot_elf, load_image(elf), NVM, NVM_B))
+    put_slot(image, image_for(elf, 1, 2), 2)
+    b = new_board(elf, boot_elf, bytes(image))
+    app_runs(b, 2)
+    assert b.running_slot() == 1
+    bad_image = bytearray(image)
+    bad_image[STAGE + 0x1000] ^= 0x40
+    torn = bytearray(image)
+    torn[SLOT_B - FLASH_BASE + 0x1C] &= 0x0F  # the header's CRC, part programmed
+    other_link = bytearray(image)
+    put_slot(other_link, image_for(elf, 1, 2), 2)
+    hdr = bytearray(header(image_for(elf, 1, 2), 2))
+    hdr[20:24] = (SLOT_A + 0x200).to_bytes(4, "little")  # link: slot A's
+    hdr[28:32] = (zlib.crc32(bytes(hdr[:28])) & 0xFFFF_FFFF).to_bytes(4, "little")
+    other_link[SLOT_B - FLASH_BASE : SLOT_B - FLASH_BASE + 32] = hdr
+    for flash in (bad_image, torn, other_link):
+        b.power_on(bytes(flash))
+        app_runs(b, 1)
+        assert b.running_slot() == 0 and b.boot_modes[-1] == "app"
+        b.request_bootloader()
+        assert Updater(b.bus).info().dl_slot == 1
+    wrapped = bytearray(factory_flash(boot_elf, load_image(elf), NVM, NVM_B, 0xFFFF_FFFF))
+    put_slot(wrapped, image_for(elf, 1, 2), 0)
+    b.power_on(bytes(wrapped))
+    app_runs(b, 2)
+    assert b.running_slot() == 1
 
 
 class FlakyBus:
@@ -562,67 +665,65 @@ def test_lost_resent_and_garbled_frames_never_corrupt_the_image(
     """At 400 kHz, faults also fall on chunks held in RAM during the erase, and on RAM full."""
     b = new_board(elf, boot_elf, rate=rate)
     b.request_bootloader()
-    new = with_version(load_image(elf), 2)
+    new = image_for(elf, 1, 2)
     flaky = FlakyBus(b.bus, faults)
     u = Updater(flaky)
     st_ = u.update(new)
     assert st_ == (State.READY, Result.OK, len(new.data))
-    stage = STAGE_BASE - FLASH_BASE
+    stage = SLOT_B - FLASH_BASE
     assert bytes(b.wflash.image[stage + 0x200 : stage + 0x200 + len(new.data)]) == new.data
-    assert bytes(b.wflash.image[stage : stage + 32]) == header(new)
+    assert bytes(b.wflash.image[stage : stage + 32]) == header(new, 2)
     assert u.retries > 0 or set(faults) <= {0, 3}
     Updater(b.bus).start()
-    b.sleep(2.0)
+    b.sleep(0.1)
     app_runs(b, 2)
 
 
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
-    phase=st.sampled_from(["download", "copy"]),
+    into=st.sampled_from(["B", "A"]),
     at=st.floats(0.0, 1.0),
     seed=st.integers(0, 2**32 - 1),
     rate=st.sampled_from([100_000, 400_000]),
 )
 def test_a_power_cut_at_any_instant_then_the_update_again(
-    elf: Path, boot_elf: Path, phase: str, at: float, seed: int, rate: int
+    elf: Path, boot_elf: Path, into: str, at: float, seed: int, rate: int
 ) -> None:
-    """A power cut at a random instant of a live update (the download over the bus, or the
-    bootloader's copy after START), mid-operation included: the board then starts a valid
-    application with its calibration, and the same update, done again, gets the new one. At
-    400 kHz the download's first 1 s is the erase with chunks held in RAM."""
+    """A power cut at a random instant of a live update (its download over the bus, its
+    START), mid-operation included, into slot B (slot A runs version 1), or back into slot A
+    (slot B runs version 2, after a first update): the board then starts a valid application
+    with its calibration, and the update, done again, gets the new one. At 400 kHz the
+    download's first 1 s is the erase with chunks held in RAM."""
     b = new_board(elf, boot_elf, rate=rate)
+    old = 1
+    if into == "A":
+        b.request_bootloader()
+        update_to(b, elf, 2)
+        old = 2
     b.request_bootloader()
-    new = with_version(load_image(elf), 2)
+    new = image_for(elf, 0 if into == "A" else 1, old + 1)
     u = Updater(b.bus)
-    if phase == "download":
-        # The download takes 5.7 s at 100 kHz, 1.8 s at 400 kHz.
-        cut_ns = b.now_ns + int(at * (5.6e9 if rate == 100_000 else 1.75e9))
+    # The download takes 5.7 s at 100 kHz, 1.8 s at 400 kHz; START's reset 40 ms more.
+    cut_ns = b.now_ns + int(at * (5.75e9 if rate == 100_000 else 1.9e9))
 
-        def progress(done: int, total: int) -> None:
-            if b.now_ns >= cut_ns:
-                raise CutError
+    def progress(done: int, total: int) -> None:
+        if b.now_ns >= cut_ns:
+            raise CutError
 
-        try:
-            u.update(new, progress=progress)
-            u.start()
-        except CutError:
-            pass
-    else:
-        u.update(new)
+    try:
+        u.update(new, progress=progress)
         u.start()
-        b.sleep(at * 1.3)  # the copy: 1.05 s of erases, then 0.2 s of words, the header
+        b.sleep(max(0.0, (cut_ns - b.now_ns) * 1e-9))
+    except CutError:
+        pass
     b.power_cycle(Random(seed))
-    if b.in_boot():
-        b.sleep(2.0)
     assert not b.in_boot()
-    assert b.running_version() in (1, 2)
+    assert b.running_version() in (old, old + 1)
     assert kept(b)
     assert b.wflash.faults == []
     b.request_bootloader()
-    Updater(b.bus).update(new)
-    Updater(b.bus).start()
-    b.sleep(2.0)
-    app_runs(b, 2)
+    update_to(b, elf, old + 1)
+    app_runs(b, old + 1)
 
 
 class Unclosed:
@@ -646,13 +747,26 @@ def test_asserv_flash_updates_the_board_and_says_what_runs(
     from asserv.cli_bus import run_bus_command
 
     b = new_board(elf, boot_elf)
-    new = with_version(load_image(elf), 3)
-    path = tmp_path / "asserv_stm32.bin"
+    new = image_for(elf, 1, 3)
+    path_a, path = tmp_path / "asserv_stm32.bin", tmp_path / "asserv_stm32_b.bin"
+    path_a.write_bytes(image_for(elf, 0, 3).data)
     path.write_bytes(new.data)
-    args = parser().parse_args(["--bus", "1", "flash", str(path)])
+    # Slot A runs: the board writes slot B, whose image the master was not given.
+    only_a = parser().parse_args(["--bus", "1", "flash", str(path_a)])
+    assert run_bus_command(only_a, bus_factory=lambda n: Unclosed(b.bus)) == 2
+    err = capsys.readouterr().err
+    assert "writes slot B" in err and "asserv_stm32_b.elf" in err and len(err.splitlines()) == 1
+    b.sleep(0.1)
+    app_runs(b, 1)  # started again, nothing written
+    args = parser().parse_args(["--bus", "1", "flash", str(path_a), str(path)])
     assert run_bus_command(args, bus_factory=lambda n: Unclosed(b.bus)) == 0
     out = capsys.readouterr()
-    assert "board 0xf446: runs version 1" in out.out
+    assert "board 0xf446: runs version 1 (60812 bytes) from slot A" in out.out.replace(
+        str(len(new.data)), "60812"
+    )
+    assert out.out.startswith(f"image: {len(new.data)} bytes, version 3") and (
+        "linked for slot B" in out.out.splitlines()[0]
+    )
     assert f"verified: the board read the {len(new.data)} bytes back" in out.out
     assert "running: application version 3" in out.out and "power is cut" in out.out
     app_runs(b, 3)
@@ -662,6 +776,7 @@ def test_asserv_flash_updates_the_board_and_says_what_runs(
     assert "has this image already" in capsys.readouterr().out
     assert len(b.wflash.log) == writes
     app_runs(b, 3)
+    assert b.running_slot() == 1
     # An order runs: refused with its reason, the robot goes on.
     Board(b.bus).goto(500, -850)
     b.sleep(0.1)
@@ -683,7 +798,7 @@ def test_asserv_flash_refuses_bad_files_in_one_line(
     for path, words in (
         (avr, "ISP"),
         (junk, "no application record"),
-        (boot_elf, "outside the run slot"),
+        (boot_elf, "outside the slots"),
         (tmp_path / "none.elf", "No such file"),
     ):
         assert main(["--bus", "1", "flash", str(path)]) == 2
@@ -714,7 +829,7 @@ def test_flash_sh_writes_the_run_slot_the_bootloader_writes(elf: Path, tmp_path:
     from asserv.update import slot_bytes
 
     script = (ROOT / "firmware" / "ports" / "stm32" / "flash.sh").read_text()
-    part = script[script.index("crc32() {") : script.index('st-flash write "$BUILD/slot.bin"')]
+    part = script[script.index("crc32() {") : script.index("head -c 512 /dev/zero")]
     shutil.copy(elf.with_suffix(".bin"), tmp_path / "asserv_stm32.bin")
     subprocess.run(
         ["bash", "-c", "set -euo pipefail\n" + part],

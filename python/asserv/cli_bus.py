@@ -70,7 +70,7 @@ BUS_COMMANDS: dict[str, str] = {
     "resume": "RESUME: go on with the paused order from where the robot stands",
     "scale": "SET_SPEED_SCALE P: P percent (0..100) of the speed limits, at once",
     "motion": "read the queue, the pause, the braking distance and the scale (MOTION)",
-    "flash": "FIRMWARE.elf|bin: update the STM32 board's application over the bus (docs/update.md)",
+    "flash": "FIRMWARE...: update the STM32 board's application over the bus (docs/update.md)",
 }
 
 
@@ -182,7 +182,13 @@ def add_bus_arguments(
     p.add_argument("ratio", metavar="RATIO_PPM", help="right/left wheel factor correction, ppm")
     p.add_argument("track", metavar="TRACK_MM", help="encoder track, mm (to 0.01 mm)")
     p.add_argument("scale", metavar="SCALE_PPM", help="common wheel factor correction, ppm")
-    add("flash").add_argument("firmware", metavar="FIRMWARE", help="the application's ELF or .bin")
+    add("flash").add_argument(
+        "firmware",
+        metavar="FIRMWARE",
+        nargs="+",
+        help="the build folder, or the application's ELF (or .bin) for each slot:"
+        " asserv_stm32.elf (slot A) and asserv_stm32_b.elf (slot B); the board takes one",
+    )
     p = add("wait")
     p.add_argument("--timeout", default="30", help="give up after S seconds (default 30)")
     p.add_argument("--poll", default="0.01", help="poll period, seconds (default 0.01)")
@@ -251,13 +257,13 @@ def _action(args: argparse.Namespace) -> Action:
         return lambda b: [_flags(b.check_busy())]
     if cmd == "flash":
         from .bus import clock_of
-        from .update import Progress, UpdateError, flash, load_image
+        from .update import Progress, UpdateError, flash, load_images
 
         try:
-            image = load_image(args.firmware)
+            images = load_images(args.firmware)
         except UpdateError as e:
             raise _UsageError(str(e)) from None
-        return lambda b: flash(b, image, Progress(sys.stderr, clock_of(b.bus)))
+        return lambda b: flash(b, images, Progress(sys.stderr, clock_of(b.bus)))
     if cmd == "position":
 
         def position(b: Board) -> list[str]:
@@ -487,8 +493,8 @@ def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = N
             print(line)
     except (codec.FrameError, TypeError) as e:  # an argument outside its range: nothing sent
         return fail(2, str(e))
-    except AsservError as e:
-        return fail(1, str(e))
+    except AsservError as e:  # a usage the board revealed (asserv.update.WrongSlotError): 2
+        return fail(2 if getattr(e, "usage", False) else 1, str(e))
     except KeyboardInterrupt:
         return fail(130, "interrupted (an order already sent goes on; `stop` stops the robot)")
     finally:

@@ -2,25 +2,29 @@
 board's address, so that ``asserv flash`` runs against ``Simulator`` and ``asserv sim serve`` as
 against the STM32 board, to rehearse the pit procedure (docs/update.md, "Rehearse in the pits").
 
-What it keeps is the flash the real board keeps: the run slot (the image the application was
-built from: its record of board and version, its CRC) and the download slot, in memory, on the
-``Simulator`` (``sim.firmware``, ``SimFlash``). What it models of the real one:
+What it keeps is the flash the real board keeps: its two slots, A and B (the images the
+application was built from: their record of board, version and link, their CRC, the header's
+sequence), in memory, on the ``Simulator`` (``sim.firmware`` is the one that runs, ``SimFlash``).
+What it models of the real one:
 
 - BOOTLOADER, accepted by the board's own C protocol layer (refused with REFUSED_BUSY while an
   order runs), makes the board leave its application at the next control tick: the motors off
   (a power-on of the simulated board, which then runs no order), and the bootloader answers at
   the address after its start-up (the run slot's CRC: ``START_S``; a NACK before);
 - the writes and replies of boot.c and boot_i2c.c, byte for byte: the PEC mandatory, the same
-  checks (board id, length, offsets, chunks sent again, CRC, the image's own record and
-  version), the same states and results, a write while busy refused with BUSY; DATA taken
+  checks (board id, length, offsets, chunks sent again, CRC, the image's own record, version
+  and link), the same states and results, a write while busy refused with BUSY; DATA taken
   while the download slot erases, held in RAM (BUFFER bytes; refused with BUSY when full) and
   programmed after, while more arrives;
-- the flash's data-sheet times (docs/update.md, the harness's flash model): the download slot
-  erased in 1 s, a word in 16 us, the copy's erases; busy states last that long in simulated
-  time, and the held words are programmed at a word each 16 us from the erase's end;
-- START: the download copied into the run slot when it is newer (COPYING, then a reset), then
-  the application started by a power-on of the simulated board, whose storage (the calibration)
-  is kept, as the real board's sectors 1 and 7 are.
+- the download written into the slot that does not run (INFO says which), and the start-up
+  starting the newest valid slot (START: a reset, nothing copied);
+- the flash's data-sheet times (docs/update.md, the harness's flash model): slot B erased in
+  1 s, slot A's sectors in 0.25 + 0.25 + 0.55 s, a word in 16 us; busy states last that long in
+  simulated time, and the held words are programmed at a word each 16 us from the erase's end;
+- the application started by a power-on of the simulated board, whose storage (the
+  calibration) is kept, as the real board's sectors 1 and 7 are;
+- ``protocol`` 1 or 2: the bootloaders before A/B, which write slot B as their download slot
+  and copy it into slot A, their run slot, at the start-up after START (COPYING).
 
 Not modelled: power cuts in the middle (harness/stm32/test_boot.py cuts the real bootloader at
 every step), the watchdog, a board with the bootloader alone. The protocol's numbers and wire
@@ -54,8 +58,10 @@ from .update import (
     HEADER_SIZE,
     IMAGE_MAX,
     INFO_FORMAT,
+    INFO_FORMAT_2,
     PROTO_VERSION,
     RUN_BASE,
+    SLOT_BASES,
     STATUS_FORMAT,
     Image,
     Result,
@@ -76,44 +82,59 @@ BOOTLOADER = BY_NAME["BOOTLOADER"].designation
 # The flash's data-sheet typical times (RM0390, STM32F446 data sheet at x32; the harness's flash
 # model, harness/stm32/emu.py) and the bootloader's own.
 WORD_S = 16e-6  # a 32-bit word programmed
-STAGE_ERASE_S = 1.0  # sector 5 (128 KiB): the download slot, at BEGIN
-# The run slot's sectors 2, 3, 4: their first address, their erase time [s].
+STAGE_ERASE_S = 1.0  # sector 5 (128 KiB): slot B, at BEGIN
+# Slot A's sectors 2, 3, 4: their first address, their erase time [s].
 RUN_SECTORS = ((0x0800_8000, 0.25), (0x0800_C000, 0.25), (0x0801_0000, 0.55))
 CRC_S_PER_BYTE = 0.038 / 55920  # the image's CRC-32 at 16 MHz: 38 ms for 55920 bytes
 START_S = 0.040  # a reset to the bootloader answering (its run slot's CRC), or the application
 HEADER_WORDS = 8
 
 
-def stand_in_image(version: int = 1, board_id: int = BOARD_ID) -> Image:
+def stand_in_image(version: int = 1, board_id: int = BOARD_ID, slot: int = 0) -> Image:
     """What the simulated board runs until it is sent an update: an image that is its record
-    alone (a vector table's room, then app_info.c's record), of ``version``."""
-    data = bytes(APP_INFO_OFFSET) + struct.pack("<3I", APP_INFO_MAGIC, board_id, version)
+    alone (a vector table's room, then app_info.c's record), of ``version``, linked for ``slot``
+    (0 A, 1 B)."""
+    link = SLOT_BASES[slot] + HEADER_SIZE
+    data = bytes(APP_INFO_OFFSET) + struct.pack("<4I", APP_INFO_MAGIC, board_id, version, link)
     return Image(data, board_id, version)
 
 
 @dataclass
 class SimFlash:
     """The flash the simulated bootloader writes, kept across its resets and the board's power
-    cycles: the run slot's image, the download slot (its bytes, and its header once END wrote
-    it), and the updates the board took."""
+    cycles: each slot's image once its header is written (None: erased, or being written) and
+    its header's sequence, the download's bytes, and the updates the board took."""
 
-    run: Image
+    slots: list[Image | None]
+    sequences: list[int] = field(default_factory=lambda: [1, 0])
     stage: bytearray = field(default_factory=lambda: bytearray(b"\xff" * IMAGE_MAX))
-    stage_header: tuple[int, int, int] | None = None  # length, CRC-32, version
     updates: int = 0
 
-    def stage_image(self) -> Image | None:
-        """The download, when its header is written."""
-        if self.stage_header is None:
-            return None
-        length, _, version = self.stage_header
-        return Image(bytes(self.stage[:length]), BOARD_ID, version)
+    def newest(self) -> int:
+        """The slot the start-up starts (boot.c slot_to_start): the newest valid one."""
+        valid = [k for k in (0, 1) if self.slots[k] is not None]
+        return max(valid, key=lambda k: self.sequences[k]) if valid else 0
+
+    @property
+    def run(self) -> Image:
+        """The image the board runs (the newest slot's)."""
+        image = self.slots[self.newest()]
+        assert image is not None  # the simulated board always has an application
+        return image
 
     def stage_newer(self) -> bool:
-        """A valid download that differs from the run slot (boot.c's same_header)."""
-        h = self.stage_header
-        r = self.run
-        return h is not None and h != (len(r.data), r.crc32, r.version)
+        """Protocol 1 and 2: a valid download in slot B that differs from slot A, their run
+        slot (boot.c's same_header then), which the start-up copies."""
+        a, b = self.slots
+        return b is not None and (
+            a is None
+            or (len(a.data), a.crc32, a.version)
+            != (
+                len(b.data),
+                b.crc32,
+                b.version,
+            )
+        )
 
 
 def _nack(address: int) -> OSError:
@@ -135,7 +156,8 @@ class SimBootloader:
                 " cannot run on it"
             )
         self.sim = sim
-        self.flash = SimFlash(image)
+        slot = image.slot if image.slot is not None else 0
+        self.flash = SimFlash([image, None] if slot == 0 else [None, image], [1, 1])
         self.on_start: list[Callable[[str], None]] = []
         #: BOOT_PROTO_VERSION of the bootloader modelled: 1 is a board flashed before DATA was
         #: taken during the erase (refused BUSY then; busy PROGRAMMING while a chunk programs).
@@ -143,6 +165,8 @@ class SimBootloader:
         self.serving = False  # the bootloader has the bus (or is starting: NACK until _up_s)
         self._up_s = 0.0
         self._leaving = False  # an application start is scheduled
+        self._ran: Image = self.flash.run  # the image the board's application was started from
+        self.dl_slot = 1  # the slot BEGIN writes
         self._reset_ram()
 
     def _reset_ram(self) -> None:
@@ -177,29 +201,35 @@ class SimBootloader:
         self._reset_ram()
         self.serving = True
         self._up_s = self.sim.time_s + START_S
-        if not asked and not self.flash.stage_newer():
+        old = self.protocol < 3
+        # The download goes into the slot that does not run; before protocol 3, slot B always.
+        self.dl_slot = 1 if old else self.flash.newest() ^ 1
+        if not asked and not (old and self.flash.stage_newer()):
             self._start_application_at(self._up_s)
             return
-        if self.flash.stage_newer():
-            length = self.flash.stage_header[0]  # type: ignore[index]
-            end = RUN_BASE + HEADER_SIZE + length  # boot.c copy_start: the sectors it reaches
-            erase = sum(s for first, s in RUN_SECTORS if first == RUN_BASE or end > first)
-            copy_s = erase + (length // 4 + HEADER_WORDS) * WORD_S + length * CRC_S_PER_BYTE
+        if old and self.flash.stage_newer():
+            length = len(self.flash.slots[1].data)  # type: ignore[union-attr]
+            copy_s = (
+                self._erase_s(0, length)
+                + (length // 4 + HEADER_WORDS) * WORD_S
+                + length * CRC_S_PER_BYTE
+            )
             self.state = State.COPYING
             self._busy_until = self._up_s + copy_s
             self.sim.at(self._busy_until, lambda s: self._copied())
 
+    @staticmethod
+    def _erase_s(slot: int, length: int) -> float:
+        """The erase of a slot for an image of ``length`` bytes: slot A's sectors that it
+        reaches (boot.c), slot B's one sector."""
+        if slot == 1:
+            return STAGE_ERASE_S
+        end = RUN_BASE + HEADER_SIZE + length
+        return sum(s for first, s in RUN_SECTORS if first == RUN_BASE or end > first)
+
     def _copied(self) -> None:
-        new = self.flash.stage_image()
-        assert new is not None
-        self.flash.run = new
-        self.flash.updates += 1
+        self.flash.slots[0] = self.flash.slots[1]
         self._boot_main(asked=False)  # the reset after the copy: the new application starts
-        for cb in self.on_start:
-            cb(
-                f"the board took an update: version {new.version}, {len(new.data)} bytes,"
-                f" CRC-32 0x{new.crc32:08x}; its application started again"
-            )
 
     def _start_application_at(self, t_s: float) -> None:
         self._leaving = True
@@ -207,6 +237,15 @@ class SimBootloader:
         def start(sim: Simulator) -> None:
             self._leaving = False
             self.serving = False
+            new = self.flash.run
+            if new != self._ran:
+                self._ran = new
+                self.flash.updates += 1
+                for cb in self.on_start:
+                    cb(
+                        f"the board took an update: version {new.version}, {len(new.data)}"
+                        f" bytes, CRC-32 0x{new.crc32:08x}; its application started again"
+                    )
             sim._power_cycle_board()  # the new application's power-on, the storage kept
 
         self.sim.at(t_s, start)
@@ -247,19 +286,12 @@ class SimBootloader:
 
     def _reply(self) -> bytes:
         if self._info:
-            r = self.flash.run
-            return struct.pack(
-                INFO_FORMAT,
-                b"BL",
-                self.protocol,
-                BOARD_ID,
-                1,
-                r.version,
-                len(r.data),
-                r.crc32,
-                IMAGE_MAX,
-                self.state,
-            )
+            r = self.flash.slots[0] if self.protocol < 3 else self.flash.run
+            assert r is not None
+            info = (b"BL", self.protocol, BOARD_ID, 1, r.version, len(r.data), r.crc32)
+            if self.protocol < 3:
+                return struct.pack(INFO_FORMAT_2, *info, IMAGE_MAX, self.state)
+            return struct.pack(INFO_FORMAT, *info, IMAGE_MAX, self.state, self.dl_slot)
         return struct.pack(STATUS_FORMAT, self.state, self.result, self.next)
 
     def _settle(self) -> None:
@@ -278,7 +310,17 @@ class SimBootloader:
             self._held_from += 4 * words
             self._held_s = now if self._held_from == self.next else self._held_s + words * WORD_S
         if self.state == State.WRITING_HEADER and now >= self._busy_until:
-            self.flash.stage_header = (self._length, self._crc, self._version)
+            # The header, with a sequence one more than the slot that runs: the newest.
+            dl = self.dl_slot
+            self.flash.slots[dl] = Image(
+                bytes(self.flash.stage[: self._length]), BOARD_ID, self._version
+            )
+            # Before protocol 3 the start-up runs slot A, which the download is copied into.
+            self.flash.sequences[dl] = (
+                self.flash.sequences[dl ^ 1] + 1
+                if dl == 0 or (self.protocol >= 3)
+                else self.flash.sequences[0] - 1
+            )
             self.state = State.READY
             self.result = Result.OK
 
@@ -340,8 +382,8 @@ class SimBootloader:
         self._length, self._crc, self._version = length, crc, version
         self.next = self._held_from = 0
         self.flash.stage[:] = b"\xff" * IMAGE_MAX
-        self.flash.stage_header = None
-        self._busy(State.ERASING, STAGE_ERASE_S)
+        self.flash.slots[self.dl_slot] = None
+        self._busy(State.ERASING, self._erase_s(self.dl_slot, length))
 
     def _data(self, off: int, chunk: bytes) -> None:
         if self.state not in (State.RECEIVING, State.ERASING):
@@ -384,6 +426,10 @@ class SimBootloader:
             self.result = Result.WRONG_BOARD
         elif record[1] != self._version:
             self.result = Result.BAD_VERSION
+        elif self.protocol >= 3 and Image(img, BOARD_ID, self._version).link != (
+            SLOT_BASES[self.dl_slot] + HEADER_SIZE
+        ):
+            self.result = Result.WRONG_SLOT
         else:
             # The held words programmed, the image read back at 16 MHz, then the header's
             # words: one busy span, as seen on the bus.

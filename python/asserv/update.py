@@ -1,6 +1,7 @@
 """Firmware update over the master's I2C bus, through the STM32 board's bootloader
-(firmware/boot/stm32, docs/update.md): the image of an ELF or a .bin, its slot header, and the
-calls of the update protocol, with resumption after a bus error.
+(firmware/boot/stm32, docs/update.md): the image of an ELF or a .bin and the slot it is linked
+for (A or B: the build links the same code for both), its slot header, and the calls of the
+update protocol, with resumption after a bus error.
 
 The protocol's numbers are firmware/boot/stm32/boot_proto.h's and boot_layout.h's; the
 harness (harness/stm32/test_boot.py) runs this module against the bootloader's binary."""
@@ -30,22 +31,32 @@ __all__ = [
     "State",
     "UpdateError",
     "Updater",
+    "WrongSlotError",
     "header",
     "load_image",
+    "load_images",
     "slot_bytes",
 ]
 
 ADDRESS = 2
-RUN_BASE = 0x0800_8000
+# The two slots (boot_layout.h): A, sectors 2-4, and B, sector 5, each run in place by an image
+# linked at its base + HEADER_SIZE. Slot A is where bootloaders of protocol 1 and 2 keep their run
+# slot, into which they copy the download: they take slot A's image.
+SLOT_BASES = (0x0800_8000, 0x0802_0000)
+SLOT_NAMES = ("A", "B")
+SLOT_SIZE = 0x18000
+RUN_BASE = SLOT_BASES[0]  # protocol 1 and 2's run slot
 HEADER_SIZE = 0x200
-IMAGE_BASE = RUN_BASE + HEADER_SIZE  # where the application is linked
-IMAGE_MAX = 0x18000 - HEADER_SIZE  # the run slot: sectors 2-4
+IMAGE_BASE = RUN_BASE + HEADER_SIZE  # where slot A's image is linked
+IMAGE_MAX = SLOT_SIZE - HEADER_SIZE  # what a slot takes
+# The files a build makes for the two slots (firmware/ports/stm32/CMakeLists.txt).
+SLOT_FILES = ("asserv_stm32.elf", "asserv_stm32_b.elf")
 APP_INFO_OFFSET = 0x200
 APP_INFO_MAGIC = 0x4950_5041  # "APPI"
 HEADER_MAGIC = 0x544F_4F42  # "BOOT"
 CHUNK = 64  # the largest DATA chunk (BOOT_CHUNK_MAX)
 WINDOW = 16  # chunks sent between two STATUS reads (1 KiB)
-PROTO_VERSION = 2  # BOOT_PROTO_VERSION: 2 takes DATA while the download slot erases
+PROTO_VERSION = 3  # BOOT_PROTO_VERSION: 3 is A/B; 2 takes DATA while the download slot erases
 BUFFER = 0x6000  # BOOT_BUFFER_SIZE: bytes of the download the bootloader holds in RAM
 FRAME_MAX = 1 + 4 + CHUNK + 1  # BOOT_FRAME_MAX: designation, offset, chunk, PEC
 # The frames and replies on the bus (boot_proto.h), big-endian, PEC excluded; the simulated
@@ -53,7 +64,9 @@ FRAME_MAX = 1 + 4 + CHUNK + 1  # BOOT_FRAME_MAX: designation, offset, chunk, PEC
 BEGIN_FORMAT = ">BIIIH"  # BEGIN, length, CRC-32, version, board id
 DATA_FORMAT = ">BI"  # DATA, offset; the chunk follows
 STATUS_FORMAT = ">BBI"  # state, result, next offset
-INFO_FORMAT = ">2sBHBIIIIB"  # "BL", protocol, board, run valid, version, length, CRC, max, state
+INFO_FORMAT = ">2sBHBIIIIBB"  # "BL", protocol, board, run valid, version, length, CRC, max,
+# state, the download's slot (protocol 3; before, INFO_FORMAT_2: without it)
+INFO_FORMAT_2 = INFO_FORMAT[:-1]
 BOARD_IDS = {
     0xF446: "STM32F446 (Nucleo-F446RE)",
     0xF401: "STM32F401 (Nucleo-F401RE)",
@@ -102,6 +115,7 @@ class Result(IntEnum):
     BAD_VERSION = 12
     FLASH_ERROR = 13
     NO_APPLICATION = 14
+    WRONG_SLOT = 15
 
 
 class UpdateError(AsservError):
@@ -109,9 +123,16 @@ class UpdateError(AsservError):
     the message says what and what to do."""
 
 
+class WrongSlotError(UpdateError):
+    """The master was not given the image linked for the slot the board writes: nothing was
+    written. A usage error that only the board reveals: `asserv flash` exits 2."""
+
+    usage = True
+
+
 @dataclass(frozen=True)
 class Image:
-    """An application image: the bytes from IMAGE_BASE on, and its own record."""
+    """An application image: the bytes from its vector table on, and its own record."""
 
     data: bytes
     board_id: int
@@ -120,6 +141,19 @@ class Image:
     @property
     def crc32(self) -> int:
         return zlib.crc32(self.data) & 0xFFFF_FFFF
+
+    @property
+    def link(self) -> int:
+        """The address it is linked at, from its record (0 when the record has no link)."""
+        if len(self.data) < APP_INFO_OFFSET + 16:
+            return 0
+        return int(struct.unpack_from("<I", self.data, APP_INFO_OFFSET + 12)[0])
+
+    @property
+    def slot(self) -> int | None:
+        """0 (A) or 1 (B): the slot it is linked for; None for neither."""
+        bases = [b + HEADER_SIZE for b in SLOT_BASES]
+        return bases.index(self.link) if self.link in bases else None
 
 
 class BootStatus(NamedTuple):
@@ -138,12 +172,13 @@ class BootInfo:
     run_crc: int
     image_max: int
     state: State
+    dl_slot: int  # the slot BEGIN writes: its image is the one to send (A before protocol 3)
 
 
 def _elf_bytes(raw: bytes, name: str) -> bytes:
-    """The loadable bytes of a 32-bit little-endian ARM ELF from IMAGE_BASE on (their load
-    addresses: .data's initial values too), gaps filled with zeros as objcopy -O binary fills
-    them, so that the ELF and its .bin are the same image."""
+    """The loadable bytes of a 32-bit little-endian ARM ELF from its slot's image base on (their
+    load addresses: .data's initial values too), gaps filled with zeros as objcopy -O binary
+    fills them, so that the ELF and its .bin are the same image."""
     if raw[18:20] == b"\x53\x00":  # EM_AVR
         raise UpdateError(
             f"{name}: an AVR image; the ATmega1284P board has no bootloader: flash it with an"
@@ -163,14 +198,20 @@ def _elf_bytes(raw: bytes, name: str) -> bytes:
         )
         if p_type != 1 or p_filesz == 0:
             continue
-        if not IMAGE_BASE <= p_paddr < RUN_BASE + 0x18000:
-            raise UpdateError(
-                f"{name}: a segment at 0x{p_paddr:08x}, outside the run slot "
-                f"(0x{IMAGE_BASE:08x}..): not an application linked for the bootloader"
-            )
-        parts.append((p_paddr - IMAGE_BASE, raw[p_offset : p_offset + p_filesz]))
+        parts.append((p_paddr, raw[p_offset : p_offset + p_filesz]))
     if not parts:
         raise UpdateError(f"{name}: no loadable segment")
+    first = min(a for a, _ in parts)
+    base = next((b + HEADER_SIZE for b in SLOT_BASES if b <= first < b + SLOT_SIZE), None)
+    for a, _ in parts:
+        if base is None or not base <= a < base - HEADER_SIZE + SLOT_SIZE:
+            raise UpdateError(
+                f"{name}: a segment at 0x{a:08x}, outside the slots (A 0x{IMAGE_BASE:08x}.., B"
+                f" 0x{SLOT_BASES[1] + HEADER_SIZE:08x}..): not an application linked for the"
+                " bootloader"
+            )
+    assert base is not None
+    parts = [(a - base, d) for a, d in parts]
     end = max(off + len(d) for off, d in parts)
     out = bytearray(end)
     for off, d in parts:
@@ -211,8 +252,40 @@ def load_image(path: str | Path) -> Image:
     return Image(data, *record)
 
 
-def header(image: Image) -> bytes:
-    """The slot's header (boot_layout.h's struct boot_header), as the bootloader writes it."""
+def load_images(paths: list[str]) -> list[Image]:
+    """The images ``asserv flash`` is given: a build folder (its SLOT_FILES), or one or two
+    files (ELF or .bin), each linked for a slot, one a slot, the same board and version. Raises
+    UpdateError for anything else."""
+    if len(paths) == 1 and Path(paths[0]).is_dir():
+        folder = Path(paths[0])
+        missing = [f for f in SLOT_FILES if not (folder / f).is_file()]
+        if missing:
+            raise UpdateError(f"{folder}: no {' nor '.join(missing)} (a build folder has both)")
+        paths = [str(folder / f) for f in SLOT_FILES]
+    if not 1 <= len(paths) <= 2:
+        raise UpdateError(f"{len(paths)} files: give one or two (slot A's, slot B's) or a folder")
+    images = [load_image(p) for p in paths]
+    for p, im in zip(paths, images, strict=True):
+        if im.slot is None:
+            raise UpdateError(
+                f"{p}: its record gives no slot (link 0x{im.link:08x}): an image built before"
+                " the bootloader's two slots; build it again"
+            )
+    if len(images) == 2:
+        a, b = images
+        if a.slot == b.slot:
+            raise UpdateError(f"both files are linked for slot {SLOT_NAMES[a.slot or 0]}")
+        if (a.board_id, a.version, len(a.data)) != (b.board_id, b.version, len(b.data)):
+            raise UpdateError(
+                "the two files are not one build: "
+                + ", ".join(f"version {i.version} board 0x{i.board_id:04x}" for i in images)
+            )
+    return sorted(images, key=lambda i: i.slot or 0)
+
+
+def header(image: Image, sequence: int = 1) -> bytes:
+    """A slot's header (boot_layout.h's struct boot_header), as the bootloader writes it: the
+    link from the image's record, and ``sequence`` (one more than the slot that ran)."""
     body = struct.pack(
         "<7I",
         HEADER_MAGIC,
@@ -220,16 +293,17 @@ def header(image: Image) -> bytes:
         image.crc32,
         image.version,
         image.board_id,
-        0xFFFF_FFFF,
-        0xFFFF_FFFF,
+        image.link,
+        sequence & 0xFFFF_FFFF,
     )
     return body + struct.pack("<I", zlib.crc32(body) & 0xFFFF_FFFF)
 
 
-def slot_bytes(image: Image) -> bytes:
-    """The run slot as the bootloader leaves it (header, then the image): what a factory
-    flashes at 0x08008000 with an ST-LINK, beside the bootloader at 0x08000000."""
-    return header(image) + b"\xff" * (HEADER_SIZE - 32) + image.data
+def slot_bytes(image: Image, sequence: int = 1) -> bytes:
+    """The image's slot as the bootloader leaves it (header, then the image): what a factory
+    flashes with an ST-LINK at the slot's base (slot A: 0x08008000, flash.sh), beside the
+    bootloader at 0x08000000."""
+    return header(image, sequence) + b"\xff" * (HEADER_SIZE - 32) + image.data
 
 
 class Updater:
@@ -271,14 +345,27 @@ class Updater:
         answers at the address is not the bootloader (the application, say)."""
         self._write(bytes([CMD_INFO]))
         self._info_selected = True
-        raw = self._read(struct.calcsize(INFO_FORMAT))
-        if raw[:2] != b"BL":
+        # As long as protocol 3's reply; a bootloader of protocol 1 or 2 gives one byte less,
+        # then its PEC, then 0xFF.
+        n = struct.calcsize(INFO_FORMAT)
+        msg = i2c_msg.read(self.address, n + 1)
+        self.bus.i2c_rdwr(msg)
+        got = bytes(msg)
+        if got[:2] != b"BL":
             raise UpdateError(
                 f"the board at 0x{self.address:02x} is not in its bootloader (it answered "
-                f"{raw[:4].hex()}); enter it first (`asserv flash` does)"
+                f"{got[:4].hex()}); enter it first (`asserv flash` does)"
             )
-        _, ver, board, valid, rver, rlen, rcrc, imax, state = struct.unpack(INFO_FORMAT, raw)
-        return BootInfo(ver, board, bool(valid), rver, rlen, rcrc, imax, State(state))
+        if got[2] < 3:
+            n = struct.calcsize(INFO_FORMAT_2)
+        if crc8(bytes([self.address << 1 | 1]) + got[: n + 1]) != 0:
+            raise OSError(f"a reply from the bootloader failed its PEC: {got.hex()}")
+        if got[2] < 3:
+            fields = (*struct.unpack(INFO_FORMAT_2, got[:n]), 0)
+        else:
+            fields = struct.unpack(INFO_FORMAT, got[:n])
+        _, ver, board, valid, rver, rlen, rcrc, imax, state, dl = fields
+        return BootInfo(ver, board, bool(valid), rver, rlen, rcrc, imax, State(state), dl)
 
     def begin(self, image: Image) -> None:
         self._write(
@@ -336,6 +423,11 @@ class Updater:
         if len(image.data) > info.image_max:
             raise UpdateError(
                 f"the image is {len(image.data)} bytes; the board's slot takes {info.image_max}"
+            )
+        if image.slot != info.dl_slot:
+            raise WrongSlotError(
+                f"the board writes slot {SLOT_NAMES[info.dl_slot]}, the image is linked for "
+                + (f"slot {SLOT_NAMES[image.slot]}" if image.slot is not None else "no slot")
             )
         self._begin(image)
         total = len(image.data)
@@ -447,27 +539,29 @@ def _in_bootloader(board: Any) -> bool | None:
 
 
 def flash(
-    board: Any, image: Image, progress: Callable[[int, int], None] | None = None
+    board: Any,
+    images: Image | list[Image],
+    progress: Callable[[int, int], None] | None = None,
 ) -> list[str]:
     """As _flash, a bus that fails past the retries reported as an UpdateError."""
     try:
-        return _flash(board, image, progress)
+        return _flash(board, [images] if isinstance(images, Image) else images, progress)
     except OSError as e:
         raise UpdateError(f"the bus failed ({e}); " + AFTER_A_CUT) from None
 
 
 def _flash(
-    board: Any, image: Image, progress: Callable[[int, int], None] | None = None
+    board: Any, images: list[Image], progress: Callable[[int, int], None] | None = None
 ) -> list[str]:
     """``asserv flash``: the board (an asserv.Board on its bus) into its bootloader, the image
-    checked against it, downloaded, read back by the board, started; the lines to print.
-    Raises UpdateError (the board refused, or has no bootloader) and OSError (the bus)."""
+    linked for the slot it writes picked from ``images`` (one a slot, one build) and checked
+    against it, downloaded, read back by the board, started; the lines to print. Raises
+    WrongSlotError (not given that image: nothing written, the board started again), UpdateError
+    (the board refused, or has no bootloader) and OSError (the bus)."""
     from .driver import Board, OrderRejected
 
-    lines = [
-        f"image: {len(image.data)} bytes, version {image.version}, board 0x{image.board_id:04x}"
-        f" ({BOARD_IDS.get(image.board_id, 'unknown')}), CRC-32 0x{image.crc32:08x}"
-    ]
+    image = images[0]
+    lines: list[str] = []
     clock = clock_of(board.bus)
     u = Updater(board.bus, board.address)
     if _in_bootloader(board):
@@ -497,20 +591,53 @@ def _flash(
             f" the image is for 0x{image.board_id:04x}: nothing written; the board stays in its"
             " bootloader until it is reset or sent `asserv flash` with its own image"
         )
+    by_slot = {im.slot: im for im in images}
+    run_slot = info.dl_slot ^ 1 if info.proto_version >= 3 else info.dl_slot
+    where = f" from slot {SLOT_NAMES[run_slot]}" if info.proto_version >= 3 else ""
     lines.append(
         f"board 0x{info.board_id:04x}: runs "
-        + (f"version {info.run_version} ({info.run_length} bytes)" if info.run_valid else "nothing")
+        + (
+            f"version {info.run_version} ({info.run_length} bytes){where}"
+            if info.run_valid
+            else "nothing"
+        )
     )
-    if info.run_valid and (info.run_crc, info.run_version) == (image.crc32, image.version):
+    same = by_slot.get(run_slot)
+    if (
+        info.run_valid
+        and same is not None
+        and (info.run_crc, info.run_version) == (same.crc32, same.version)
+    ):
+        image = same
         lines.append("the board has this image already: started again, nothing written")
+    elif info.dl_slot not in by_slot:
+        u._retry(u.start)  # back to the application it runs (or to the bootloader, if none)
+        for _ in range(20):  # its start-up: the image's CRC, 40 ms
+            clock.sleep(0.02)
+            if _in_bootloader(board) is False:
+                break
+        name = SLOT_NAMES[info.dl_slot]
+        raise WrongSlotError(
+            f"the board writes slot {name}, and no image linked for slot {name} was given"
+            f" ({SLOT_FILES[info.dl_slot]}): give both files or the build folder; nothing"
+            " written, the board runs what it ran"
+        )
     else:
+        image = by_slot[info.dl_slot]
         st = u.update(image, progress)
         lines.append(
             f"verified: the board read the {st.next} bytes back, CRC-32 0x{image.crc32:08x},"
             " and wrote their header"
         )
+    lines.insert(
+        0,
+        f"image: {len(image.data)} bytes, version {image.version}, board 0x{image.board_id:04x}"
+        f" ({BOARD_IDS.get(image.board_id, 'unknown')}), CRC-32 0x{image.crc32:08x}"
+        + (f", linked for slot {SLOT_NAMES[image.slot]}" if image.slot is not None else ""),
+    )
     u._retry(u.start)
-    # The bootloader copies the download into the run slot (up to 3 s), then starts it.
+    # The bootloader starts the newest slot (a bootloader of protocol 1 or 2 copies the download
+    # into its run slot first, up to 3 s).
     t_end = clock.monotonic() + 8.0
     while True:
         clock.sleep(0.1)

@@ -1,7 +1,8 @@
 /* The bootloader of the STM32F446 asserv board (docs/update.md): in flash sector 0, it starts the
- * application of the run slot when its header and CRC are right, copies a checked update from
- * the download slot first, and otherwise (no valid application, or the application asked for
- * it) serves the update protocol as an I2C slave at address 2.
+ * application of the newest of its two slots (A/B) whose header and CRC are right, the other one
+ * when the newest fails them, and otherwise (no valid application, or the application asked for
+ * it) serves the update protocol as an I2C slave at address 2, writing the update into the slot
+ * that does not run: each slot's image is linked to run where it is, so nothing is copied.
  *
  * Everything but the reset handler runs from RAM (the vector table too): while the flash erases
  * or programs, a fetch from it would stall the CPU (RM0390 3.5), and the bus would wait for the
@@ -74,19 +75,25 @@ static uint32_t crc32_update(uint32_t crc, const uint8_t *p, uint32_t n)
 	return ~crc;
 }
 
-/* ---- Slots ---- */
+/* ---- Slots: 0 is A, 1 is B ---- */
+static uint32_t slot_base(uint32_t slot)
+{
+	return slot ? BOOT_SLOT_B_BASE : BOOT_SLOT_A_BASE;
+}
+
 static const struct boot_header *header_at(uint32_t slot)
 {
-	return (const struct boot_header *)(uintptr_t)slot;
+	return (const struct boot_header *)(uintptr_t)slot_base(slot);
 }
 
 static const uint8_t *image_at(uint32_t slot)
 {
-	return (const uint8_t *)(uintptr_t)(slot + BOOT_HEADER_SIZE);
+	return (const uint8_t *)(uintptr_t)(slot_base(slot) + BOOT_HEADER_SIZE);
 }
 
-/* 1 when the slot's header is whole and its image's CRC right. */
-static int slot_valid(uint32_t slot)
+/* 1 when the slot's header is whole, this board's, and says the image is linked for this slot
+ * (END wrote it so only after the image's own record said so). */
+static int header_valid(uint32_t slot)
 {
 	const struct boot_header *h = header_at(slot);
 
@@ -94,27 +101,39 @@ static int slot_valid(uint32_t slot)
 	    crc32_update(0, (const uint8_t *)h, offsetof(struct boot_header, header_crc)) !=
 		    h->header_crc)
 		return 0;
-	if (h->length == 0 || h->length > BOOT_IMAGE_MAX || h->length % 4u != 0 ||
-	    (h->board_id & 0xFFFFu) != BOOT_BOARD_ID)
-		return 0;
-	return crc32_update(0, image_at(slot), h->length) == h->crc32;
+	return h->length != 0 && h->length <= BOOT_IMAGE_MAX && h->length % 4u == 0 &&
+	       (h->board_id & 0xFFFFu) == BOOT_BOARD_ID &&
+	       h->link == slot_base(slot) + BOOT_HEADER_SIZE;
 }
 
-static int same_header(void)
+/* 1 when the slot's header is valid and its image's CRC right. */
+static int slot_valid(uint32_t slot)
 {
-	const uint32_t *a = (const uint32_t *)(uintptr_t)BOOT_RUN_BASE;
-	const uint32_t *b = (const uint32_t *)(uintptr_t)BOOT_STAGE_BASE;
+	return header_valid(slot) &&
+	       crc32_update(0, image_at(slot), header_at(slot)->length) == header_at(slot)->crc32;
+}
 
-	for (uint32_t i = 0; i < BOOT_HEADER_WORDS; i++)
-		if (a[i] != b[i])
-			return 0;
-	return 1;
+/* The slot to start: the newest valid one (its sequence, in serial-number order, so that it may
+ * wrap), else the other if it is valid; BOOT_SLOTS if neither is. The newest's CRC first: the
+ * other's is computed only when the newest fails (38 ms for 56 KiB at 16 MHz). */
+static uint32_t slot_to_start(void)
+{
+	uint32_t first = 0;
+
+	if (header_valid(1) &&
+	    (!header_valid(0) || (int32_t)(header_at(1)->sequence - header_at(0)->sequence) > 0))
+		first = 1;
+	if (slot_valid(first))
+		return first;
+	if (slot_valid(first ^ 1u))
+		return first ^ 1u;
+	return BOOT_SLOTS;
 }
 
 /* The application's stack pointer and reset handler, from its vector table (PM0214 2.3.4). */
-__attribute__((noreturn)) static void start_application(void)
+__attribute__((noreturn)) static void start_application(uint32_t slot)
 {
-	const uint32_t *vectors = (const uint32_t *)(uintptr_t)(BOOT_RUN_BASE + BOOT_HEADER_SIZE);
+	const uint32_t *vectors = (const uint32_t *)(uintptr_t)(slot_base(slot) + BOOT_HEADER_SIZE);
 
 	__asm__ volatile("msr msp, %0\n\tbx %1\n" ::"r"(vectors[0]), "r"(vectors[1] | 1u));
 	__builtin_unreachable();
@@ -214,7 +233,7 @@ static void download_failed(void)
 /* A held word, at the flash, read back: it must be what RAM holds. */
 static void held_word_done(int err)
 {
-	const uint8_t *at = image_at(BOOT_STAGE_BASE) + held_from;
+	const uint8_t *at = image_at(boot.dl_slot) + held_from;
 
 	if (err || word_of(at) != word_of(held + held_from % BOOT_BUFFER_SIZE))
 		download_failed();
@@ -275,7 +294,7 @@ static int op_start(void)
 			held_word_done(0);
 			return 1;
 		}
-		flash_program_start(BOOT_STAGE_BASE + BOOT_HEADER_SIZE + held_from, w);
+		flash_program_start(slot_base(boot.dl_slot) + BOOT_HEADER_SIZE + held_from, w);
 		job.op = 1;
 		job.held = 1;
 	}
@@ -290,6 +309,7 @@ static uint32_t be32(const uint8_t *p)
 	return (uint32_t)p[0] << 24 | (uint32_t)p[1] << 16 | (uint32_t)p[2] << 8 | p[3];
 }
 
+/* The download's header: newer than the slot that runs, so that the next start-up starts it. */
 static void make_header(uint32_t *w, uint32_t length, uint32_t crc, uint32_t version)
 {
 	struct boot_header h;
@@ -299,8 +319,8 @@ static void make_header(uint32_t *w, uint32_t length, uint32_t crc, uint32_t ver
 	h.crc32 = crc;
 	h.version = version;
 	h.board_id = BOOT_BOARD_ID;
-	h.reserved[0] = 0xFFFFFFFFu;
-	h.reserved[1] = 0xFFFFFFFFu;
+	h.link = slot_base(boot.dl_slot) + BOOT_HEADER_SIZE;
+	h.sequence = boot.run_valid ? boot.run_sequence + 1u : 1u;
 	h.header_crc =
 		crc32_update(0, (const uint8_t *)&h, offsetof(struct boot_header, header_crc));
 	__builtin_memcpy(w, &h, sizeof(h));
@@ -324,8 +344,21 @@ static void cmd_begin(const uint8_t *a)
 	boot.version = version;
 	boot.next = 0;
 	held_from = 0;
-	job.sectors[0] = BOOT_STAGE_SECTOR;
-	job.n_sectors = 1;
+	/* The download's slot, its header's sector first: from then on it is not valid. Slot A's
+	 * sectors 3 and 4 only when the image reaches them. */
+	if (boot.dl_slot) {
+		job.sectors[0] = 5u;
+		job.n_sectors = 1;
+	} else {
+		uint32_t end = BOOT_SLOT_A_BASE + BOOT_HEADER_SIZE + length;
+
+		job.sectors[0] = 2u;
+		job.n_sectors = 1;
+		if (end > 0x0800C000u)
+			job.sectors[job.n_sectors++] = 3u;
+		if (end > 0x08010000u)
+			job.sectors[job.n_sectors++] = 4u;
+	}
 	job.n_words = 0;
 	job.err = 0;
 	set_state(BOOT_S_ERASING, BOOT_R_OK);
@@ -342,7 +375,7 @@ static int same_begin(const uint8_t *a)
  * runs when this is called: the main loop takes no frame while a held word programs). */
 static uint8_t received(uint32_t off)
 {
-	return off < held_from ? image_at(BOOT_STAGE_BASE)[off] : held[off % BOOT_BUFFER_SIZE];
+	return off < held_from ? image_at(boot.dl_slot)[off] : held[off % BOOT_BUFFER_SIZE];
 }
 
 static void cmd_data(const uint8_t *a, uint32_t n)
@@ -389,10 +422,10 @@ static void cmd_data(const uint8_t *a, uint32_t n)
 	__asm__ volatile("cpsie i" ::: "memory");
 }
 
-/* The image read back: its CRC, and its own record of board and version. */
+/* The image read back: its CRC, and its own record of board, version and link. */
 static uint8_t check_stage(void)
 {
-	const uint8_t *img = image_at(BOOT_STAGE_BASE);
+	const uint8_t *img = image_at(boot.dl_slot);
 	const struct boot_app_info *info;
 
 	if (boot.next != boot.length)
@@ -406,6 +439,8 @@ static uint8_t check_stage(void)
 		return BOOT_R_WRONG_BOARD;
 	if (info->version != boot.version)
 		return BOOT_R_BAD_VERSION;
+	if (info->link != slot_base(boot.dl_slot) + BOOT_HEADER_SIZE)
+		return BOOT_R_WRONG_SLOT; /* it would run at the other slot's addresses */
 	return BOOT_R_OK;
 }
 
@@ -433,7 +468,7 @@ static void end_check(void)
 		return;
 	}
 	make_header(hdr_words, boot.length, boot.crc, boot.version);
-	job.dst = BOOT_STAGE_BASE;
+	job.dst = slot_base(boot.dl_slot);
 	job.src = (const uint8_t *)hdr_words;
 	job.n_words = BOOT_HEADER_WORDS;
 	job.err = 0;
@@ -479,8 +514,8 @@ static void run_command(const uint8_t *f, uint8_t n)
 		cmd_end();
 		break;
 	case BOOT_CMD_START:
-		if (boot.state == BOOT_S_READY || slot_valid(BOOT_RUN_BASE))
-			system_reset(); /* the start-up copies a newer download, then starts it */
+		if (boot.state == BOOT_S_READY || boot.run_valid)
+			system_reset(); /* the start-up starts the newest valid slot */
 		set_state(boot.state, BOOT_R_NO_APPLICATION);
 		break;
 	default:
@@ -501,50 +536,12 @@ static void job_done(void)
 			set_state(BOOT_S_RECEIVING, boot.result);
 		break;
 	case BOOT_S_WRITING_HEADER:
-		set_state(job.err || !slot_valid(BOOT_STAGE_BASE) ? BOOT_S_IDLE : BOOT_S_READY,
+		set_state(job.err || !slot_valid(boot.dl_slot) ? BOOT_S_IDLE : BOOT_S_READY,
 			  job.err ? BOOT_R_FLASH_ERROR : BOOT_R_OK);
-		break;
-	case BOOT_S_COPYING:
-		/* The copy read back, then its header, last (the download's, word for word). */
-		if (!job.err && boot.copy_stage == 0) {
-			const struct boot_header *h = header_at(BOOT_STAGE_BASE);
-
-			if (crc32_update(0, image_at(BOOT_RUN_BASE), h->length) == h->crc32) {
-				job.dst = BOOT_RUN_BASE;
-				job.src = (const uint8_t *)(uintptr_t)BOOT_STAGE_BASE;
-				job.n_words = BOOT_HEADER_WORDS;
-				boot.copy_stage = 1;
-				break;
-			}
-			job.err = 1;
-		}
-		system_reset(); /* copied (the next start-up starts it), or tried again */
 		break;
 	default:
 		break;
 	}
-}
-
-/* The copy of a checked download into the run slot: the run slot's sectors erased (the header's
- * sector first: a cut from then on leaves the run slot invalid, and the start-up copies again),
- * the image programmed, read back, and the header last. */
-static void copy_start(void)
-{
-	const struct boot_header *h = header_at(BOOT_STAGE_BASE);
-	uint32_t end = BOOT_RUN_BASE + BOOT_HEADER_SIZE + h->length;
-
-	job.sectors[0] = 2u;
-	job.n_sectors = 1;
-	if (end > 0x0800C000u)
-		job.sectors[job.n_sectors++] = 3u;
-	if (end > 0x08010000u)
-		job.sectors[job.n_sectors++] = 4u;
-	job.dst = BOOT_RUN_BASE + BOOT_HEADER_SIZE;
-	job.src = image_at(BOOT_STAGE_BASE);
-	job.n_words = h->length / 4u;
-	job.err = 0;
-	boot.copy_stage = 0;
-	set_state(BOOT_S_COPYING, BOOT_R_OK);
 }
 
 static void watchdog_start(void)
@@ -576,16 +573,15 @@ void boot_main(void)
 {
 	volatile uint32_t *request = (volatile uint32_t *)(uintptr_t)BOOT_REQUEST_ADDR;
 	int asked = request[0] == BOOT_REQUEST_MAGIC && request[1] == ~BOOT_REQUEST_MAGIC;
-	int run_ok, stage_ok;
+	uint32_t run;
 
 	request[0] = 0;
 	request[1] = 0;
 	watchdog_start();
 	crc_init();
-	run_ok = slot_valid(BOOT_RUN_BASE);
-	stage_ok = !(run_ok && same_header()) && slot_valid(BOOT_STAGE_BASE);
-	if (run_ok && !stage_ok && !asked)
-		start_application();
+	run = slot_to_start();
+	if (run < BOOT_SLOTS && !asked)
+		start_application(run);
 
 	for (uint32_t i = 0; i < 128u; i++)
 		ram_vectors[i] = unused_handler;
@@ -597,15 +593,18 @@ void boot_main(void)
 
 	boot.state = BOOT_S_IDLE;
 	boot.result = BOOT_R_OK;
-	boot.run_valid = (uint8_t)run_ok;
-	if (run_ok) {
+	boot.run_valid = run < BOOT_SLOTS;
+	/* The download goes into the slot that does not run (slot A when none does): what runs
+	 * stays whole until the next start-up finds the download's header. */
+	boot.run_slot = (uint8_t)(run < BOOT_SLOTS ? run : 1u);
+	boot.dl_slot = boot.run_slot ^ 1u;
+	if (boot.run_valid) {
 		/* Kept in RAM: the I2C interrupt must not read the flash while it erases. */
-		boot.run_version = header_at(BOOT_RUN_BASE)->version;
-		boot.run_length = header_at(BOOT_RUN_BASE)->length;
-		boot.run_crc = header_at(BOOT_RUN_BASE)->crc32;
+		boot.run_version = header_at(run)->version;
+		boot.run_length = header_at(run)->length;
+		boot.run_crc = header_at(run)->crc32;
+		boot.run_sequence = header_at(run)->sequence;
 	}
-	if (stage_ok)
-		copy_start(); /* a checked download newer than what runs, or nothing runs */
 	boot_i2c_init();
 	NVIC_IPR_BYTE(IRQ_FLASH) = 0x80u;
 	NVIC_ISER(IRQ_FLASH / 32u) = 1u << (IRQ_FLASH % 32u);
@@ -634,8 +633,7 @@ void boot_main(void)
 				end_check();
 				again = 1;
 			} else if (boot.state == BOOT_S_ERASING ||
-				   boot.state == BOOT_S_WRITING_HEADER ||
-				   boot.state == BOOT_S_COPYING) {
+				   boot.state == BOOT_S_WRITING_HEADER) {
 				job_done();
 				again = 1;
 			}

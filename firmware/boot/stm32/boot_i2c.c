@@ -95,6 +95,7 @@ static void build_reply(void)
 		put32(reply + 14, boot.run_crc);
 		put32(reply + 18, BOOT_IMAGE_MAX);
 		reply[22] = state;
+		reply[23] = boot.dl_slot;
 		reply_len = BOOT_INFO_LEN;
 	} else {
 		reply[0] = state;

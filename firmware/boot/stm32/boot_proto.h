@@ -8,16 +8,19 @@
 
 #include <stdint.h>
 
-/* 2: DATA is taken while the download slot erases (held in RAM, programmed after); 1 refused it
- * (BUSY) until the erase was over, and was busy (PROGRAMMING) while a chunk programmed. */
-#define BOOT_PROTO_VERSION 2u
+/* 3: two slots, each run in place (A/B): the download goes into the slot that does not run, which
+ * INFO names, and START copies nothing. 2: DATA is taken while the download slot erases (held
+ * in RAM, programmed after), and START copied the download into the run slot (slot A). 1
+ * refused DATA (BUSY) until the erase was over, and was busy (PROGRAMMING) while a chunk
+ * programmed. */
+#define BOOT_PROTO_VERSION 3u
 
 /* Writes: designation, parameters, PEC. */
 #define BOOT_CMD_INFO 0xB0u   /* select the INFO reply; no parameter */
 #define BOOT_CMD_BEGIN 0xB1u  /* length u32, crc32 u32, version u32, board id u16 */
 #define BOOT_CMD_DATA 0xB2u   /* offset u32, 4..64 bytes (a multiple of 4) */
 #define BOOT_CMD_END 0xB3u    /* no parameter: read back, check, header written last */
-#define BOOT_CMD_START 0xB4u  /* no parameter: reset, copy a newer download, start it */
+#define BOOT_CMD_START 0xB4u  /* no parameter: reset, which starts the newest valid slot */
 #define BOOT_CMD_STATUS 0xB5u /* select the STATUS reply (the default); no parameter */
 #define BOOT_LEN_BEGIN 15u    /* designation and parameters, PEC excluded */
 #define BOOT_CHUNK_MAX 64u
@@ -26,10 +29,11 @@
  * while the download slot erases (a multiple of 4: a word never wraps). */
 #define BOOT_BUFFER_SIZE 0x6000u
 /* Replies, PEC excluded. STATUS: state, result, next offset u32 (bytes of the download received,
- * from its start: held in RAM or programmed). INFO: 'B' 'L', protocol version, board id u16, run
- * slot valid, its version u32, length u32, crc32 u32, the largest image u32, state. */
+ * from its start: held in RAM or programmed). INFO: 'B' 'L', protocol version, board id u16, a
+ * valid slot runs, its version u32, length u32, crc32 u32, the largest image u32, state, then
+ * (protocol 3) the download's slot: 0 A, 1 B, whose link the image must have. */
 #define BOOT_STATUS_LEN 6u
-#define BOOT_INFO_LEN 23u
+#define BOOT_INFO_LEN 24u
 
 enum boot_s {
 	BOOT_S_IDLE,           /* no download begun (or the last one failed: begin again) */
@@ -39,7 +43,7 @@ enum boot_s {
 	BOOT_S_CHECKING,       /* busy: the rest programmed, the download read back (END) */
 	BOOT_S_WRITING_HEADER, /* busy: its header being programmed */
 	BOOT_S_READY,          /* the download is whole, checked and its header written: START */
-	BOOT_S_COPYING,        /* busy: the download being copied into the run slot (start-up) */
+	BOOT_S_COPYING,        /* busy: the download copied into the run slot (protocol 1, 2) */
 	BOOT_S_QUEUED,         /* busy: a write taken, not yet handled (reported, never stored) */
 };
 
@@ -56,7 +60,7 @@ enum boot_r {
 	BOOT_R_UNKNOWN,        /* no such designation */
 	BOOT_R_BUSY,           /* not over, or DATA with no room in RAM: poll, send again */
 	BOOT_R_WRONG_BOARD,    /* the image is for another board (BEGIN, or its own record) */
-	BOOT_R_TOO_LARGE,      /* longer than the run slot, empty, or not a multiple of 4 */
+	BOOT_R_TOO_LARGE,      /* longer than a slot, empty, or not a multiple of 4 */
 	BOOT_R_NOT_BEGUN,      /* DATA or END without a BEGIN */
 	BOOT_R_BAD_OFFSET,     /* a chunk past the next offset, misaligned, or past the length */
 	BOOT_R_MISMATCH,       /* a chunk sent again differs from what was programmed */
@@ -65,16 +69,18 @@ enum boot_r {
 	BOOT_R_BAD_VERSION,    /* END: the image's own version is not BEGIN's */
 	BOOT_R_FLASH_ERROR,    /* a word did not program, or an erase failed: begin again */
 	BOOT_R_NO_APPLICATION, /* START with no valid application to start */
+	BOOT_R_WRONG_SLOT,     /* END: the image is linked for the other slot */
 };
 
 /* What the main loop (boot.c) and the I2C interrupt (boot_i2c.c) share. */
 struct boot_state {
-	volatile uint8_t state;  /* enum boot_s */
-	volatile uint8_t result; /* enum boot_r, of the last write */
-	volatile uint32_t next;  /* STATUS's next offset */
-	uint8_t run_valid;
+	volatile uint8_t state;                    /* enum boot_s */
+	volatile uint8_t result;                   /* enum boot_r, of the last write */
+	volatile uint32_t next;                    /* STATUS's next offset */
+	uint8_t run_valid;                         /* a valid slot runs: run_slot */
+	uint8_t run_slot, dl_slot;                 /* 0 A, 1 B: the download goes into dl_slot */
 	uint32_t run_version, run_length, run_crc; /* the run slot's header, read at start */
-	uint8_t copy_stage;
+	uint32_t run_sequence;
 	uint32_t length, crc, version; /* the download (BEGIN) */
 	uint8_t frame[BOOT_FRAME_MAX]; /* the frame the main loop handles */
 };
