@@ -1,6 +1,8 @@
 /* The calibration kept in the port's storage (see port_nvm.h). */
 #include "port_nvm.h"
 
+#include <stddef.h>
+
 #include "calib_log.h"
 #include "hal.h"
 
@@ -12,8 +14,9 @@ static uint16_t slot_offset(uint8_t slot)
 }
 
 /* calib_log.h's reader: slot i of area i (each area one slot), copied into buf. */
-static const uint8_t *read_slot(uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
+static const uint8_t *read_slot(void *ctx, uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
 {
+	(void)ctx; /* the one storage of hal_nvm.h */
 	(void)i;
 	if (hal_nvm_size() < slot_offset(PORT_NVM_SLOTS) ||
 	    hal_nvm_read(slot_offset(area), buf, CALIB_STORE_SIZE) != 0)
@@ -28,8 +31,8 @@ int port_nvm_load(struct port_nvm *s, struct board *b)
 
 	s->have = 0;
 	s->pos = PORT_NVM_STEPS;
-	calib_log_scan(read_slot, 0, 1, &l[0]);
-	calib_log_scan(read_slot, 1, 1, &l[1]);
+	calib_log_scan(read_slot, NULL, 0, 1, &l[0]);
+	calib_log_scan(read_slot, NULL, 1, 1, &l[1]);
 	if (l[0].found || l[1].found) {
 		s->slot = calib_log_pick(l);
 		s->gen = l[s->slot].gen;

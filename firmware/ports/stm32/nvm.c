@@ -112,9 +112,10 @@ static uint32_t rec_word(const struct stm32_nvm *s, uint8_t k)
 	return w;
 }
 
-/* calib_log.h's reader: the slot itself, in the flash's address space. */
-static const uint8_t *read_slot(uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
+/* calib_log.h's reader: the slot itself, in the flash's address space (one flash: no ctx). */
+static const uint8_t *read_slot(void *ctx, uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
 {
+	(void)ctx;
 	(void)buf;
 	return slot_at(area, i);
 }
@@ -150,8 +151,8 @@ int stm32_nvm_load(struct stm32_nvm *s, struct board *b)
 
 	memset(s, 0, sizeof(*s));
 	s->word = SLOT_WORDS;
-	calib_log_scan(read_slot, 0, STM32_NVM_SLOTS, &l[0]);
-	calib_log_scan(read_slot, 1, STM32_NVM_SLOTS, &l[1]);
+	calib_log_scan(read_slot, NULL, 0, STM32_NVM_SLOTS, &l[0]);
+	calib_log_scan(read_slot, NULL, 1, STM32_NVM_SLOTS, &l[1]);
 	s->area = calib_log_pick(l); /* the newer generation's log, or the emptier */
 	s->gen = l[s->area].gen;
 	s->next = l[s->area].next;
