@@ -1,7 +1,7 @@
-/* Which of a port's kept records is the calibration: the A/B rule both ports follow
- * (docs/calibration.md, "Never lost"). A port keeps calib_store.h's records in two areas of
- * slots, the AVR's EEPROM two areas of one slot (port_nvm.c), the STM32's flash two logs of
- * 1024 (ports/stm32/nvm.c); the newest valid record is the one of the newer generation
+/* Which of a port's kept records is the calibration: the A/B rule both implementations of
+ * hal_nvm.h follow (docs/calibration.md, "Never lost"). They keep calib_store.h's records in
+ * two areas of slots, byte storage two areas of one slot (nvm_bytes.c), the STM32's flash two
+ * logs of 1024 (ports/stm32/nvm.c); the newest valid record is the one of the newer generation
  * (calib_store_newer()), the last valid slot of its area. Pure functions over a reader: no HAL,
  * no state. */
 #ifndef ASSERV_CALIB_LOG_H
