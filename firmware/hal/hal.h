@@ -5,7 +5,7 @@
  * struct board_inputs, calls board_tick() (core/board.h), and applies struct board_outputs.
  * Keeping the core a pure function of its inputs lets one process run many simulated boards and
  * lets the tests feed it any sequence. Sides are HAL_LEFT and HAL_RIGHT. The storage (hal_nvm.h)
- * is the common port layer's (ports/common/port_nvm.h), from the main loop only.
+ * is at the level of the calibration's record, called by the port's main loop only.
  */
 #ifndef ASSERV_HAL_H
 #define ASSERV_HAL_H

@@ -30,8 +30,9 @@ static uint64_t rng_next(void)
 	return rng_state;
 }
 
-static const uint8_t *read_flash(uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
+static const uint8_t *read_flash(void *ctx, uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
 {
+	(void)ctx;
 	(void)buf;
 	return &flash[area][i * CALIB_STORE_SIZE];
 }
@@ -54,8 +55,8 @@ struct writer {
 
 static void restart(struct writer *w, struct calib_log_area l[CALIB_LOG_AREAS])
 {
-	calib_log_scan(read_flash, 0, SLOTS, &l[0]);
-	calib_log_scan(read_flash, 1, SLOTS, &l[1]);
+	calib_log_scan(read_flash, NULL, 0, SLOTS, &l[0]);
+	calib_log_scan(read_flash, NULL, 1, SLOTS, &l[1]);
 	w->area = calib_log_pick(l);
 	w->gen = l[w->area].gen;
 	w->next = l[w->area].next;

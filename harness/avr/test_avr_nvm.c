@@ -147,7 +147,7 @@ static void test_calibration_survives_power_cycle(void **state)
 	assert_factors_equal(installed, host_factors(&host));
 	assert_true(installed.left != nominal.left && installed.track != nominal.track);
 	assert_int_equal(avrsim_eeprom_read(h, 0, ee, sizeof(ee)), 0);
-	assert_memory_equal(ee, host.nvm, sizeof(ee));
+	assert_memory_equal(ee, host.storage.mem, sizeof(ee));
 	assert_int_equal(calib_store_decode(ee, &c), 0);
 	assert_int_equal(c.ratio_ppm, cal.ratio_ppm);
 	assert_int_equal(c.scale_ppm, cal.scale_ppm);
@@ -170,7 +170,7 @@ static void test_calibration_survives_power_cycle(void **state)
 	assert_factors_equal(avr_factors(h), host_factors(&host));
 	/* Nothing written again: the record is the one loaded. */
 	assert_int_equal(avrsim_eeprom_read(h, 0, ee, sizeof(ee)), 0);
-	assert_memory_equal(ee, host.nvm, sizeof(ee));
+	assert_memory_equal(ee, host.storage.mem, sizeof(ee));
 	avrsim_close(h);
 }
 
@@ -247,7 +247,7 @@ static struct avrsim *cut_after(struct avrsim *h, unsigned ticks, uint64_t cycle
  * found first, then the cycles of that tick, coarse then by 10 cycles across the write. The
  * board comes back with the older calibration until the record is whole, the new one once it
  * is (simavr writes an EEPROM byte at once: the cut of a byte half written is the host test's,
- * firmware/tests/test_port_nvm.c). */
+ * firmware/tests/test_nvm_bytes.c). */
 static void test_power_cut_during_the_write(void **state)
 {
 	struct avrsim *h = avrsim_open(elf_path, 100000);
@@ -295,7 +295,7 @@ static void test_power_cut_during_the_write(void **state)
  * going on: a reset between two of the firmware's byte writes is, on the chip, one during the
  * last of them. After a watchdog reset the chip finishes that byte (the datasheet's 8.3.1: a
  * reset during a write completes it, the supply sufficient); a brown-out may leave it anything
- * (hal_nvm.h), and the test tears it so, drawn at random. */
+ * (nvm_bytes.h), and the test tears it so, drawn at random. */
 
 #define RESET_CASES 10
 

@@ -19,7 +19,7 @@ SOURCES = [
     *sorted(CORE.glob("*.c")),
     *(SIM / n for n in ("config.c", "field.c", "rng.c", "robot.c")),
     PORTS / "common" / "port.c",
-    PORTS / "common" / "port_nvm.c",
+    PORTS / "common" / "nvm_bytes.c",
     PORTS / "common" / "calib_store.c",
     PORTS / "common" / "calib_log.c",
     PORTS / "host" / "host.c",
@@ -413,13 +413,16 @@ struct board {
 };
 
 #define HOST_NVM_SIZE ...
+struct nvm_bytes_dev {
+    uint8_t mem[...];
+};
 struct host {
     struct sim sim;
     struct board board;
     uint64_t tick_ns;
     uint64_t ticks;
     uint64_t now_ns;
-    uint8_t nvm[...];
+    struct nvm_bytes_dev storage;
     ...;
 };
 

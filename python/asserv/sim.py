@@ -425,7 +425,7 @@ class Simulator:
     def nvm(self) -> bytes:
         """The board's storage (``NVM_SIZE`` bytes, 0xFF where erased): give it to a new
         ``Simulator(nvm=...)`` to power on a board that kept its calibration."""
-        return bytes(ffi.buffer(self._h.nvm))
+        return bytes(ffi.buffer(self._h.storage.mem))
 
     @property
     def calibration(self) -> Calibration | None:

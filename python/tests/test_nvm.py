@@ -1,8 +1,9 @@
-"""The odometry calibration kept in the simulated board's storage (firmware/ports/common/port_nvm.h,
-the host port's 64 bytes, two record slots): SET_ODOMETRIE, a power cycle or a new Simulator
-given the storage, and the calibration is back, with its factors and its error radius bounds; a
-blank or corrupt storage leaves the board uncalibrated and running; each new calibration goes
-into the slot that does not hold the newest."""
+"""The odometry calibration kept in the simulated board's storage (hal_nvm.h as
+firmware/ports/common/nvm_bytes.h does it, the host port's 64 bytes, two record slots):
+SET_ODOMETRIE, a power cycle or a new Simulator given the storage, and the calibration is back,
+with its factors and its error radius bounds; a blank or corrupt storage leaves the board
+uncalibrated and running; each new calibration goes into the slot that does not hold the
+newest."""
 
 import pytest
 from hypothesis import HealthCheck, given, settings

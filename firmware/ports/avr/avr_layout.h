@@ -54,7 +54,7 @@ struct avr_layout {
 	uint16_t snap_radius_mm;
 	uint16_t snap_status;
 	uint16_t snap_sensors;
-	/* The odometry's configuration and the calibration installed (ports/common/port_nvm.h). */
+	/* The odometry's configuration and the calibration installed (hal_nvm.h). */
 	uint16_t odo_left_factor;  /* uint32, odometry.cfg.left_um_per_count_q16 */
 	uint16_t odo_right_factor; /* uint32, odometry.cfg.right_um_per_count_q16 */
 	uint16_t odo_track;        /* uint32, odometry.cfg.track_um */

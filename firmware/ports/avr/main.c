@@ -1,15 +1,17 @@
 /* The asserv board on an ATmega1284P at 16 MHz: start-up, then the main loop, which runs the
  * whole control tick (one rate) or the slow steps (two rates; tick.c explains both). Pin map:
  * pinmap.h; build, fuses and flashing: docs/avr.md. */
+#include <stddef.h>
+
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <avr/wdt.h>
 
 #include "avr_port.h"
 #include "hal.h"
+#include "nvm_bytes.h"
 #include "pinmap.h"
 #include "port.h"
-#include "port_nvm.h"
 
 /* Not cleared by the start-up (avr-libc's .noinit): what a reset keeps (keep.h) is in it. */
 struct board asserv_board __attribute__((section(".noinit")));
@@ -17,8 +19,9 @@ struct board asserv_board __attribute__((section(".noinit")));
 /* MCUSR as the reset left it, saved before the start-up (which would clear a .bss variable). */
 static uint8_t avr_mcusr __attribute__((section(".noinit")));
 
-/* The calibration's record in the EEPROM (nvm.c): loaded at start, written by the main loop. */
-static struct port_nvm avr_nvm;
+/* The calibration's records in the EEPROM (hal_nvm.h over nvm.c's bytes): loaded at start,
+ * written by the main loop. */
+static struct hal_nvm avr_nvm;
 
 /* Periods the tick missed because the previous one ran over (a debugger reads it): counted by
  * the main loop (one rate) or by the timer's interrupt (two rates, tick_isr.S). */
@@ -58,7 +61,8 @@ int main(void)
 			;
 	}
 	/* A blank or corrupt record leaves the board uncalibrated: it runs all the same. */
-	port_nvm_load(&avr_nvm, &asserv_board);
+	nvm_bytes_init(&avr_nvm, NULL); /* the one EEPROM (nvm.c) */
+	hal_nvm_load(&avr_nvm, &asserv_board);
 	hal_i2c_slave_init(PROTO_ADDRESS);
 	hal_tick_start(cfg.tick_hz);
 	wdt_enable(WDTO_60MS);
@@ -73,7 +77,7 @@ int main(void)
 		avr_motor_sense();
 		port_control_tick(&asserv_board);
 		PORTD &= (uint8_t)~_BV(PIN_TICK_BIT);
-		port_nvm_poll(&avr_nvm, &asserv_board); /* a byte at most, never waited for */
+		hal_nvm_poll(&avr_nvm, &asserv_board); /* a byte at most, never waited for */
 		wdt_reset();
 	}
 #else
@@ -82,7 +86,7 @@ int main(void)
 		PORTD |= _BV(PIN_SLOW_BIT);
 		port_slow(&asserv_board);
 		PORTD &= (uint8_t)~_BV(PIN_SLOW_BIT);
-		port_nvm_poll(&avr_nvm, &asserv_board); /* a byte at most, never waited for */
+		hal_nvm_poll(&avr_nvm, &asserv_board); /* a byte at most, never waited for */
 		/* Fed only here, and only if the servo has run since: a main loop stuck in the slow
 		 * steps, and a servo that stopped (the slow steps then never fall due), both let
 		 * the watchdog stop the motors. */

@@ -9,7 +9,8 @@ static int blank(const uint8_t *p)
 	return 1;
 }
 
-void calib_log_scan(calib_log_read read, uint8_t area, uint16_t slots, struct calib_log_area *l)
+void calib_log_scan(calib_log_read read, void *ctx, uint8_t area, uint16_t slots,
+		    struct calib_log_area *l)
 {
 	uint8_t buf[CALIB_STORE_SIZE];
 	struct board_calibration cal;
@@ -19,7 +20,7 @@ void calib_log_scan(calib_log_read read, uint8_t area, uint16_t slots, struct ca
 	l->gen = 0;
 	l->err = CALIB_STORE_BLANK;
 	for (uint16_t i = 0; i < slots; i++) {
-		const uint8_t *p = read(area, i, buf);
+		const uint8_t *p = read(ctx, area, i, buf);
 		int e;
 
 		if (!p) {

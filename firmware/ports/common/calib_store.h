@@ -1,6 +1,6 @@
 /* The odometry calibration as the board stores it (hal_nvm.h): a 16-byte record with a magic, a
  * version and a CRC, so that a blank, torn or foreign record is never installed, and a
- * generation, so that the newest of the records a port keeps is known (port_nvm.h, stm32_nvm.h).
+ * generation, so that the newest of the records a port keeps is known (nvm_bytes.h, stm32_nvm.h).
  *
  *   bytes 0-1   magic 'a' 'c' (0x61 0x63)
  *   byte  2     CALIB_STORE_VERSION (2)

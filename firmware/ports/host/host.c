@@ -8,10 +8,10 @@
 #include "port.h"
 
 /* The HAL has no instance argument, as on the real board; the host being single-threaded, it
- * answers for the host whose tick runs: read_sensors() fills it, host_tick() applies the duties. */
+ * answers for the host whose tick runs: read_sensors() fills it, host_tick() applies the duties.
+ * The storage is each host's own (struct nvm_bytes_dev, passed by nvm_bytes.c). */
 static struct sim_sensors sensors;
 static int16_t duty[2];
-static struct host *current; /* whose storage hal_nvm_*() answer for */
 
 uint16_t hal_encoder_free(enum hal_side side)
 {
@@ -50,29 +50,31 @@ uint8_t hal_line_read(void)
 	return sensors.line_mask;
 }
 
-uint16_t hal_nvm_size(void)
+uint16_t nvm_bytes_dev_size(struct nvm_bytes_dev *dev)
 {
+	(void)dev;
 	return HOST_NVM_SIZE;
 }
 
-int hal_nvm_read(uint16_t offset, uint8_t *buf, uint16_t n)
+int nvm_bytes_dev_read(struct nvm_bytes_dev *dev, uint16_t offset, uint8_t *buf, uint16_t n)
 {
 	if ((uint32_t)offset + n > HOST_NVM_SIZE)
 		return -1;
-	memcpy(buf, &current->nvm[offset], n);
+	memcpy(buf, &dev->mem[offset], n);
 	return 0;
 }
 
-uint8_t hal_nvm_busy(void)
+uint8_t nvm_bytes_dev_busy(struct nvm_bytes_dev *dev)
 {
-	return 0;
+	(void)dev;
+	return 0; /* written at once */
 }
 
-int hal_nvm_write_byte(uint16_t offset, uint8_t value)
+int nvm_bytes_dev_write(struct nvm_bytes_dev *dev, uint16_t offset, uint8_t value)
 {
 	if (offset >= HOST_NVM_SIZE)
 		return -1;
-	current->nvm[offset] = value;
+	dev->mem[offset] = value;
 	return 0;
 }
 
@@ -171,15 +173,15 @@ int host_init(struct host *h, const struct board_config *bc, const struct sim_co
 	h->tick_ns = 1000000000u / bc->tick_hz;
 	h->ticks = 0;
 	h->now_ns = 0;
-	memset(h->nvm, 0xFF, sizeof(h->nvm));
+	memset(h->storage.mem, 0xFF, sizeof(h->storage.mem));
+	nvm_bytes_init(&h->nvm, &h->storage);
 	read_sensors(h);
 	port_sample(&in);
 	port_sample_period(&in); /* the motor counts and currents to start from, as the AVR's */
 	err = board_restart(&h->board, bc, &in, RESET_CAUSE_POWER_ON, 0);
 	if (err)
 		return err;
-	current = h;
-	port_nvm_load(&h->store, &h->board); /* erased: uncalibrated */
+	hal_nvm_load(&h->nvm, &h->board); /* erased: uncalibrated */
 	return 0;
 }
 
@@ -187,9 +189,9 @@ int host_nvm_set(struct host *h, const uint8_t *data, uint16_t n)
 {
 	if (n > HOST_NVM_SIZE)
 		return -1;
-	memset(h->nvm, 0xFF, sizeof(h->nvm));
+	memset(h->storage.mem, 0xFF, sizeof(h->storage.mem));
 	if (n)
-		memcpy(h->nvm, data, n);
+		memcpy(h->storage.mem, data, n);
 	return 0;
 }
 
@@ -214,8 +216,7 @@ static int restart(struct host *h, uint8_t cause, uint16_t down_ms)
 	sim_set_duty(&h->sim, 0, 0);
 	if (err)
 		return err;
-	current = h;
-	port_nvm_load(&h->store, &h->board);
+	hal_nvm_load(&h->nvm, &h->board);
 	return 0;
 }
 
@@ -244,8 +245,7 @@ static void control_tick(struct host *h)
 	read_sensors(h);
 	port_control_tick(&h->board);
 	port_slow(&h->board);
-	current = h;
-	port_nvm_poll(&h->store, &h->board);
+	hal_nvm_poll(&h->nvm, &h->board);
 	sim_set_duty(&h->sim, duty[HAL_LEFT], duty[HAL_RIGHT]);
 	h->ticks++;
 }

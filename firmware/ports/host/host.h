@@ -7,11 +7,17 @@
 
 #include "board.h"
 #include "host_sample_gen.h"
-#include "port_nvm.h"
+#include "nvm_bytes.h"
 #include "sim.h"
 
-/* The simulated board's storage (hal_nvm.h) [bytes]: RAM, erased to 0xFF, written at once. */
+/* The simulated board's storage [bytes]: RAM, erased to 0xFF, written at once. */
 #define HOST_NVM_SIZE 64u
+
+/* The byte storage under hal_nvm.h (nvm_bytes.h's lower layer), one per simulated board: the
+ * EEPROM it models. */
+struct nvm_bytes_dev {
+	uint8_t mem[HOST_NVM_SIZE];
+};
 
 struct host {
 	struct sim sim;
@@ -19,8 +25,8 @@ struct host {
 	uint64_t tick_ns; /* control period */
 	uint64_t ticks;   /* control periods run */
 	uint64_t now_ns;  /* host_advance_ns()'s clock: control tick k runs at k * tick_ns */
-	uint8_t nvm[HOST_NVM_SIZE]; /* the board's storage: kept by host_power_cycle() */
-	struct port_nvm store;      /* the calibration's record in it (port_nvm.h) */
+	struct nvm_bytes_dev storage; /* the board's storage: kept by host_power_cycle() */
+	struct hal_nvm nvm;           /* the calibration's records in it (hal_nvm.h) */
 };
 
 /* The board configuration that matches a simulated robot: encoder wheels, tracks, motor
@@ -42,7 +48,7 @@ int host_nvm_set(struct host *h, const uint8_t *data, uint16_t n);
 
 /* A power cycle between two ticks: the board starts again as at power-on (board_init() with the
  * configuration it was started with, on the sensors of now, then the calibration its storage
- * holds, port_nvm_load()), the motors off, the I2C transaction in progress lost. The robot stays
+ * holds, hal_nvm_load()), the motors off, the I2C transaction in progress lost. The robot stays
  * where it is, the clock and the storage go on. Returns host_init()'s board result: 0 or -1. */
 int host_power_cycle(struct host *h);
 

@@ -1,8 +1,8 @@
 /* The asserv board on an STM32F4 Nucleo-64: start-up, then the control in interrupts. SysTick runs
  * the whole control tick at 1 kHz (one rate: the slow steps in it: tick.c) and feeds the watchdog
  * (set up by watchdog.c); the I2C interrupts preempt it. The main loop, woken by each interrupt,
- * writes the calibration to flash (stm32_nvm.h) and sleeps. Pin map: pinmap.h; clocks:
- * stm32_clock.h; build and flashing: docs/stm32.md. */
+ * writes the calibration to flash (hal_nvm.h, the flash log of stm32_nvm.h) and sleeps. Pin map:
+ * pinmap.h; clocks: stm32_clock.h; build and flashing: docs/stm32.md. */
 #include <stddef.h>
 
 #include "hal.h"
@@ -12,8 +12,9 @@
 
 /* Not cleared by the start-up (stm32f446re.ld): what a reset keeps (keep.h) is in it. */
 struct board asserv_board __attribute__((section(".noinit")));
-/* The calibration's log in flash: loaded at start, written by the main loop (thread mode). */
-static struct stm32_nvm stm32_nvm;
+/* The calibration's log in flash (hal_nvm.h): loaded at start, written by the main loop (thread
+ * mode). */
+static struct hal_nvm stm32_nvm;
 
 const struct stm32_layout stm32_layout = {
 	.board_size = sizeof(struct board),
@@ -46,12 +47,12 @@ int main(void)
 	 * (watchdog.c) is already counting when the bootloader started the application: it is
 	 * widened for the erase (up to 2 s), then set to its 60 ms. */
 	stm32_watchdog_start(STM32_WDG_ERASE_PR, STM32_WDG_ERASE_RLR);
-	stm32_nvm_load(&stm32_nvm, &asserv_board);
+	hal_nvm_load(&stm32_nvm, &asserv_board);
 	hal_i2c_slave_init(PROTO_ADDRESS);
 	stm32_watchdog_set(STM32_WDG_PR, STM32_WDG_RLR);
 	hal_tick_start(cfg.tick_hz);
 	for (;;) {
-		stm32_nvm_poll(&stm32_nvm, &asserv_board); /* one flash operation at most */
+		hal_nvm_poll(&stm32_nvm, &asserv_board); /* one flash operation at most */
 		stm32_idle();
 	}
 }

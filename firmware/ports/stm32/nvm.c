@@ -1,8 +1,8 @@
-/* The odometry calibration kept in flash (stm32_nvm.h): calib_store.h's records in two logs,
- * sectors 1 and 7, written a 32-bit word at a time from the main loop.
+/* hal_nvm.h on the STM32's flash (stm32_nvm.h): calib_store.h's records in two logs, sectors 1
+ * and 7, written a 32-bit word at a time from the main loop.
  *
  * Flash is programmed from 1 to 0 only and erased by whole sectors (RM0390 3.5.3, 3.5.4), so
- * ports/common/port_nvm.c's scheme, records rewritten in place byte by byte, would need an
+ * ports/common/nvm_bytes.c's scheme, records rewritten in place byte by byte, would need an
  * erase per calibration, during which every read of the flash, every instruction fetch of the
  * control interrupt included, stalls (RM0390 3.5: "any attempt to read the flash memory while
  * it is being written or erased causes the bus to stall"). Here each calibration takes the next
@@ -104,7 +104,7 @@ static uint32_t flash_wait(void)
 	return flash_finish();
 }
 
-static uint32_t rec_word(const struct stm32_nvm *s, uint8_t k)
+static uint32_t rec_word(const struct hal_nvm *s, uint8_t k)
 {
 	uint32_t w;
 
@@ -112,9 +112,10 @@ static uint32_t rec_word(const struct stm32_nvm *s, uint8_t k)
 	return w;
 }
 
-/* calib_log.h's reader: the slot itself, in the flash's address space. */
-static const uint8_t *read_slot(uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
+/* calib_log.h's reader: the slot itself, in the flash's address space (one flash: no ctx). */
+static const uint8_t *read_slot(void *ctx, uint8_t area, uint16_t i, uint8_t buf[CALIB_STORE_SIZE])
 {
+	(void)ctx;
 	(void)buf;
 	return slot_at(area, i);
 }
@@ -122,7 +123,7 @@ static const uint8_t *read_slot(uint8_t area, uint16_t i, uint8_t buf[CALIB_STOR
 /* Start-up: the active log is nearly full, and the control has not started. Erase the other
  * log's sector (up to 2 s: main() widened the watchdog for it), then write the installed record
  * into its slot 0, one generation on: from then on the other log is the active one. */
-static void compact_at_start(struct stm32_nvm *s)
+static void compact_at_start(struct hal_nvm *s)
 {
 	s->area ^= 1u;
 	s->gen++;
@@ -143,15 +144,15 @@ static void compact_at_start(struct stm32_nvm *s)
 	s->writes++;
 }
 
-int stm32_nvm_load(struct stm32_nvm *s, struct board *b)
+int hal_nvm_load(struct hal_nvm *s, struct board *b)
 {
 	struct calib_log_area l[CALIB_LOG_AREAS];
 	int err;
 
 	memset(s, 0, sizeof(*s));
 	s->word = SLOT_WORDS;
-	calib_log_scan(read_slot, 0, STM32_NVM_SLOTS, &l[0]);
-	calib_log_scan(read_slot, 1, STM32_NVM_SLOTS, &l[1]);
+	calib_log_scan(read_slot, NULL, 0, STM32_NVM_SLOTS, &l[0]);
+	calib_log_scan(read_slot, NULL, 1, STM32_NVM_SLOTS, &l[1]);
 	s->area = calib_log_pick(l); /* the newer generation's log, or the emptier */
 	s->gen = l[s->area].gen;
 	s->next = l[s->area].next;
@@ -198,7 +199,7 @@ static void erase_when_idle(uint32_t sector)
 }
 
 /* The flash operation that has ended: its result into the state. */
-static void finish_op(struct stm32_nvm *s)
+static void finish_op(struct hal_nvm *s)
 {
 	uint32_t err = flash_finish();
 
@@ -218,7 +219,7 @@ static void finish_op(struct stm32_nvm *s)
 	s->op = STM32_NVM_OP_NONE;
 }
 
-void stm32_nvm_poll(struct stm32_nvm *s, const struct board *b)
+void hal_nvm_poll(struct hal_nvm *s, const struct board *b)
 {
 	struct board_calibration cal;
 	uint8_t idle;
@@ -266,7 +267,7 @@ void stm32_nvm_poll(struct stm32_nvm *s, const struct board *b)
 	s->op = STM32_NVM_OP_PROGRAM;
 }
 
-uint8_t stm32_nvm_pending(const struct stm32_nvm *s)
+uint8_t hal_nvm_pending(const struct hal_nvm *s)
 {
 	return s->pending;
 }

@@ -1,8 +1,9 @@
-/* The odometry calibration kept across a power-off on the STM32F4: calib_store.h's 16-byte
- * records in two flash sectors, 1 and 7, each a log written in turn (nvm.c; docs/stm32.md, "The
- * calibration in flash"). The STM32's counterpart of ports/common/port_nvm.h, which keeps two
- * records in the AVR's EEPROM: flash is erased by sectors, so a new record takes the next free
- * slot of the active log instead, and a full log is compacted into the other sector. */
+/* hal_nvm.h on the STM32F4's flash: the odometry calibration kept across a power-off as
+ * calib_store.h's 16-byte records in two flash sectors, 1 and 7, each a log written in turn
+ * (nvm.c; docs/stm32.md, "The calibration in flash"). The other implementation of hal_nvm.h,
+ * ports/common/nvm_bytes.h, rewrites two records in place, as an EEPROM allows; flash is erased
+ * by sectors, so here a new record takes the next free slot of the active log instead, and a
+ * full log is compacted into the other sector. main.c includes this header for struct hal_nvm. */
 #ifndef ASSERV_STM32_NVM_H
 #define ASSERV_STM32_NVM_H
 
@@ -10,6 +11,7 @@
 
 #include "board.h"
 #include "calib_store.h"
+#include "hal_nvm.h"
 
 /* The two logs (RM0390 3.3 Table 4; RM0368 3.3 Table 5): sector 1, 16 KiB, and sector 7, 128
  * KiB, of which the first 16 KiB are used, so that both logs hold as many records.
@@ -31,7 +33,8 @@ enum stm32_nvm_op {
 				 128 KiB 1 s typical, 2 s at most (x32) */
 };
 
-struct stm32_nvm {
+/* The implementation's state (hal_nvm.h). */
+struct hal_nvm {
 	struct board_calibration stored; /* the calibration of the newest record, or the one
 					    being written */
 	uint8_t have;                    /* stored is valid */
@@ -43,27 +46,22 @@ struct stm32_nvm {
 	uint8_t gen;                     /* the generation of its records */
 	uint16_t next;                   /* its slot being written, or the first free one
 					    (STM32_NVM_SLOTS: the log is full) */
-	int8_t loaded;                   /* stm32_nvm_load()'s result */
+	int8_t loaded;                   /* hal_nvm_load()'s result */
 	uint16_t writes;                 /* records written and checked since start-up */
 	uint16_t erases;                 /* sector erases since start-up */
 	uint16_t errors;                 /* flash errors and failed read-backs since start-up */
 };
 
-/* At start, after board_init(), before the I2C, the watchdog and the first tick: find the newest
- * valid record of both logs and install it (board_set_calibration()). When fewer than
- * STM32_NVM_START_FREE slots of its log are free, erase the other log's sector and write that
- * record there, one generation on (the start-up then takes up to 500 ms, or 2 s, more).
- * Returns 0 (installed), a CALIB_STORE_* refusal (none valid: the board stays uncalibrated),
- * or board_set_calibration()'s error. Interrupt-safe: no (start-up only). */
-int stm32_nvm_load(struct stm32_nvm *s, struct board *b);
-
-/* From the main loop (thread mode), never from an interrupt: finish the flash operation that
- * has ended, then, when the board's calibration is not the stored one, start writing its
- * record; start at most one operation (one word, or the other sector's erase when the active
- * log is full and the board idle) and return without waiting. */
-void stm32_nvm_poll(struct stm32_nvm *s, const struct board *b);
-
-/* 1 while a record is not completely written and checked. */
-uint8_t stm32_nvm_pending(const struct stm32_nvm *s);
+/* hal_nvm.h's three functions, as this implementation does them:
+ * - hal_nvm_load(), at start, after board_init(), before the I2C, the watchdog's 60 ms and the
+ *   first tick: find the newest valid record of both logs and install it. When fewer than
+ *   STM32_NVM_START_FREE slots of its log are free, erase the other log's sector and write that
+ *   record there, one generation on: the start-up then takes up to 500 ms, or 2 s, more
+ *   (main.c widens the watchdog for it).
+ * - hal_nvm_poll(), from the main loop (thread mode): finish the flash operation that has ended,
+ *   then, when the board's calibration is not the stored one, start writing its record; start
+ *   at most one operation (one word, or the other sector's erase when the active log is full
+ *   and no order runs) and return without waiting.
+ * - hal_nvm_pending(): 1 while a record is not completely written and checked. */
 
 #endif

@@ -1,20 +1,26 @@
 /* Template port: the start of a new port. It compiles and links with the core and the common
  * port layer (its build: firmware/CMakeLists.txt, target asserv_template), and every function of
  * the porting contract (firmware/hal/) is a stub that says what it must do, one file per header:
- * encoder.c, motor.c, sensors.c, i2c.c, tick.c, nvm.c. To start a port: copy this folder to
+ * encoder.c, motor.c, sensors.c, i2c.c, tick.c, nvm.c (hal_nvm.h is implemented for byte storage
+ * by ports/common/nvm_bytes.c: nvm.c stubs its four byte functions, and says when a port writes
+ * its own instead). To start a port: copy this folder to
  * ports/<name>, rename the template_ prefix, fill in each stub from the chip's reference manual,
  * attach template_tick_isr() and template_i2c_event() to the chip's interrupts, and describe the
  * robot in robot/<name>.toml. ports/avr and ports/stm32 are two finished examples. */
+#include <stddef.h>
+
 #include "hal.h"
+#include "nvm_bytes.h"
 #include "port.h"
-#include "port_nvm.h"
 #include "protocol_defs.h"
 #include "template_port.h"
 
 struct board asserv_board;
 
-/* The calibration's record in the storage: loaded at start, written by the main loop. */
-static struct port_nvm template_nvm;
+/* The calibration's records in the storage (hal_nvm.h): loaded at start, written by the main
+ * loop. Its type is the implementation's: nvm_bytes.h's here (byte storage, nvm.c); a flash
+ * port's own, as stm32_nvm.h's. */
+static struct hal_nvm template_nvm;
 
 /* The robot this board drives: the reference robot's defaults here; a real port takes its own,
  * generated from robot/<name>.toml (the AVR's avr_robot_config(), the STM32's). */
@@ -38,15 +44,21 @@ int main(void)
 		for (;;)
 			;
 	}
-	/* A blank or corrupt record leaves the board uncalibrated: it runs all the same. */
-	port_nvm_load(&template_nvm, &asserv_board);
+	/* After board_init(), before the bus and the ticks: the calibration the storage keeps,
+	 * installed. A blank or corrupt record leaves the board uncalibrated: it runs all the same.
+	 * nvm_bytes_init() names the storage (NULL: the one chip nvm.c drives); a flash port with
+	 * its own hal_nvm has no such call. */
+	nvm_bytes_init(&template_nvm, NULL);
+	hal_nvm_load(&template_nvm, &asserv_board);
 	hal_i2c_slave_init(PROTO_ADDRESS);
 	/* start the watchdog here */
 	hal_tick_start(cfg.tick_hz);
 	/* enable interrupts here */
 	for (;;) {
-		/* One byte write at most per turn, never waited for. A port with two rates runs
-		 * port_slow(&asserv_board) here first (tick.c). Then sleep until an interrupt. */
-		port_nvm_poll(&template_nvm, &asserv_board);
+		/* A port with two rates runs port_slow(&asserv_board) here first (tick.c). Then the
+		 * calibration's record: what the storage takes without waiting (one byte write at
+		 * most on an EEPROM), never from the control interrupt. Then sleep until an
+		 * interrupt. */
+		hal_nvm_poll(&template_nvm, &asserv_board);
 	}
 }

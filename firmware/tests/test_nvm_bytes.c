@@ -1,9 +1,10 @@
-/* The calibration kept in byte storage (ports/common/port_nvm.c, the AVR's EEPROM and the host's
- * RAM) against a model of an EEPROM that the test powers off at any byte write: thousands of
- * calibrations, each cut at a random write or not at all, and after each power-on the board
- * installs the last calibration whose record was complete, or the new one; never none once one
- * was kept, never a mix. A version-1 record (before the generation) is still installed. The
- * real port_nvm.c and calib_store.c, with hal_nvm.h implemented here on the model. */
+/* The calibration kept in byte storage (hal_nvm.h as ports/common/nvm_bytes.c does it: the AVR's
+ * EEPROM, the host's RAM) against a model of an EEPROM that the test powers off at any byte
+ * write: thousands of calibrations, each cut at a random write or not at all, and after each
+ * power-on the board installs the last calibration whose record was complete, or the new one;
+ * never none once one was kept, never a mix. A version-1 record (before the generation) is
+ * still installed. The real nvm_bytes.c and calib_store.c, with its lower layer
+ * (nvm_bytes_dev_*()) implemented here on the model. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -13,16 +14,16 @@
 #include <cmocka.h>
 
 #include "calib_store.h"
-#include "hal.h"
-#include "port_nvm.h"
+#include "nvm_bytes.h"
 #include "uncertainty.h"
 
 #define EE_SIZE 64u
 
 /* The EEPROM: a write is busy until the test lets it end (one per poll, as the AVR's 3.4 ms
  * against its main loop); the cut_at-th write is the one the power-off interrupts: it leaves
- * that byte anything (hal_nvm.h), and nothing is written after it. */
-static struct {
+ * that byte anything (nvm_bytes.h), and nothing is written after it. nvm_bytes.c is given it as
+ * its storage, and reaches it only through dev. */
+static struct nvm_bytes_dev {
 	uint8_t mem[EE_SIZE];
 	uint8_t busy;
 	uint8_t off;      /* the power is off: writes do nothing */
@@ -41,43 +42,44 @@ static uint64_t rng_next(void)
 	return rng_state;
 }
 
-uint16_t hal_nvm_size(void)
+uint16_t nvm_bytes_dev_size(struct nvm_bytes_dev *dev)
 {
+	assert_ptr_equal(dev, &ee);
 	return EE_SIZE;
 }
 
-int hal_nvm_read(uint16_t offset, uint8_t *buf, uint16_t n)
+int nvm_bytes_dev_read(struct nvm_bytes_dev *dev, uint16_t offset, uint8_t *buf, uint16_t n)
 {
 	if ((uint32_t)offset + n > EE_SIZE)
 		return -1;
-	memcpy(buf, &ee.mem[offset], n);
+	memcpy(buf, &dev->mem[offset], n);
 	return 0;
 }
 
-uint8_t hal_nvm_busy(void)
+uint8_t nvm_bytes_dev_busy(struct nvm_bytes_dev *dev)
 {
-	return ee.busy;
+	return dev->busy;
 }
 
-int hal_nvm_write_byte(uint16_t offset, uint8_t value)
+int nvm_bytes_dev_write(struct nvm_bytes_dev *dev, uint16_t offset, uint8_t value)
 {
 	if (offset >= EE_SIZE)
 		return -1;
-	if (ee.busy)
+	if (dev->busy)
 		return -2;
-	if (ee.off)
+	if (dev->off)
 		return 0;
-	if (ee.writes++ == ee.cut_at) {
-		ee.mem[offset] = ee.cut_byte;
-		ee.off = 1;
+	if (dev->writes++ == dev->cut_at) {
+		dev->mem[offset] = dev->cut_byte;
+		dev->off = 1;
 		return 0;
 	}
-	ee.mem[offset] = value;
-	ee.busy = 1;
+	dev->mem[offset] = value;
+	dev->busy = 1;
 	return 0;
 }
 
-/* A board as port_nvm.c needs it: the configuration board_set_calibration() reads. The rest of
+/* A board as nvm_bytes.c needs it: the configuration board_set_calibration() reads. The rest of
  * the board (the control) plays no part here. */
 static struct board board;
 
@@ -107,15 +109,17 @@ static struct board_calibration random_cal(void)
 	return c;
 }
 
-/* Power on: a new board loads the storage. Returns 1 and *cal when a calibration is installed. */
-static int power_on(struct port_nvm *s, struct board_calibration *cal)
+/* Power on: a new board loads the storage, as a port's start-up does. Returns 1 and *cal when a
+ * calibration is installed. */
+static int power_on(struct hal_nvm *s, struct board_calibration *cal)
 {
 	ee.busy = 0;
 	ee.off = 0;
 	ee.writes = 0;
 	ee.cut_at = UINT32_MAX;
 	power_on_board();
-	if (port_nvm_load(s, &board) != 0) {
+	nvm_bytes_init(s, &ee);
+	if (hal_nvm_load(s, &board) != 0) {
 		assert_false(board.planner.calibrated);
 		return 0;
 	}
@@ -126,11 +130,11 @@ static int power_on(struct port_nvm *s, struct board_calibration *cal)
 
 /* The main loop until the record is written or the power is off; each pass ends the write in
  * progress first. */
-static void run_main_loop(struct port_nvm *s)
+static void run_main_loop(struct hal_nvm *s)
 {
 	for (int pass = 0; pass < 100 && !ee.off; pass++) {
-		port_nvm_poll(s, &board);
-		if (!port_nvm_pending(s))
+		hal_nvm_poll(s, &board);
+		if (!hal_nvm_pending(s))
 			return;
 		ee.busy = 0;
 	}
@@ -150,14 +154,14 @@ static void assert_cal_equal(const struct board_calibration *a, const struct boa
  * one whenever its record was complete. Never nothing once a calibration was kept. */
 static void soak(uint32_t rounds)
 {
-	struct port_nvm s;
+	struct hal_nvm s;
 	struct board_calibration good, now, got;
 	int have_good = power_on(&s, &good);
 	uint32_t kept_new = 0, kept_old = 0;
 
 	for (uint32_t r = 0; r < rounds; r++) {
-		uint32_t left = PORT_NVM_STEPS; /* the writes of the record to come */
-		uint32_t cut;                   /* the one the cut interrupts; left and on: none */
+		uint32_t left = NVM_BYTES_STEPS; /* the writes of the record to come */
+		uint32_t cut;                    /* the one the cut interrupts; left and on: none */
 		int ok;
 
 		now = random_cal();
@@ -168,17 +172,17 @@ static void soak(uint32_t rounds)
 		if (rng_next() % 8u == 0) {
 			/* A second calibration after a few writes of the first: the write restarts
 			 * with its record, in the same slot; the cut falls in the second. */
-			uint8_t n = (uint8_t)(rng_next() % (PORT_NVM_STEPS - 1u));
+			uint8_t n = (uint8_t)(rng_next() % (NVM_BYTES_STEPS - 1u));
 
 			for (uint8_t i = 0; i < n; i++) {
-				port_nvm_poll(&s, &board);
+				hal_nvm_poll(&s, &board);
 				ee.busy = 0;
 			}
 			now = random_cal();
 			assert_int_equal(board_set_calibration(&board, &now), 0);
 		}
 		/* Byte 0 is spoilt first only when it reads 'a'. */
-		if (ee.mem[(port_nvm_pending(&s) ? s.slot : s.slot ^ 1u) * CALIB_STORE_SIZE] != 'a')
+		if (ee.mem[(hal_nvm_pending(&s) ? s.slot : s.slot ^ 1u) * CALIB_STORE_SIZE] != 'a')
 			left--;
 		cut = (uint32_t)(rng_next() % (left + 4u));
 		ee.cut_at = ee.writes + cut;
@@ -216,7 +220,7 @@ static void test_power_cuts_keep_the_last_good_calibration_or_the_new_one(void *
  * record goes into slot 0, generation 0. */
 static void test_first_record_goes_to_slot_0(void **state)
 {
-	struct port_nvm s;
+	struct hal_nvm s;
 	struct board_calibration c = {1500, -700, 28037}, got;
 	uint8_t rec[CALIB_STORE_SIZE];
 
@@ -227,10 +231,10 @@ static void test_first_record_goes_to_slot_0(void **state)
 	assert_int_equal(board_set_calibration(&board, &c), 0);
 	run_main_loop(&s);
 	calib_store_encode(&c, 0, rec);
-	assert_memory_equal(&ee.mem[PORT_NVM_CALIB_OFFSET], rec, CALIB_STORE_SIZE);
+	assert_memory_equal(&ee.mem[NVM_BYTES_CALIB_OFFSET], rec, CALIB_STORE_SIZE);
 	for (unsigned i = CALIB_STORE_SIZE; i < EE_SIZE; i++)
 		assert_int_equal(ee.mem[i], 0xFF);
-	assert_int_equal(ee.writes, PORT_NVM_STEPS - 1u); /* byte 0 blank: not spoilt */
+	assert_int_equal(ee.writes, NVM_BYTES_STEPS - 1u); /* byte 0 blank: not spoilt */
 	/* Loaded again: not written again. */
 	assert_int_equal(power_on(&s, &got), 1);
 	assert_cal_equal(&got, &c);
@@ -242,7 +246,7 @@ static void test_first_record_goes_to_slot_0(void **state)
  * and the next one goes into slot 1, generation 1, leaving it as the fallback. */
 static void test_a_version_1_record_is_kept(void **state)
 {
-	struct port_nvm s;
+	struct hal_nvm s;
 	struct board_calibration old = {-2000, 400, 27990}, c = {1500, -700, 28037}, got;
 	uint8_t rec[CALIB_STORE_SIZE];
 	uint16_t crc;
@@ -274,7 +278,7 @@ static void test_load_takes_the_newest_valid_slot(void **state)
 {
 	(void)state;
 	for (int n = 0; n < 20000; n++) {
-		struct port_nvm s;
+		struct hal_nvm s;
 		struct board_calibration c[2], got;
 		uint8_t gen[2], valid[2];
 		int want = -1;
