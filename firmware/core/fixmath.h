@@ -91,7 +91,6 @@ static inline int32_t fx_int32_of(uint32_t v)
 /* a b, exactly. */
 static inline uint32_t fx_mul_u16(uint16_t a, uint16_t b);
 static inline int32_t fx_mul_s16(int16_t a, int16_t b);
-static inline int32_t fx_mul_s16_u16(int16_t a, uint16_t b);
 
 /* x >> n and x << n (bits shifted out lost), n in 0..31. */
 static inline uint32_t fx_shr_u32(uint32_t x, uint8_t n);

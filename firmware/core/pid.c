@@ -9,8 +9,6 @@
 #include "fixmath.h"
 
 #define TERM_MAX ((int32_t)1 << 30) /* [2^-12 duty_q15]: 8 times 32768 */
-/* The small-error kernel's bound on P and D, so that their sum needs no clip (arch_pid.h). */
-#define FAST_TERM_MAX ((int32_t)1 << 29)
 
 static int config_valid(const struct pid_config *cfg)
 {
@@ -32,15 +30,6 @@ static int32_t err_max(int32_t k)
 	return k == 0 ? PID_ERR_MAX_UM : (int32_t)((TERM_MAX - 1) / k);
 }
 
-/* The largest error that the small-error kernel multiplies by k: it fits 16 bits, and k e < 2^29.
- */
-static int16_t err_fast(int32_t k)
-{
-	int32_t m = k == 0 ? INT16_MAX : (FAST_TERM_MAX - 1) / k;
-
-	return (int16_t)(m < INT16_MAX ? m : INT16_MAX);
-}
-
 /* duty_q15 = 32768 p 2^-12 e_mm = p e_um / 125;
  * duty_q15 = 32768 i 2^-12 (sum e_um / hz) / 1000 = i sum_e_um / (125 hz);
  * duty_q15 = 32768 d 2^-16 (de_um hz) / 1000 = d de_um hz / 2000.
@@ -55,8 +44,7 @@ static void compute_gains(struct pid *c)
 	c->ki_q24 = (uint32_t)div_round_pos((int64_t)c->cfg.i << 24, 125 * hz);
 	c->p_err_max_um = err_max(c->kp_q12);
 	c->d_err_max_um = err_max(c->kd_q12);
-	c->p_err_fast_um = err_fast(c->kp_q12);
-	c->d_err_fast_um = err_fast(c->kd_q12);
+	pid_arch_fast_init(&c->fast, c->kp_q12, c->kd_q12);
 	c->i_max_q8 = (int32_t)c->cfg.out_limit_q15 << 8;
 }
 
@@ -213,7 +201,7 @@ int16_t pid_update_c(struct pid *c, int32_t err_um)
 	int32_t de = c->has_prev ? clip32(e - c->prev_err_um, PID_ERR_MAX_UM) : 0;
 
 	c->prev_err_um = e;
-	c->has_prev = e >= INT16_MIN && e <= INT16_MAX ? 2 : 1;
+	c->has_prev = pid_arch_fast_mark(e);
 	c->out_q15 = update(c, e, de);
 	return c->out_q15;
 }

@@ -16,6 +16,8 @@
 
 #include "fixmath.h"
 
+#include "arch_pid.h" /* struct arch_pid_fast: the domain of the architecture's kernel */
+
 #define PID_TICK_HZ_MIN 100
 #define PID_TICK_HZ_MAX 2000
 /* Errors beyond this are clipped [um] (4.19 m: more than the field's diagonal). */
@@ -30,8 +32,7 @@ struct pid_config {
 };
 
 /* Gains converted once: P and D to [2^-12 duty_q15] per um and per um/tick, I to [2^-24 duty_q15]
- * per um*tick (docs/control.md "PID"), and the bounds of the architecture's small-error kernel
- * (arch_pid.h). */
+ * per um*tick (docs/control.md "PID"). */
 struct pid {
 	struct pid_config cfg;
 	int32_t kp_q12;
@@ -41,15 +42,12 @@ struct pid {
 	 * errors. */
 	int32_t p_err_max_um;
 	int32_t d_err_max_um;
-	/* The small-error kernel: errors and differences up to these (at most 32767, and P and D
-	 * below 2^29, so nothing is clipped and their sum fits). */
-	int16_t p_err_fast_um;
-	int16_t d_err_fast_um;
-	int32_t i_max_q8;      /* out_limit_q15 << 8: the integral's bound, as its upper part */
+	struct arch_pid_fast fast; /* the architecture's, set from kp and kd (arch_pid.h) */
+	int32_t i_max_q8;          /* out_limit_q15 << 8: the integral's bound, as its upper part */
 	struct fx48 i_acc_q24; /* [2^-24 duty_q15] integral contribution, |.| <= out_limit * 2^24 */
 	int32_t prev_err_um;
-	/* 0 after a reset (the first derivative is 0), 2 when prev_err_um fits 16 bits (for
-	 * the small-error kernel), else 1. */
+	/* 0 after a reset (the first derivative is 0), else the architecture's mark of the previous
+	 * error (arch_pid.h: pid_arch_fast_mark). */
 	uint8_t has_prev;
 	int16_t out_q15; /* last output */
 };
@@ -76,7 +74,8 @@ static inline int16_t pid_update(struct pid *c, int32_t err_um);
 /* pid_update in portable C, on any error: the reference of the architecture's kernel. */
 int16_t pid_update_c(struct pid *c, int32_t err_um);
 
-#include "arch_pid.h"
+#define PID_ARCH_KERNEL
+#include "arch_pid.h" /* pid_arch_update_small(), which reads struct pid */
 
 /* The architecture's small-error kernel when it takes the tick, else the portable C. */
 static inline int16_t pid_update(struct pid *c, int32_t err_um)

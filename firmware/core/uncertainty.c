@@ -526,7 +526,7 @@ static void stage_direction(struct uncertainty *u)
 	const struct uncertainty_batch *b = &u->run;
 	int32_t lum = um_of_q8(b->left_q8), rum = um_of_q8(b->right_q8);
 	/* [turn * 2^32]; a batch's heading change is far below a quarter turn (clamped). */
-	int32_t dtheta = fx_mul_s16_u16(clamp16(rum - lum), u->turn_per_um);
+	int32_t dtheta = (int32_t)clamp16(rum - lum) * (int32_t)u->turn_per_um;
 
 	u->s2_um = lum + rum;
 	u->diff_um = rum - lum;

@@ -248,8 +248,6 @@ static void test_kernels_match_their_definitions(void **state)
 			    (uint32_t)(uint16_t)a * (uint16_t)b);
 		assert_true(fx_mul_s16((int16_t)(uint16_t)a, (int16_t)(uint16_t)b) ==
 			    (int32_t)(int16_t)(uint16_t)a * (int16_t)(uint16_t)b);
-		assert_true(fx_mul_s16_u16((int16_t)(uint16_t)a, (uint16_t)b) ==
-			    (int32_t)(int16_t)(uint16_t)a * (int32_t)(uint16_t)b);
 		assert_true(fx_shr_u32(a, n) == a >> n);
 		assert_true(fx_shl_u32(a, n) == (uint32_t)(a << n));
 		{

@@ -94,12 +94,12 @@ static int takes_fast_path(const struct pid *c, int32_t e)
 {
 	int32_t de;
 
-	if (!within(e, c->p_err_fast_um))
+	if (!within(e, c->fast.p_err_um))
 		return 0;
 	if (c->has_prev == 1)
 		return 0;
 	de = c->has_prev ? e - c->prev_err_um : 0; /* both in 16 bits here */
-	return within(de, c->d_err_fast_um);
+	return within(de, c->fast.d_err_um);
 }
 
 /* op on both, the same arguments (unused ones 0): every result must be equal. */
@@ -150,7 +150,7 @@ static size_t pid_edges(const struct pid *c, int32_t *out)
 {
 	const int32_t fixed[] = {0,     1,       2,       32767,   32768,    65535,
 				 65536, 4194303, 4194304, 4194305, INT32_MAX};
-	const int32_t bounds[] = {c->p_err_fast_um, c->d_err_fast_um, c->p_err_max_um,
+	const int32_t bounds[] = {c->fast.p_err_um, c->fast.d_err_um, c->p_err_max_um,
 				  c->d_err_max_um};
 	size_t n = 0;
 
@@ -258,7 +258,7 @@ static int32_t err_val(const struct pid *c, int32_t prev)
 	if (k == 0)
 		return edge[below((uint32_t)pid_edges(c, edge))];
 	if (k == 1) {
-		int32_t b = below(2) ? c->d_err_fast_um : c->p_err_fast_um;
+		int32_t b = below(2) ? c->fast.d_err_um : c->fast.p_err_um;
 
 		return prev + (rnd() & 1 ? b : -b) + (int32_t)below(3) - 1;
 	}

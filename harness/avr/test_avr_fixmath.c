@@ -26,7 +26,6 @@ static const char *const op_name[FXA_OPS] = {
 	[FXA_NOP] = "(mailbox)",
 	[FXA_MUL_U16] = "fx_mul_u16",
 	[FXA_MUL_S16] = "fx_mul_s16",
-	[FXA_MUL_S16_U16] = "fx_mul_s16_u16",
 	[FXA_MUL_U32_WIDE] = "fx_mul_u32_wide",
 	[FXA_MUL_U32_SHR] = "fx_mul_u32_shr, n variable",
 	[FXA_MUL_U32_SHR16] = "fx_mul_u32_shr, n = 16",
@@ -119,9 +118,6 @@ static void on_host(uint8_t op, uint8_t n, const uint32_t in[3], uint32_t r[2])
 		break;
 	case FXA_MUL_S16:
 		r[0] = (uint32_t)fx_mul_s16((int16_t)a, (int16_t)b);
-		break;
-	case FXA_MUL_S16_U16:
-		r[0] = (uint32_t)fx_mul_s16_u16((int16_t)a, (uint16_t)b);
 		break;
 	case FXA_MUL_U32_WIDE:
 		r[0] = fx_mul_u32_wide(a, b, &r[1]);
@@ -306,7 +302,6 @@ static void test_products(void **state)
 
 			check(t, FXA_MUL_U16, 0, a, b, 0);
 			check(t, FXA_MUL_S16, 0, a, b, 0);
-			check(t, FXA_MUL_S16_U16, 0, a, b, 0);
 			check(t, FXA_MUL_U32_WIDE, 0, a, b, 0);
 			if (a != 0x80000000u)
 				check(t, FXA_MUL_SHR32, 0, a, b, 0);
@@ -319,7 +314,6 @@ static void test_products(void **state)
 
 		check(t, FXA_MUL_U16, 0, a, b, 0);
 		check(t, FXA_MUL_S16, 0, s, b, 0);
-		check(t, FXA_MUL_S16_U16, 0, s, b, 0);
 		check(t, FXA_MUL_U32_WIDE, 0, a, b, 0);
 		check(t, FXA_MUL_SHR32, 0, s, b, 0);
 		check(t, FXA_MUL_Q30, 0, s, rnd64() & 1 ? (uint32_t)0 - c : c, 0);

@@ -92,19 +92,6 @@ AVR_INLINE int32_t fx_mul_s16(int16_t a, int16_t b)
 	return (int32_t)a * b;
 }
 
-AVR_INLINE int32_t fx_mul_s16_u16(int16_t a, uint16_t b)
-{
-	if (!__builtin_constant_p(a) || !__builtin_constant_p(b)) {
-		int32_t p;
-
-		FX_AVR_MUL_U16(p, a, b);
-		FX_AVR_FIX_SIGN(p, a, b);
-		return p;
-	}
-	FX_HIDE(a);
-	FX_HIDE(b);
-	return (int32_t)a * (int32_t)b;
-}
 /* x >> n and x << n for a constant n in 0..31, written as 16-bit shifts and byte moves: avr-gcc
  * shifts a uint32_t by any other count than 1, 2, 8, 16, 24 or 31 in a loop, one bit per turn,
  * up to 180 cycles; its 16-bit shifts are straight code. The halves are hidden from the

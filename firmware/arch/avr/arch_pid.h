@@ -1,14 +1,15 @@
 /* The PID's small-error kernel for an AVR with MUL (see firmware/arch/generic/arch_pid.h for
- * the contract). It reads and writes struct pid's fields at their offsets: a change of struct
- * pid (pid.h) is a change here, and test_avr_control and test_avr_annex, which compare it with
- * the host's C tick by tick, catch a mismatch. */
-#ifndef ASSERV_ARCH_PID_H
+ * the contract, and for the kernel's domain, struct arch_pid_fast, which is the reference's). It
+ * reads and writes struct pid's fields at their offsets: a change of struct pid (pid.h) is a
+ * change here, and test_avr_control and test_avr_annex, which compare it with the host's C tick
+ * by tick, catch a mismatch. Included twice by pid.h, as the reference. */
+#ifndef PID_ARCH_KERNEL
+#include "../generic/arch_pid.h"
+#elif !defined(ASSERV_ARCH_PID_H)
 #define ASSERV_ARCH_PID_H
 
 #include <stddef.h>
 #include <stdint.h>
-
-#include "pid.h"
 
 /* pid_update for small errors, with its bounds and the previous error's update, in AVR
  * assembly: avr-gcc 5.4 keeps few of the C version's 32-bit values in registers and calls a library
@@ -20,8 +21,9 @@
  *   i' = i + ki e in 48 bits, the same way, clipped to +-out_limit 2^24;
  *   u = pdh 2^16 + pdl + i'; if it winds up, u = pdh 2^16 + pdl + i and i is kept;
  *   duty = round(u / 2^24), ties away from zero, clipped to +-out_limit_q15.
- * Returns 1 with out_q15 set, or 0 having changed nothing (update_any then does the whole tick)
- * when e or de is out of the fast path's bounds, or the previous error out of 16 bits.
+ * Returns 1 with out_q15 set, or 0 having changed nothing (pid_update_c then does the whole tick)
+ * when e or de is out of the fast path's bounds, or the previous error out of 16 bits (struct
+ * arch_pid_fast).
  * test_avr_annex checks it against the host's C every tick of its session. */
 
 /* Registers: Z the pid; e in r22..r25 (left as it was when declining), then its lower half x in
@@ -83,7 +85,7 @@ AVR_INLINE uint8_t pid_arch_update_small(struct pid *c, int32_t *err_um, int16_t
 		"cpc r25,r18\n\t"
 		"brne 8f\n\t" WITHIN("r22", "r23", "%[pf]")
 		/* de = e - prev: 0 after a reset (has_prev 0); in 16 bits when prev is (has_prev
-		 * 2), if it does not overflow. Then |de| <= df. */
+		 * 2: pid_arch_fast_mark), if it does not overflow. Then |de| <= df. */
 		"ldd r19,Z+%[has]\n\t"
 		"cpi r19,2\n\t"
 		"breq 1f\n\t"
@@ -283,8 +285,8 @@ AVR_INLINE uint8_t pid_arch_update_small(struct pid *c, int32_t *err_um, int16_t
 		: "z"(c), [ol] "n"(offsetof(struct pid, cfg.out_limit_q15)),
 		  [kp] "n"(offsetof(struct pid, kp_q12)), [kd] "n"(offsetof(struct pid, kd_q12)),
 		  [ki] "n"(offsetof(struct pid, ki_q24)),
-		  [pf] "n"(offsetof(struct pid, p_err_fast_um)),
-		  [df] "n"(offsetof(struct pid, d_err_fast_um)),
+		  [pf] "n"(offsetof(struct pid, fast.p_err_um)),
+		  [df] "n"(offsetof(struct pid, fast.d_err_um)),
 		  [ih] "n"(offsetof(struct pid, i_acc_q24.hi)),
 		  [il] "n"(offsetof(struct pid, i_acc_q24.lo)),
 		  [prev] "n"(offsetof(struct pid, prev_err_um)),

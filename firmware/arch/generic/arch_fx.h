@@ -18,11 +18,6 @@ static inline int32_t fx_mul_s16(int16_t a, int16_t b)
 	return (int32_t)a * b;
 }
 
-static inline int32_t fx_mul_s16_u16(int16_t a, uint16_t b)
-{
-	return (int32_t)a * (int32_t)b;
-}
-
 static inline uint32_t fx_shr_u32(uint32_t x, uint8_t n)
 {
 	return x >> n;

@@ -12,8 +12,8 @@ static void pid_dump(const struct pid *c, int32_t *res)
 	res[2] = (int32_t)c->ki_q24;
 	res[3] = c->p_err_max_um;
 	res[4] = c->d_err_max_um;
-	res[5] = c->p_err_fast_um;
-	res[6] = c->d_err_fast_um;
+	res[5] = c->fast.p_err_um;
+	res[6] = c->fast.d_err_um;
 	res[7] = c->i_max_q8;
 	res[8] = c->i_acc_q24.hi;
 	res[9] = c->i_acc_q24.lo;
@@ -147,8 +147,8 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		res[11] = c->gains.d;
 		res[12] = c->dist.kp_q12;
 		res[13] = c->dist.kd_q12;
-		res[14] = c->dist.p_err_fast_um;
-		res[15] = c->dist.d_err_fast_um;
+		res[14] = c->dist.fast.p_err_um;
+		res[15] = c->dist.fast.d_err_um;
 		pid_state(&c->dist, res + 16);
 		pid_state(&c->angle, res + 21);
 		res[26] = c->bump_q15[0];

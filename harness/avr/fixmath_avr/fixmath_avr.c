@@ -81,9 +81,6 @@ static void run(uint8_t op)
 	case FXA_MUL_S16:
 		r0 = (uint32_t)fx_mul_s16((int16_t)a, (int16_t)b);
 		break;
-	case FXA_MUL_S16_U16:
-		r0 = (uint32_t)fx_mul_s16_u16((int16_t)a, (uint16_t)b);
-		break;
 	case FXA_MUL_U32_WIDE:
 		r0 = fx_mul_u32_wide(a, b, &r1);
 		break;

@@ -27,7 +27,6 @@ enum fxa_op {
 	FXA_NOP = 1,       /* r0 = a ^ b, r1 = c: the mailbox's own cycles */
 	FXA_MUL_U16,       /* r0 = fx_mul_u16(a, b) */
 	FXA_MUL_S16,       /* r0 = fx_mul_s16(a, b) */
-	FXA_MUL_S16_U16,   /* r0 = fx_mul_s16_u16(a, b) */
 	FXA_MUL_U32_WIDE,  /* r0 = fx_mul_u32_wide(a, b, &r1) */
 	FXA_MUL_U32_SHR,   /* r0 = fx_mul_u32_shr(a, b, n) */
 	FXA_MUL_U32_SHR16, /* the same with n a constant: 16, 32, 40 */
