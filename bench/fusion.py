@@ -19,8 +19,8 @@ import sys
 from concurrent.futures import ProcessPoolExecutor
 
 from asserv.fixes import FixSource
-from asserv.fusion import MatchResult, pool, run_match
 from asserv.goals import Goals, add_strict_flag
+from asserv.sim.fusion import MatchResult, pool, run_match
 
 SOURCE = dict(rate_hz=10.0, sigma_mm=10.0, sigma_deg=1.0, latency_ms=100.0, latency_jitter_ms=50.0)
 

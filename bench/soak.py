@@ -1,4 +1,4 @@
-"""The soak of the board's promises (asserv.soak) over many matches: prints their figures.
+"""The soak of the board's promises (asserv.sim.soak) over many matches: prints their figures.
 
     python bench/soak.py [--matches N] [--seconds S] [--first-seed K] [--jobs J] [--no-faults]
 
@@ -20,7 +20,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 
 from asserv.goals import Goals, add_strict_flag
-from asserv.soak import MatchResult, play_match
+from asserv.sim.soak import MatchResult, play_match
 
 
 def _match(args: tuple[int, float, bool]) -> MatchResult:

@@ -44,8 +44,8 @@ from emu import EmuError  # noqa: E402
 from unicorn.arm_const import UC_ARM_REG_LR  # noqa: E402
 
 from asserv import Board, Status  # noqa: E402
-from asserv._core import ffi, lib  # noqa: E402
 from asserv.goals import Goals, add_strict_flag  # noqa: E402
+from asserv.sim._core import ffi, lib  # noqa: E402
 
 CPI = 1.5  # cycles per instruction assumed (see CPI_WHY)
 CPI_WHY = (

@@ -9,7 +9,7 @@ handler: the encoder timers, GPIO and ADC inputs show the physics of that instan
 the handler leaves in TIM1 and the direction pins drive the physics from that instant. The I2C
 master's bytes reach the slave model, whose interrupts run the firmware's handler at once.
 
-``Reference`` is the same core built for the host (asserv._core), stepped the same way and fed
+``Reference`` is the same core built for the host (asserv.sim._core), stepped the same way and fed
 what the port measures (its current-sense quantisation, four line inputs) and driving the
 physics with the duty TIM1 produces (its 9000-count PWM period): the run the binary must match
 bit for bit. Both classes are I2C devices and clocks for ``asserv.bus.VirtualBus``, so
@@ -28,7 +28,7 @@ from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Regs, Scs, Timer
 from unicorn import UC_HOOK_CODE
 from unicorn.arm_const import UC_ARM_REG_R1
 
-from asserv._core import ffi, lib
+from asserv.sim._core import ffi, lib
 from asserv.bus import VirtualBus
 
 IRQ_I2C1_EV, IRQ_I2C1_ER = 31, 32
@@ -155,7 +155,7 @@ class _Lockstep:
 
 
 class Reference(_Lockstep):
-    """The native run: asserv._core's board_tick() on the port's measurements."""
+    """The native run: asserv.sim._core's board_tick() on the port's measurements."""
 
     def __init__(self, bc: Any, sc: Any, f: Any, byte_ns: int = 90_000) -> None:
         super().__init__(sc, f, byte_ns)

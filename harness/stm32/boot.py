@@ -33,7 +33,7 @@ from emu import (
 from periph import SECTOR_ERASE_NS, Flash, Rcc
 from unicorn import UC_HOOK_CODE, UC_HOOK_MEM_WRITE_PROT
 
-from asserv._core import lib
+from asserv.sim._core import lib
 from asserv.update import SLOT_BASES, Image, load_image, slot_bytes
 
 IRQ_FLASH = 4  # RM0390 Table 38

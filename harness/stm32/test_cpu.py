@@ -22,7 +22,7 @@ from unicorn.arm_const import (
 )
 from unicorn.unicorn_py3.unicorn import UcError
 
-from asserv._core import ffi
+from asserv.sim._core import ffi
 
 REGS = (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12)
 

@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 from test_sessions import assert_same_runs, pair
 
 from asserv import Board, Capability
-from asserv._core import ffi
+from asserv.sim._core import ffi
 from asserv.sim import Simulator
 
 SLOT = 16

@@ -34,9 +34,9 @@ from test_nvm import (
 )
 
 from asserv import Board, Capability, EndReason, OrderRejected, Reject, ResetCause, Status
-from asserv._core import ffi, lib
+from asserv.sim._core import ffi, lib
 from asserv.sim import Simulator
-from asserv.soak import ideal_calibration
+from asserv.sim.soak import ideal_calibration
 
 BROWN_OUT = Rcc.BORRSTF | Rcc.PINRSTF  # RM0390 6.3.21: a BOR reset, which drives NRST too
 FLAGS = {
@@ -248,7 +248,7 @@ def test_a_reset_during_a_calibration_write_keeps_the_old_or_the_new(
     sim = Simulator(seed=seed, randomize=True)
     ideal = ideal_calibration(sim)
 
-    def near_ideal() -> Cal:  # a calibration as the procedure leaves it (asserv.soak)
+    def near_ideal() -> Cal:  # a calibration as the procedure leaves it (asserv.sim.soak)
         return (
             ideal.ratio_ppm + rng.randint(-290, 290),
             ideal.track_10um + rng.randint(-6, 6),

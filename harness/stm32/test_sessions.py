@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from asserv import Board, ResetCause, Status
-from asserv._core import lib
+from asserv.sim._core import lib
 from asserv.scenario import BUS_COMMANDS, load
 
 FAULT_ENCODER_LOST = 4  # FAULTS_CAUSE_ENCODER_LOST, firmware/core/faults.h

@@ -13,7 +13,7 @@ from board import TICK_NS, Reference, Stm32Board, robot
 from conftest import ROOT
 
 from asserv import Reject, codec
-from asserv._core import ffi, lib
+from asserv.sim._core import ffi, lib
 
 with (ROOT / "protocol" / "vectors.toml").open("rb") as _f:
     VECTORS: dict[str, Any] = tomllib.load(_f)

@@ -465,7 +465,7 @@ void board_tick(struct board *b, const struct board_inputs *in, struct board_out
 void board_slow(struct board *b);
 """
 
-# What Simulator.i2c_write() and i2c_read() do byte by byte (python/asserv/sim.py), in one call
+# What Simulator.i2c_write() and i2c_read() do byte by byte (python/asserv/sim/), in one call
 # into C when no timed event falls within the transaction: one byte time of the bus, then the
 # board's interrupt, for the address and each byte; the trace rows of the ticks run meanwhile go
 # to buf (cap rows; NULL: none kept), and the count of them is returned.

@@ -1,7 +1,8 @@
 """asserv: master-side tools of the asserv motion-control board (driver, codec, simulator).
 
 ``pip install asserv``: the driver, the codec and the CLI (needs smbus2 only). The simulator
-(``asserv.sim``, ``asserv.scenario``, plots) is the ``sim`` extra: ``pip install "asserv[sim]"``.
+(the subpackage ``asserv.sim``: ``Simulator``, the demo, the benches' runs, the plots) is the
+``sim`` extra: ``pip install "asserv[sim]"``.
 """
 
 from importlib.metadata import PackageNotFoundError

@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 from smbus2 import i2c_msg
 
 if TYPE_CHECKING:
-    from .cboard import ProtocolLayer
+    from .sim.cboard import ProtocolLayer
 
 I2C_M_RD = 0x0001  # i2c_msg.flags: a read (include/uapi/linux/i2c.h)
 
@@ -284,7 +284,7 @@ class ProtocolDevice:
 
     def __init__(self, layer: ProtocolLayer | None = None) -> None:
         if layer is None:
-            from .cboard import ProtocolLayer  # the cffi extension, only when it is needed
+            from .sim.cboard import ProtocolLayer  # the cffi extension, only when it is needed
 
             layer = ProtocolLayer()
         self.layer = layer

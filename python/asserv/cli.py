@@ -120,7 +120,7 @@ DEMO_PNG = "asserv-demo.png"
 
 def _demo(args: argparse.Namespace) -> int:
     png = None if args.no_png else args.png or cli_args.check_output_file(DEMO_PNG, (".png",))
-    from . import demo
+    from .sim import demo
 
     return demo.run(png=png)
 
@@ -163,7 +163,8 @@ def _sim_run(args: argparse.Namespace) -> int:
     if zoom is not None and not args.png:
         raise UsageError("--zoom applies to the plot: give --png too")
     path = scenario_path(args.scenario)
-    from . import log, plots, scenario
+    from . import log, scenario
+    from .sim import plots
 
     for kind, out_path in (("MCAP", args.mcap), ("CSV", args.csv)):
         if out_path is not None and (why := log.check_output(out_path, kind)):
@@ -246,8 +247,7 @@ def _calibrate(args: argparse.Namespace) -> int:
         turn_radius_mm=args.turn_radius,
     )
     if not real:
-        from . import accuracy
-        from .sim import Simulator
+        from .sim import Simulator, accuracy
 
         sim = Simulator(
             {"start": accuracy.CALIBRATION_START}, seed=args.seed, randomize=True, record=False
@@ -364,9 +364,9 @@ def _bench_accuracy(args: argparse.Namespace) -> int:
         raise UsageError("--first-seed + --robots goes past the last seed (2^64-1)")
     if not args.no_png:
         cli_args.check_output_dir(args.out)
-    from . import accuracy
     from .calibration import Plan
     from .goals import Goals
+    from .sim import accuracy
 
     plan = Plan(turns=args.turns, round_trips=args.round_trips)
     with cli_args.progress_bar(args.robots, "robots") as bar:
@@ -383,7 +383,7 @@ def _bench_accuracy(args: argparse.Namespace) -> int:
     for line in lines[:-1]:
         print(line)
     if not args.no_png:
-        from . import plots
+        from .sim import plots
 
         for path in plots.plot_accuracy(res, Path(args.out)):
             print(f"plot: {Path(path).resolve()}")

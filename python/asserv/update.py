@@ -60,7 +60,7 @@ PROTO_VERSION = 3  # BOOT_PROTO_VERSION: 3 is A/B; 2 takes DATA while the downlo
 BUFFER = 0x6000  # BOOT_BUFFER_SIZE: bytes of the download the bootloader holds in RAM
 FRAME_MAX = 1 + 4 + CHUNK + 1  # BOOT_FRAME_MAX: designation, offset, chunk, PEC
 # The frames and replies on the bus (boot_proto.h), big-endian, PEC excluded; the simulated
-# bootloader (asserv.simboot) packs what Updater unpacks with the same formats.
+# bootloader (asserv.sim.boot) packs what Updater unpacks with the same formats.
 BEGIN_FORMAT = ">BIIIH"  # BEGIN, length, CRC-32, version, board id
 DATA_FORMAT = ">BI"  # DATA, offset; the chunk follows
 STATUS_FORMAT = ">BBI"  # state, result, next offset

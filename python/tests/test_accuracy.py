@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from asserv import accuracy
 from asserv.cli import main
+from asserv.sim import accuracy
 
 
 def cells(out: str, title: str) -> dict[str, list[str]]:

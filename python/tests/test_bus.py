@@ -13,7 +13,7 @@ from smbus2 import i2c_msg
 
 from asserv import Status, codec
 from asserv.bus import Clock, I2CDevice, ProtocolDevice, SystemClock, VirtualBus
-from asserv.cboard import ProtocolLayer
+from asserv.sim.cboard import ProtocolLayer
 
 Event = tuple[str, bytes | int, bool | None]
 

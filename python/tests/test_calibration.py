@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from asserv import Board, accuracy
+from asserv import Board
 from asserv.calibration import (
     CalibrationError,
     Geometry,
@@ -15,7 +15,7 @@ from asserv.calibration import (
     calibrate,
 )
 from asserv.cli import main
-from asserv.sim import Simulator
+from asserv.sim import Simulator, accuracy
 
 
 def robot(seed: int, start: tuple[float, float, float] = accuracy.CALIBRATION_START) -> Simulator:

@@ -38,7 +38,8 @@ def run(argv: list[str]) -> tuple[int, str, str]:
 @pytest.fixture
 def no_runs(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Iterator[list[int]]:
     """The long runs and the bus replaced by stand-ins that record that they were reached."""
-    from asserv import accuracy, calibration, demo, scenario, server, sim
+    from asserv import calibration, scenario, server, sim
+    from asserv.sim import accuracy, demo
 
     reached: list[int] = []
 

@@ -5,7 +5,7 @@ from hypothesis import strategies as st
 
 from asserv import Reject, Status, codec
 from asserv._protocol import MESSAGES, Message
-from asserv.cboard import ProtocolLayer
+from asserv.sim.cboard import ProtocolLayer
 
 ORDERS_AND_SETS = [m for m in MESSAGES if m.kind != "ETAT"]
 

@@ -31,7 +31,7 @@ def _simulated_board(ex: Example) -> Simulator:
     """The simulated board a ``board`` example talks to, and whose clock it runs on:
     ``start=X,Y,DEG`` places the robot (and the board's belief) there, ``calibration`` rear
     against the west border, randomized."""
-    from asserv import accuracy
+    from asserv.sim import accuracy
 
     opts = dict(w.partition("=")[::2] for w in ex.marker_arg.split())
     if "calibration" in opts:

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from asserv import field as fieldmod
-from asserv._core import ffi, lib
+from asserv.sim._core import ffi, lib
 
 
 def test_default_file_is_what_the_c_code_is_built_with() -> None:

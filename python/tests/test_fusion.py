@@ -2,7 +2,7 @@
 randomized robots, calibrated or not, with fixes of the noise they declare plus 1 % outliers and
 latencies anywhere in 0..350 ms; a fix pulls by its noise; an outlier changes nothing.
 
-The property runs a few short matches per example (asserv.fusion.run_match, derandomized);
+The property runs a few short matches per example (asserv.sim.fusion.run_match, derandomized);
 bench/fusion.py is the long form, 50 robots x 90 s.
 """
 
@@ -17,9 +17,9 @@ from hypothesis import strategies as st
 
 from asserv import Board, FixResult, Unsupported
 from asserv.fixes import FixSource
-from asserv.fusion import pool, run_match
 from asserv.sim import Simulator
-from asserv.soak import ideal_calibration
+from asserv.sim.fusion import pool, run_match
+from asserv.sim.soak import ideal_calibration
 
 
 @st.composite

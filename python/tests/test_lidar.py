@@ -12,10 +12,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from asserv.arena import Arena
 from asserv.lidar import LIDAR, crossing_path
 from asserv.scenario import ScenarioError, parse
 from asserv.sim import Simulator
+from asserv.sim.arena import Arena
 
 SLOW = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 STEP = 360.0 / LIDAR.beams

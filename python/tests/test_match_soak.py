@@ -28,10 +28,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from asserv import codec, field
-from asserv._core import ffi, lib
 from asserv._protocol import EndReason, Status
 from asserv.driver import Board
 from asserv.sim import AVR_RATES, Simulator
+from asserv.sim._core import ffi, lib
 
 SLIP_MM_S = 150.0
 STEP_S = 0.005

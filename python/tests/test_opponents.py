@@ -11,9 +11,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from asserv import Board, Status
-from asserv.arena import Arena
 from asserv.driver import Outcome
 from asserv.sim import Simulator
+from asserv.sim.arena import Arena
 
 SLOW = settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 START = (-1000.0, -300.0, 0.0)

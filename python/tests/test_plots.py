@@ -1,4 +1,4 @@
-"""The run plot's helpers (asserv.plots): each order's end and outcome, contacts, the outline."""
+"""The run plot's helpers (asserv.sim.plots): each order's end and outcome, contacts, outline."""
 
 from __future__ import annotations
 
@@ -15,9 +15,9 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from asserv import field, log, plots
+from asserv import field, log
 from asserv._protocol import Status
-from asserv.sim import TRACE_DTYPE
+from asserv.sim import TRACE_DTYPE, plots
 
 BUSY = int(Status.BUSY_TRAJET)
 ROOT = Path(__file__).resolve().parents[2]

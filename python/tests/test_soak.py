@@ -1,6 +1,6 @@
 """The promises of issue 18 ("honest endings"), as a master sees them.
 
-The soak (asserv.soak): random robots, calibrated or not, a random master of valid and malformed
+The soak (asserv.sim.soak): random robots, calibrated or not, a random master of valid and malformed
 frames, recalibrations, replaced orders and injected faults; at every settled tick and every
 order's end the error radius must bound the true error, and every ending must say what happened.
 Then each reproduction of the issue as a regression case.
@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from asserv import Board, Status
 from asserv.sim import Simulator
-from asserv.soak import ideal_calibration, play_match, settled_mask
+from asserv.sim.soak import ideal_calibration, play_match, settled_mask
 
 
 def covered(sim: Simulator) -> tuple[np.ndarray, np.ndarray]:

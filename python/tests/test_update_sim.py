@@ -1,4 +1,4 @@
-"""A firmware update of the simulated board (asserv.simboot) through `asserv sim serve`, as the
+"""A firmware update of the simulated board (asserv.sim.boot) through `asserv sim serve`, as the
 pits rehearse it (docs/update.md, "Rehearse in the pits"): `asserv --sim HOST:PORT flash`, and
 a soak of a faulty bus and bad images, whose promise is the real bootloader's: a refused update
 leaves the old firmware, a good one ends on the new version, the calibration kept."""
@@ -25,7 +25,7 @@ from asserv.codec import crc8
 from asserv.driver import AsservError
 from asserv.server import RemoteBus, SimServer
 from asserv.sim import Simulator
-from asserv.simboot import stand_in_image
+from asserv.sim.boot import stand_in_image
 from asserv.update import (
     APP_INFO_OFFSET,
     BUFFER,

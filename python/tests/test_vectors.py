@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from asserv import Reject, codec
-from asserv.cboard import ProtocolLayer
+from asserv.sim.cboard import ProtocolLayer
 
 ROOT = Path(__file__).resolve().parents[2]
 with (ROOT / "protocol" / "vectors.toml").open("rb") as _f:

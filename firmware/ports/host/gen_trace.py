@@ -61,7 +61,7 @@ def gen_h(cols: list[dict[str, Any]]) -> str:
         "#ifndef ASSERV_HOST_SAMPLE_GEN_H",
         "#define ASSERV_HOST_SAMPLE_GEN_H",
         "",
-        "/* One row per control tick, every column a double (python/asserv/sim.py TRACE_DTYPE). */",
+        "/* One row per control tick, every column a double (asserv.sim.TRACE_DTYPE). */",
         CDEF_BEGIN,
         "struct host_sample {",
     ]

@@ -2,7 +2,7 @@
 #ifndef ASSERV_HOST_SAMPLE_GEN_H
 #define ASSERV_HOST_SAMPLE_GEN_H
 
-/* One row per control tick, every column a double (python/asserv/sim.py TRACE_DTYPE). */
+/* One row per control tick, every column a double (asserv.sim.TRACE_DTYPE). */
 /* cdef: begin */
 struct host_sample {
 	double t_s; /* time of the tick [s] */

@@ -7,11 +7,16 @@
     print(sim.true_pose(), board.position())
 
 ``Simulator`` runs the C sources of the board (``firmware/core``, compiled into
-``asserv._core``) through the host port (``firmware/ports/host``) on the physics of
+``asserv.sim._core``) through the host port (``firmware/ports/host``) on the physics of
 ``sim/``, in deterministic lockstep: control ticks at 1 kHz, physics substeps of 100 us (one of
 1 ms for a whole tick away from contacts and from the tyres' grip, ``COARSE_SUBSTEP_NS``), and
 the I2C bytes arriving between ticks at the bus bit rate. The traces of every tick (truth, estimate,
 set-points, duties, currents, status) are kept as a numpy structured array.
+
+This package holds every module that needs the compiled simulator (the ``sim`` extra): its
+modules (``demo``, ``accuracy``, ``soak``, ``fusion``, ``arena``, ``plots``, ``boot``, ``cboard``)
+import it freely; a module of asserv outside it imports it only inside the function that runs
+the simulator, so that the driver-only install never loads it (python/tests/test_import_graph.py).
 """
 
 from __future__ import annotations
@@ -26,17 +31,17 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from . import field as fieldmod
-from ._columns import TRACE_FIELDS
+from .. import field as fieldmod
+from .._columns import TRACE_FIELDS
+from .._protocol import ResetCause
+from ..bus import VirtualBus
+from ..lidar import LIDAR, LidarScan, Target, Yielding, crossing_path, scan_targets
 from ._core import ffi, lib
-from ._protocol import ResetCause
-from .bus import VirtualBus
-from .lidar import LIDAR, LidarScan, Target, Yielding, crossing_path, scan_targets
 
 if TYPE_CHECKING:
-    from .fixes import FixFeed, FixSource
-    from .simboot import SimBootloader
-    from .update import Image
+    from ..fixes import FixFeed, FixSource
+    from ..update import Image
+    from .boot import SimBootloader
 
 #: The columns of ``Simulator.trace``, in the order of ``struct host_sample`` (host.h).
 TRACE_DTYPE = np.dtype([(name, "<f8") for name in TRACE_FIELDS])
@@ -45,10 +50,12 @@ TRACE_DTYPE = np.dtype([(name, "<f8") for name in TRACE_FIELDS])
 def _check_trace_layout() -> None:
     # The Python view of struct host_sample must be the C one, field for field.
     if ffi.sizeof("struct host_sample") != TRACE_DTYPE.itemsize:
-        raise ImportError("asserv._core is stale: struct host_sample changed (pip install -e .)")
+        raise ImportError(
+            "asserv.sim._core is stale: struct host_sample changed (pip install -e .)"
+        )
     for i, name in enumerate(TRACE_FIELDS):
         if ffi.offsetof("struct host_sample", name) != 8 * i:
-            raise ImportError(f"asserv._core: struct host_sample.{name} is not at {8 * i}")
+            raise ImportError(f"asserv.sim._core: struct host_sample.{name} is not at {8 * i}")
 
 
 _check_trace_layout()
@@ -257,7 +264,7 @@ class Simulator:
         sc.coarse_substep_ns = COARSE_SUBSTEP_NS
         _set_config(sc, "start", SPEC_START)
         if robot is not None:
-            from . import robot as robotmod
+            from .. import robot as robotmod
 
             for key, value in robotmod.load(robot).sim_config().items():
                 _set_config(sc, key, value)
@@ -404,13 +411,13 @@ class Simulator:
         lib.host_power_cycle(self._h)
         self._tx_open = False
 
-    # ---- the bootloader (asserv.simboot) --------------------------------------------------------
+    # ---- the bootloader (asserv.sim.boot) --------------------------------------------------------
     def add_bootloader(self, image: Image | None = None) -> SimBootloader:
         """Give the board the STM32 board's bootloader: BOOTLOADER, once taken, leaves the
         application for it, and ``asserv flash`` updates the board (docs/update.md, "Rehearse
         in the pits"). ``image`` is what the board runs at first (an ``asserv.update.Image``
         for board 0xf446; default: a stand-in of version 1, its record alone)."""
-        from .simboot import SimBootloader, stand_in_image
+        from .boot import SimBootloader, stand_in_image
 
         self.boot = SimBootloader(self, image or stand_in_image())
         return self.boot
@@ -518,7 +525,7 @@ class Simulator:
         """Start a simulated localisation (asserv.fixes.FixSource: rate, noise, latency,
         outliers) writing SET_FIX to the board from now on; the returned feed logs every fix
         with the truth at the time it was measured, and ``feed.stop()`` ends it."""
-        from . import fixes
+        from .. import fixes
 
         return fixes.start(self, source or fixes.FixSource())
 

@@ -29,11 +29,11 @@ from functools import partial
 
 import numpy as np
 
-from . import codec
-from ._protocol import EndReason, Status
-from .calibration import OdometrySetting
-from .driver import AsservError, Board
-from .sim import Simulator
+from .. import codec
+from .._protocol import EndReason, Status
+from ..calibration import OdometrySetting
+from ..driver import AsservError, Board
+from . import Simulator
 
 __all__ = ["MatchResult", "ideal_calibration", "play_match", "settled_mask"]
 

@@ -24,8 +24,8 @@ import math
 import threading
 from collections.abc import Sequence
 
-from .driver import bus_lock
-from .sim import Simulator
+from ..driver import bus_lock
+from . import Simulator
 
 __all__ = ["Arena"]
 

@@ -1,6 +1,6 @@
 """The board's C protocol layer (firmware/core/protocol.c), driven byte by byte from Python.
 
-This is the very code the board runs, compiled into ``asserv._core``: tests and the protocol
+This is the very code the board runs, compiled into ``asserv.sim._core``: tests and the protocol
 demonstration use it to play I2C transactions against the board without hardware.
 """
 

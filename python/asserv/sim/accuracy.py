@@ -31,8 +31,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._protocol import Status
-from .calibration import (
+from .._protocol import Status
+from ..calibration import (
     Calibration,
     CalibrationError,
     Geometry,
@@ -40,9 +40,9 @@ from .calibration import (
     Plan,
     calibrate,
 )
-from .driver import AsservError, Board
-from .goals import MET, MISSED, Goals
-from .sim import OdometryErrors, Simulator
+from ..driver import AsservError, Board
+from ..goals import MET, MISSED, Goals
+from . import OdometryErrors, Simulator
 
 __all__ = ["BenchResult", "RobotResult", "StraightRun", "bench", "report", "run_robot"]
 

@@ -41,8 +41,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from .codec import BY_NAME, crc8
-from .update import (
+from ..codec import BY_NAME, crc8
+from ..update import (
     APP_INFO_MAGIC,
     APP_INFO_OFFSET,
     BEGIN_FORMAT,
@@ -70,7 +70,7 @@ from .update import (
 )
 
 if TYPE_CHECKING:
-    from .sim import Simulator
+    from . import Simulator
 
 __all__ = ["SimBootloader", "SimFlash", "stand_in_image"]
 

@@ -15,14 +15,14 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon, Rectangle
 
+from .._protocol import Status
+from ..field import Field
 from . import accuracy
-from ._protocol import Status
-from .field import Field
 
 if TYPE_CHECKING:
+    from ..log import Outline
+    from . import OdometryErrors
     from .accuracy import BenchResult, StraightRun
-    from .log import Outline
-    from .sim import OdometryErrors
 
 #: The bits that say how an order ended (docs/protocol.md): they show for as little as one tick.
 END_BITS = (Status.CHOC_PANIER, Status.CHOC_BORD, Status.PB_MOTEUR, Status.PB_GRAVE)
@@ -129,7 +129,7 @@ def figure_run(
 ) -> Figure:
     """``plot_run``'s figure, not saved: its axes in the order map, error, speed, turn rate,
     status (the caller closes it)."""
-    from .log import Outline
+    from ..log import Outline
 
     outline = outline or Outline()
     fig = plt.figure(figsize=(15, 8.5), layout="constrained")
@@ -251,7 +251,7 @@ _CONTROLLER_STYLE = {
 
 
 def plot_accuracy(res: BenchResult, out_dir: Path) -> list[Path]:
-    """The accuracy bench's figures (asserv.accuracy): distributions over the robots, one
+    """The accuracy bench's figures (asserv.sim.accuracy): distributions over the robots, one
     robot's runs at the top speed, and the calibration before and after. Returns the files."""
     out_dir.mkdir(parents=True, exist_ok=True)
     files = [_plot_accuracy_figures(res, out_dir / "accuracy.png")]

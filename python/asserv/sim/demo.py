@@ -1,7 +1,7 @@
 """``asserv demo``: the specification's annex session on the simulated board, end to end.
 
 The master is this package's driver (``asserv.Board``) on the simulator's smbus2-compatible bus;
-the board is the firmware core (C, compiled into ``asserv._core``) on the physics of ``sim/``.
+the board is the firmware core (C, compiled into ``asserv.sim._core``) on the physics of ``sim/``.
 Every I2C frame is printed with its meaning, then the status over time, the final estimated and
 true poses and the error radius; a PNG shows the field, both paths and the speed profiles.
 """
@@ -11,8 +11,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from . import plots, scenario
-from ._protocol import Status
+from .. import scenario
+from .._protocol import Status
+from . import plots
 
 ANNEX = scenario.SCENARIO_DIR / "annex.txt"
 

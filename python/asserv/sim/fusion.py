@@ -9,7 +9,7 @@ within 2 mm on each axis and 0.5 degree, declared to the board as a start radius
 robot, targets and pauses run with and without fixes.
 
 - error: |estimate - truth| of the position at every tick (ms), over all robots;
-- settled moments: the ticks at rest with no order running (``asserv.soak.settled_mask``, as
+- settled moments: the ticks at rest with no order running (``asserv.sim.soak.settled_mask``, as
   the soak of issue 18): the radius's coverage
   (error <= radius) and its tightness (mean radius / p99 of the error) are taken there;
 - the fixes: each drawn outlier or good, and what the board did with it (FixRecord.result).
@@ -23,10 +23,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._protocol import FixResult
-from .driver import Board
-from .fixes import FixSource
-from .sim import Simulator
+from .._protocol import FixResult
+from ..driver import Board
+from ..fixes import FixSource
+from . import Simulator
 from .soak import settled_mask
 
 __all__ = ["MatchResult", "Pooled", "pool", "run_match"]
