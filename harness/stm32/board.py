@@ -28,8 +28,8 @@ from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Regs, Scs, Timer
 from unicorn import UC_HOOK_CODE
 from unicorn.arm_const import UC_ARM_REG_R1
 
-from asserv.sim._core import ffi, lib
 from asserv.bus import VirtualBus
+from asserv.sim._core import ffi, lib
 
 IRQ_I2C1_EV, IRQ_I2C1_ER = 31, 32
 PWM_PERIOD = 9000  # TIM1 ARR + 1 at 180 MHz, 20 kHz (stm32_clock.h)

@@ -24,8 +24,8 @@ from hypothesis import strategies as st
 from test_sessions import assert_same_runs, pair
 
 from asserv import Board, Capability
-from asserv.sim._core import ffi
 from asserv.sim import Simulator
+from asserv.sim._core import ffi
 
 SLOT = 16
 SLOTS = 1024  # of each log

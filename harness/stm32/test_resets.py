@@ -34,8 +34,8 @@ from test_nvm import (
 )
 
 from asserv import Board, Capability, EndReason, OrderRejected, Reject, ResetCause, Status
-from asserv.sim._core import ffi, lib
 from asserv.sim import Simulator
+from asserv.sim._core import ffi, lib
 from asserv.sim.soak import ideal_calibration
 
 BROWN_OUT = Rcc.BORRSTF | Rcc.PINRSTF  # RM0390 6.3.21: a BOR reset, which drives NRST too

@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from asserv import Board, ResetCause, Status
-from asserv.sim._core import lib
 from asserv.scenario import BUS_COMMANDS, load
+from asserv.sim._core import lib
 
 FAULT_ENCODER_LOST = 4  # FAULTS_CAUSE_ENCODER_LOST, firmware/core/faults.h
 
