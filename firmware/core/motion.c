@@ -184,7 +184,7 @@ static int32_t corner_reach_um(const struct planner *pl, const struct board_conf
 
 /* What a curve of radius r_um is, at the corner's limits (docs/control.md "Corners"). */
 struct corner_shape {
-	int64_t r_um, v_um_s, clothoid_um, arc_um, reach_um, dev_um;
+	int64_t r_um, v_um_s, clothoid_um, arc_um, reach_um;
 };
 
 /* A speed limit at the speed scale, as apply_limits() (orders.c) gives it outside a curve. */
@@ -215,8 +215,8 @@ static void corner_limits(const struct orders *o, int64_t lim[6])
  * cos_q30, sin_q30: v^2 within the centripetal acceleration, v r / h within the heading's wheel
  * speed; the clothoids (the curvature's rise at the heading's acceleration: h v^2 / (r a)
  * long) within the turn's arc and within the tolerance's share (their shift p = L^2 / 24 r).
- * The curve starts reach_um before the point, and passes dev_um from the point (its middle,
- * on the bisector: the farthest it strays from the point and, by cos_q30 less, from the lines). */
+ * The curve starts reach_um before the point; it passes (r + p) / cos - r from the point (its
+ * middle, on the bisector), which p_max keeps within the tolerance (corner_fit()). */
 static void corner_shape(struct corner_shape *sh, const int64_t lim[6], uint32_t theta,
 			 int32_t cos_q30, int32_t sin_q30, int64_t p_max)
 {
@@ -241,7 +241,6 @@ static void corner_shape(struct corner_shape *sh, const int64_t lim[6], uint32_t
 	sh->v_um_s = v;
 	sh->arc_um = arc - sh->clothoid_um;
 	sh->reach_um = (r + p) * sin_q30 / (cos_q30 > 0 ? cos_q30 : 1) + sh->clothoid_um / 2;
-	sh->dev_um = (r + p) * Q30 / (cos_q30 > 0 ? cos_q30 : 1) - r;
 }
 
 /* The curve through a turn theta [turn32] between a line whose point is len1_um ahead and one
