@@ -114,6 +114,19 @@ def test_the_pages_own_origin_drives(served: Callable[..., Served], name: str) -
     assert s.source.target == (500.0, 300.0)
 
 
+def test_the_page_at_another_loopback_address_drives(served: Callable[..., Served]) -> None:
+    """--host 127.0.0.2 is loopback too: the page opened at the address printed connects and
+    drives (its Origin is that address), and a foreign Origin is still refused."""
+    s = served(host="127.0.0.2")
+    assert s.srv.loopback and s.srv.url.startswith(f"http://127.0.0.2:{s.srv.port}/?token=")
+    origin = f"http://127.0.0.2:{s.srv.port}"
+    hello, refused, _ = asyncio.run(_session(s.srv.ws_url, [GOTO], origin=origin))
+    assert hello["access"]["drive"] and not refused, s.log
+    assert s.source.target == (500.0, 300.0)
+    with pytest.raises(InvalidStatus):
+        asyncio.run(_session(s.srv.ws_url, [GOTO], origin="http://evil.example"))
+
+
 @pytest.mark.parametrize("token", [None, "wrong", "x" * 300])
 def test_a_command_without_the_token_is_refused(
     served: Callable[..., Served], token: str | None
