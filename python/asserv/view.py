@@ -891,9 +891,10 @@ class ViewServer:
         host = f"[{self.host}]" if ":" in self.host else self.host
         self.base_url = f"http://{host}:{self.port}/"
         self.url = f"{self.base_url}?token={self.token}"
-        # The page's own origins (a browser opened at one of these names); None: a client that
-        # is no browser (Python's websockets), which no web page can make.
-        names = ["127.0.0.1", "localhost", "[::1]"] + ([] if self.loopback else [host])
+        # The page's own origins (a browser opened at one of these names, or at the address
+        # printed: --host 127.0.0.2 is loopback too); None: a client that is no browser
+        # (Python's websockets), which no web page can make.
+        names = list(dict.fromkeys(["127.0.0.1", "localhost", "[::1]", host]))
         self.origins = [None, *(Origin(f"http://{n}:{self.port}") for n in names)]
         async with serve(
             self._client,

@@ -14,17 +14,17 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
+import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
+from websockets.asyncio.client import connect
+from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 from asserv import cli, view
 from asserv.driver import Board
+from asserv.server import SimServer
 from asserv.sim import Simulator
-
-pytest.importorskip("websockets")
-from websockets.asyncio.client import connect
-from websockets.exceptions import ConnectionClosed, InvalidStatus
 
 
 class Served:
@@ -112,6 +112,19 @@ def test_the_pages_own_origin_drives(served: Callable[..., Served], name: str) -
     hello, refused, _ = asyncio.run(_session(s.ws(), [GOTO], origin=origin))
     assert hello["access"]["drive"] and not refused
     assert s.source.target == (500.0, 300.0)
+
+
+def test_the_page_at_another_loopback_address_drives(served: Callable[..., Served]) -> None:
+    """--host 127.0.0.2 is loopback too: the page opened at the address printed connects and
+    drives (its Origin is that address), and a foreign Origin is still refused."""
+    s = served(host="127.0.0.2")
+    assert s.srv.loopback and s.srv.url.startswith(f"http://127.0.0.2:{s.srv.port}/?token=")
+    origin = f"http://127.0.0.2:{s.srv.port}"
+    hello, refused, _ = asyncio.run(_session(s.srv.ws_url, [GOTO], origin=origin))
+    assert hello["access"]["drive"] and not refused, s.log
+    assert s.source.target == (500.0, 300.0)
+    with pytest.raises(InvalidStatus):
+        asyncio.run(_session(s.srv.ws_url, [GOTO], origin="http://evil.example"))
 
 
 @pytest.mark.parametrize("token", [None, "wrong", "x" * 300])
@@ -203,6 +216,59 @@ def test_a_board_is_watched_unless_control(served: Callable[..., Served]) -> Non
     assert driven.target == (500.0, 300.0)
 
 
+def _true_pose(server: SimServer) -> tuple[float, float]:
+    with server.lock:
+        pose = server.sim.true_pose()
+    return pose.x_mm, pose.y_mm
+
+
+@pytest.mark.parametrize("control", [False, True])
+def test_cli_a_served_board_is_watched_unless_control(control: bool) -> None:
+    """``asserv --sim HOST:PORT view`` as a team runs it (the --bus N path builds the same
+    BoardSource): without --control it says on stdout and in the hello that it watches, its
+    page's GOTO is refused and the served robot stays where it is; with it the GOTO drives."""
+    sim = Simulator(record=False)
+    with SimServer(sim, "127.0.0.1", 0, speed=4, log=lambda _: None) as server:
+        _, port = server.address
+        cmd = [sys.executable, "-m", "asserv", "--sim", f"127.0.0.1:{port}", "view", "--port", "0"]
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        proc = subprocess.Popen(
+            [*cmd, *(["--control"] if control else [])],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        try:
+            assert proc.stdout is not None
+            url = proc.stdout.readline().split()[3]
+            page, _, query = url.partition("?")
+            ws = f"{page.replace('http', 'ws', 1)}ws?{query}"
+            hello, refused, _ = asyncio.run(_session(ws, [GOTO], frames=15))
+            moved = 0.0
+            for _ in range(1 if not control else 200):  # driven: it turns, then drives
+                x, y = _true_pose(server)  # watched: after 15 frames, 2 s of its time at x4
+                moved = math.hypot(x, y + 850)
+                if moved > 100:
+                    break
+                time.sleep(0.05)
+        finally:
+            proc.terminate()
+            proc.wait(10)
+            out = proc.stdout.read()  # with the line readline() buffered already
+    watched = "the board is watched, not driven: asserv view --control lets clicks drive it"
+    if control:
+        assert hello["access"]["mode"] == "driving the board: a click sends a GOTO"
+        assert not refused and f"asserv view: {watched}" not in out.splitlines()
+        assert moved > 100 and math.hypot(x - 500, y - 300) < math.hypot(500, 300 + 850) - 100
+    else:
+        assert hello["access"]["drive"] is False
+        assert hello["access"]["mode"] == f"watching: {watched}"
+        assert refused == [f"goto: {watched}"]
+        assert f"asserv view: {watched}" in out.splitlines()
+        assert moved < 1
+
+
 def test_a_replay_takes_no_goto() -> None:
     src = view.SimSource()
     src.can_goto = False
@@ -247,6 +313,23 @@ def _with(msg: dict[str, Any], **changes: Any) -> dict[str, Any]:
     return {**msg, **changes}
 
 
+#: Bad messages that random text seldom draws: each also sent as such (@example).
+HARD = [
+    '{"type": "speed", "speed": NaN}',
+    '{"type": "speed", "speed": Infinity}',
+    '{"type": "speed", "speed": true}',  # a bool is an int in Python, not a number here
+    '{"type": "goto", "x": 1e999, "y": 0}',
+    '{"type": "goto", "x": -Infinity, "y": 0}',
+    "[" * 2000 + "]" * 2000,  # nested deeper than Python's default recursion limit
+    # ... and deeper than hypothesis's (the stack's depth + 2000, for every thread): as deep
+    # as a message may go (RecursionError in Python 3.11)
+    "[" * view.MAX_MESSAGE_BYTES,
+    '{"type": "goto", "x": ' + "9" * 4000 + ', "y": 0}',  # a number of 4000 digits
+    '{"type": "goto", "x": 1, "y": 2',  # cut short
+    '{"type": "goto", "x": 1, "y": 2, "type": "pause"}',  # a key twice: its last value
+    "x" * 5000,  # longer than a message may be
+]
+
 #: Messages that are never a command, each built to break one rule.
 INVALID = st.one_of(
     st.binary(max_size=20),  # a binary frame
@@ -267,19 +350,7 @@ INVALID = st.one_of(
     ).map(json.dumps),
     VALID.map(lambda m: json.dumps(_with(m, extra=1))),  # a key too many
     VALID.map(lambda m: json.dumps({k: v for k, v in m.items() if k == "type"})),  # too few
-    st.sampled_from(
-        [
-            '{"type": "speed", "speed": NaN}',
-            '{"type": "speed", "speed": Infinity}',
-            '{"type": "goto", "x": 1e999, "y": 0}',
-            '{"type": "goto", "x": -Infinity, "y": 0}',
-            "[" * 2000 + "]" * 2000,  # nested deeper than Python's recursion limit
-            '{"type": "goto", "x": ' + "9" * 4000 + ', "y": 0}',  # a number of 4000 digits
-            '{"type": "goto", "x": 1, "y": 2',  # cut short
-            '{"type": "goto", "x": 1, "y": 2, "type": "pause"}',  # a key twice: its last value
-            "x" * 5000,  # longer than a message may be
-        ]
-    ),
+    st.sampled_from(HARD),
 )
 
 
@@ -304,6 +375,7 @@ def _state(src: view.Source) -> tuple[Any, ...]:
         max_size=view.BURST,  # within the rate (test_a_flood_is_dropped_with_one_line)
     )
 )
+@example([("bad", m) for m in HARD] + [("valid", GOTO)])
 @settings(max_examples=300, deadline=None)
 def test_property_bad_messages_change_nothing(messages: list[tuple[str, Any]]) -> None:
     """Any mix of commands and bad messages: each bad one is refused with a log line and
@@ -346,6 +418,87 @@ def test_property_commands_without_the_token_change_nothing(messages: list[Any])
     for m in messages:
         assert "commands need this run's token" in srv.receive(access, json.dumps(m))
     assert srv._commands.empty()
+
+
+class _Still(_Stub):
+    """A stub whose time stands still: nothing but the commands changes it."""
+
+    def advance(self, dt_s: float) -> np.ndarray:
+        return view.log.empty(0)
+
+
+def _fits(m: Any) -> bool:
+    """Under the size that closes the socket (test_a_message_too_long_closes_the_socket)."""
+    data = m if isinstance(m, bytes) else (m if isinstance(m, str) else json.dumps(m)).encode()
+    return len(data) <= view.MAX_MESSAGE_BYTES
+
+
+_END = '{"type": "end"}'  # a bad message sent last: once it is refused, all the others were read
+
+
+@given(
+    st.lists(
+        st.one_of(
+            VALID.map(lambda m: ("valid", m)), INVALID.filter(_fits).map(lambda m: ("bad", m))
+        ),
+        max_size=view.BURST - 1,
+    )
+)
+@example([("bad", m) for m in HARD if _fits(m)] + [("valid", GOTO)])
+@settings(max_examples=40, deadline=None)
+def test_property_bad_messages_on_the_socket(messages: list[tuple[str, Any]]) -> None:
+    """The same promise through a running view's socket, as a page sends them: one refusal
+    answered and one log line per bad message, no error of websockets (no traceback), the
+    connection open to the end, and the view as the commands alone leave it."""
+    import logging
+
+    errors: list[logging.LogRecord] = []
+    handler = logging.Handler(logging.WARNING)
+    handler.emit = errors.append  # type: ignore[method-assign]
+    logging.getLogger("websockets").addHandler(handler)
+    src = _Still(_FIELD, _OUTLINE)
+    logged: list[str] = []
+    srv = view.ViewServer(src, "127.0.0.1", 0, log=logged.append)
+    srv.start_thread()
+    expected = _state(src)
+    for kind, m in messages:
+        if kind == "valid":
+            t, p, v = expected
+            if m["type"] == "goto":
+                t = (float(m["x"]), float(m["y"]))
+            elif m["type"] == "pause":
+                p = m["paused"]
+            else:
+                v = float(m["speed"])
+            expected = (t, p, v)
+
+    async def talk() -> list[str]:
+        refused: list[str] = []
+        async with connect(srv.ws_url) as ws:
+            await ws.recv()  # the hello
+            for _, m in messages:
+                await ws.send(m if isinstance(m, str | bytes) else json.dumps(m))
+            await ws.send(_END)
+            frames = 0
+            while frames < 2:  # the second frame after the last refusal applied every command
+                msg = json.loads(await asyncio.wait_for(ws.recv(), 5))
+                if msg["type"] == "refused":
+                    refused.append(msg["why"])
+                elif refused[-1:] == ["unknown kind 'end' (goto, pause, speed)"]:
+                    frames += 1
+        return refused
+
+    try:
+        refused = asyncio.run(talk())
+    finally:
+        srv.stop()
+        logging.getLogger("websockets").removeHandler(handler)
+    bad = sum(k == "bad" for k, _ in messages)
+    assert len(refused) == bad + 1 and all(refused), refused
+    assert _state(src) == expected
+    assert len(logged) == bad + 1, logged
+    assert all(line.startswith("refused a message of 127.0.0.1:") for line in logged), logged
+    assert errors == [], [r.getMessage() for r in errors]
 
 
 def test_a_flood_is_dropped_with_one_line() -> None:

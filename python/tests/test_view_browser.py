@@ -16,13 +16,11 @@ from typing import Any
 
 import numpy as np
 import pytest
+from playwright.sync_api import Browser, Page, sync_playwright  # the dev extra (scripts/setup.sh)
 
 from asserv import log, scenario, view
 from asserv.driver import Board
 from asserv.sim import Simulator
-
-pytest.importorskip("playwright")  # the dev extra; scripts/setup.sh installs it
-from playwright.sync_api import Browser, Page, sync_playwright
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = os.environ.get("ASSERV_CHROMIUM", "/usr/bin/chromium")
