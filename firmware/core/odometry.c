@@ -225,16 +225,6 @@ int odometry_check_config(const struct odometry_config *cfg)
 	return config_valid(cfg) ? 0 : -EDOM;
 }
 
-int odometry_set_config(struct odometry_counter *o, const struct odometry_config *cfg)
-{
-	if (!config_valid(cfg))
-		return -EDOM;
-	/* The heading is kept as it is, to 2^-64 turn: only the change per count changes. */
-	o->cfg = *cfg;
-	derive(o);
-	return 0;
-}
-
 /* Twice the midpoint travel [um * 2^16], |left + right|, from each wheel's sign and magnitude;
  * *neg its sign. Modulo 2^32. */
 static inline uint32_t twice_ds(uint32_t al, uint8_t lneg, uint32_t ar, uint8_t rneg, uint8_t *neg)
