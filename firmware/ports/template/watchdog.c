@@ -1,6 +1,6 @@
-/* Template port: the watchdog, as ports/stm32/watchdog.c (the AVR calls avr-libc's wdt_enable()
- * and wdt_reset() from its main.c). Its reset is what stops the motors when the ticks stop: the
- * PWM pins then float, so the bridge's enable inputs need pull-downs. */
+/* Template port: the watchdog, as ports/stm32/watchdog.c and ports/avr/watchdog.c. Its reset is
+ * what stops the motors when the ticks stop: the PWM pins then float, so the bridge's enable
+ * inputs need pull-downs. */
 #include "template_port.h"
 
 /* Start it with a window of a few control periods (60 ms on the AVR and the STM32), from main()
