@@ -56,7 +56,7 @@ POLL_AHEAD_S = 0.05  # polls start this long before the bound (the move cannot e
 HOLD_S = 0.1  # the robot watched after the board reports the end: it stays in the window
 DEBUG_READS = 3  # DEBUG replies read at random times during each move
 
-# The arrival window and speed of board_default_config() (firmware/core/board.c, orders.c
+# The arrival window and speed of board_default_config() (firmware/core/board_config.c, orders.c
 # settled()): here applied to the truth, the robot's true pose and speeds.
 ARRIVE_WINDOW_MM = 0.5
 ARRIVE_SPEED_MM_S = 5.0

@@ -6,7 +6,7 @@ counts the instructions the binary executes (a block hook); it has no cycle mode
 is estimated from them with a stated cycles-per-instruction assumption.
 
 Printed: instructions per control tick (the SysTick handler), split into the servo and the planner
-step (board.c's board_slow(): orders, profiles, faults, uncertainty, the replies; one rate,
+step (planner.c's board_slow(): orders, profiles, faults, uncertainty, the replies; one rate,
 slow_shift 0, it runs inside the tick),
 mean and worst over the move and at 1 m/s (true speed at least 0.95 m/s); the I2C interrupts'
 instructions per bus event; the estimated CPU load at 180 MHz; flash and RAM from the ELF's
@@ -81,7 +81,7 @@ class Bench(Stm32Board):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         cpu = self.cpu
-        # The planner step, board.c's board_slow() (called from the tick at one rate); without
+        # The planner step, planner.c's board_slow() (called from the tick at one rate); without
         # its symbol the split is not measured (printed as such) and the tick still is.
         self.slow_entry = cpu.symbols.get("board_slow", 1) & ~1
         self._slow_at: int | None = None

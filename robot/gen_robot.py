@@ -6,7 +6,7 @@
     python3 robot/gen_robot.py --show FILE  print the board's constants FILE gives, write nothing
 
     robot/default.toml -> sim/robot_default_gen.h          sim_config_defaults() (sim/config.c)
-    robot/default.toml -> firmware/core/robot_defs.h       board_default_config() (board.c)
+    robot/default.toml -> firmware/core/robot_defs.h       board_default_config() (board_config.c)
     robot/avr.toml     -> firmware/ports/avr/avr_robot_gen.h      avr_robot_config() (robot.c)
     robot/stm32.toml   -> firmware/ports/stm32/stm32_robot_gen.h  stm32_robot_config() (robot.c)
 

@@ -166,7 +166,7 @@ static uint32_t arc_correction(uint32_t both, uint32_t t)
 
 /* The same for any t, in 64 bits (sin(x)/x to the x^4 term: its error stays below 2e-10 while
  * |dtheta| <= 0.2 rad per arc). Runs only above 0.0245 rad per arc: above 24 rad/s with an arc
- * a tick at 1 kHz, above 3 rad/s with an arc a period at 125 Hz (board.c). */
+ * a tick at 1 kHz, above 3 rad/s with an arc a period at 125 Hz (planner.c). */
 static uint32_t arc_correction_wide(uint32_t both, uint32_t t)
 {
 	int64_t x = fx_shr_round64((int64_t)t * QUARTER_PI_Q32, 32);
@@ -223,16 +223,6 @@ void odometry_position_init(struct odometry_position *o, int32_t x_um, int32_t y
 int odometry_check_config(const struct odometry_config *cfg)
 {
 	return config_valid(cfg) ? 0 : -EDOM;
-}
-
-int odometry_set_config(struct odometry_counter *o, const struct odometry_config *cfg)
-{
-	if (!config_valid(cfg))
-		return -EDOM;
-	/* The heading is kept as it is, to 2^-64 turn: only the change per count changes. */
-	o->cfg = *cfg;
-	derive(o);
-	return 0;
 }
 
 /* Twice the midpoint travel [um * 2^16], |left + right|, from each wheel's sign and magnitude;

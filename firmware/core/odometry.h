@@ -13,7 +13,7 @@
 
 #include "fixmath.h"
 
-/* Ranges accepted by odometry_counter_init and odometry_set_config. */
+/* Ranges accepted by odometry_counter_init and odometry_derive_config. */
 #define ODOMETRY_UM_PER_COUNT_Q16_MAX ((uint32_t)1 << 24) /* 256 um per count */
 #define ODOMETRY_TRACK_UM_MIN ((uint32_t)1 << 14)         /* 16.4 mm */
 #define ODOMETRY_TRACK_UM_MAX ((uint32_t)1 << 21)         /* 2.097 m */
@@ -86,7 +86,7 @@ struct odometry_counter {
 	 * 0..2^17 - 1. Exact. */
 	uint32_t distance_um;
 	uint32_t distance_frac;
-	struct odometry_step step;
+	struct odometry_step step; /* the last count's */
 };
 
 /* The planner's half (board.h, struct planner): the position, moved along arcs made of the
@@ -113,20 +113,17 @@ int odometry_counter_init(struct odometry_counter *c, const struct odometry_conf
 /* Start at (x_um, y_um). Interrupt-safe: no. */
 void odometry_position_init(struct odometry_position *p, int32_t x_um, int32_t y_um);
 
-/* Change the wheel factors and track, keeping the heading and the distance; takes effect from
- * the next count. Returns 0, or -EDOM if cfg is out of range (the old config is kept).
- * Interrupt-safe: no (call between two ticks). */
-int odometry_set_config(struct odometry_counter *c, const struct odometry_config *cfg);
-
-/* 0 when odometry_set_config() would take cfg, or -EDOM. Interrupt-safe: yes. */
+/* 0 when odometry_derive_config() would take cfg, or -EDOM. Interrupt-safe: yes. */
 int odometry_check_config(const struct odometry_config *cfg);
 
-/* odometry_set_config() in two steps, for a caller that prepares in one context and installs in
- * another (board.h): the wheels' tables of cfg, the costly part (two long divisions: about
- * 75 000 cycles on an AVR); returns 0, or -EDOM (wheels untouched). Interrupt-safe: yes. */
+/* New wheel factors and track in two steps, prepared in one context and installed in another
+ * (board.h: the planner derives, the servo installs at a period's end). First the wheels'
+ * tables of cfg, the costly part (two long divisions: about 75 000 cycles on an AVR); returns 0,
+ * or -EDOM (wheels untouched). Interrupt-safe: yes. */
 int odometry_derive_config(const struct odometry_config *cfg, struct odometry_wheel wheels[2]);
 
-/* ... then cfg and its tables in place of the current ones: a copy of 780 bytes.
+/* ... then cfg and its tables in place of the current ones: a copy of 780 bytes. The heading
+ * (to 2^-64 turn) and the distance are kept; the next count uses the new factors.
  * Interrupt-safe: no (between two counts). */
 void odometry_install_config(struct odometry_counter *c, const struct odometry_config *cfg,
 			     const struct odometry_wheel wheels[2]);
@@ -182,12 +179,6 @@ static inline int32_t odometry_get_y_um(const struct odometry_position *p)
 static inline uint32_t odometry_get_heading_turn32(const struct odometry_counter *c)
 {
 	return c->heading_turn32;
-}
-
-/* The last tick's midpoint travel and heading change. Interrupt-safe: no. */
-static inline struct odometry_step odometry_get_step(const struct odometry_counter *c)
-{
-	return c->step;
 }
 
 /* Signed travel of the midpoint since init [um], rounded from an exact sum, saturated to int32

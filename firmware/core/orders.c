@@ -450,7 +450,7 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 	if (side < 0) { /* wrapping too (fuzzed positions may be far apart) */
 		further = wrap_sub(0, further);
 		beyond = wrap_sub(0, beyond);
-		speed_um_s = -speed_um_s; /* a product of two 16-bit values (board.c measure()) */
+		speed_um_s = -speed_um_s; /* a product of two 16-bit values (planner_measure()) */
 	}
 	if (!(o->give_way & stopped)) {
 		/* Braking for the braking time, while it still goes towards the obstacle (it went

@@ -1,8 +1,10 @@
 /* The orders module (orders.c) through orders.h, on a small kinematic robot that follows its set
  * points: GOTO turning then going straight, GOTO_REVERSE, STOP, an order replaced while running,
  * the speed and acceleration limits and the grip's share of them, the settle and its timeout,
- * the hold after a shock, border and basket recalibration; then a randomized soak that checks,
- * at every update, what the module promises whatever the orders and the measures. */
+ * the hold after a shock, border and basket recalibration; match play's PAUSE and RESUME, the
+ * speed scale and a pass-through corner's curve, and the re-aims orders_aimed() reports; then a
+ * randomized soak that checks, at every update, what the module promises whatever the orders
+ * and the measures. */
 #include <math.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -1034,6 +1036,541 @@ static void test_basket(void **state)
 	assert_int_equal(orders_basket_pose(&o, &est, &out), -1);
 }
 
+/* A GOTO cruising along +X at 50 cm/s (SET_VITESSE_TRAJ 50 100), 1 kHz, from rest at the origin:
+ * the set up of the match-play tests below. */
+static void cruise(struct orders *o, struct robot *r, int32_t x_um)
+{
+	struct orders_config c;
+
+	base_config(&c);
+	make_orders(o, &c, 1000);
+	robot_init(r, 1000, 0, 0, 0);
+	orders_set_traj_limits(o, 50, 100);
+	goto_xy(r, o, x_um, 0, 0);
+	run_updates(r, o, 1000);
+	assert_int_equal(o->state, ORDER_STATE_TRANSLATE);
+	assert_int_equal(o->sp_dist.vel_um_s, 500000);
+}
+
+/* Updates until both set points are at rest, at most max; what the run saw in u. Returns the
+ * number of updates, max + 1 if they did not come to rest. */
+static uint32_t run_to_rest(struct robot *r, struct orders *o, struct run *u, uint32_t max)
+{
+	run_clear(u);
+	while (u->updates < max) {
+		struct orders_axis pd = o->sp_dist, pa = o->sp_angle;
+
+		assert_int_equal(step(r, o), END_REASON_NONE);
+		run_note(u, o, &pd, &pa);
+		if (o->sp_dist.vel_um_s == 0 && o->sp_angle.vel_um_s == 0)
+			return u->updates;
+	}
+	return max + 1;
+}
+
+/* PAUSE (docs/failure-model.md "A pause", docs/control.md "Pause, speed scale"): from 50 cm/s
+ * the line brakes on its profile at the grip's share, 3/4 of 7/8 of 3 m/s^2 = 1.96875 m/s^2,
+ * not the master's 1 m/s^2: at rest in 0.254 s, within v^2 / 2a = 63.49 mm, the heading kept.
+ * Then it holds for 5 s: the order keeps its state and its target and does not advance (its
+ * remaining 1.6 m would have taken 3.3 s), busy all the while. A second PAUSE changes nothing. */
+static void test_pause_brakes_to_rest_and_holds(void **state)
+{
+	struct orders o, before;
+	struct robot r;
+	struct run u;
+	int32_t from, at;
+
+	(void)state;
+	cruise(&o, &r, 2000000);
+	from = o.sp_dist.pos_um;
+	orders_pause(&o);
+	assert_int_equal(o.designation, PROTO_GOTO);
+	assert_int_equal(o.state, ORDER_STATE_TRANSLATE);
+	assert_int_equal(orders_busy(&o), 1);
+	assert_in_range(run_to_rest(&r, &o, &u, 1000), 254, 256);
+	assert_in_range(u.max_dist_dv, 1968, 1969); /* 1968.75 um/s an update */
+	assert_true(u.min_dist_vel >= 0);           /* braked, not reversed */
+	assert_in_range(o.sp_dist.pos_um - from, 63000, 63492);
+	assert_int_equal(u.max_angle_vel, 0);
+	assert_int_equal(u.min_angle_vel, 0);
+	assert_int_equal(o.sp_angle.pos_um, 0);
+
+	/* Held for 5 s: no update moves it or ends the order. */
+	at = o.sp_dist.pos_um;
+	for (uint32_t i = 0; i < 5000; i++) {
+		assert_int_equal(step(&r, &o), END_REASON_NONE);
+		assert_int_equal(o.sp_dist.pos_um, at);
+		assert_int_equal(o.sp_dist.vel_um_s, 0);
+		assert_int_equal(o.sp_angle.pos_um, 0);
+	}
+	assert_int_equal(o.state, ORDER_STATE_TRANSLATE);
+	assert_int_equal(o.designation, PROTO_GOTO);
+	assert_int_equal(orders_busy(&o), 1);
+	assert_true(fabs(r.x_um - at) <= 1);
+
+	memcpy(&before, &o, sizeof(o));
+	orders_pause(&o);
+	assert_memory_equal(&before, &o, sizeof(o));
+}
+
+/* PAUSE in a turn brakes the turn (the line stays where it is) at the turn's share of the grip,
+ * what the line leaves over 1.95: 0.336 m/s^2 of arc; from 10 cm/s, 0.298 s. */
+static void test_pause_in_a_turn_brakes_the_turn(void **state)
+{
+	struct orders o;
+	struct orders_config c;
+	struct robot r;
+	struct run u;
+	int32_t at;
+
+	(void)state;
+	base_config(&c);
+	make_orders(&o, &c, 1000);
+	robot_init(&r, 1000, 0, 0, 0);
+	goto_xy(&r, &o, 0, 1000000, 0);
+	run_updates(&r, &o, 400);
+	assert_int_equal(o.state, ORDER_STATE_ROTATE);
+	assert_int_equal(o.sp_angle.vel_um_s, 100000);
+	at = o.sp_angle.pos_um;
+	orders_pause(&o);
+	assert_in_range(run_to_rest(&r, &o, &u, 1000), 297, 299);
+	assert_in_range(u.max_angle_dv, 336, 337);
+	assert_true(u.min_angle_vel >= 0);
+	/* v^2 / 2a = 14.88 mm of arc, less half an update's travel. */
+	assert_in_range(o.sp_angle.pos_um - at, 14700, 14881);
+	assert_int_equal(u.max_dist_vel, 0);
+	assert_int_equal(u.min_dist_vel, 0);
+	assert_int_equal(o.sp_dist.pos_um, 0);
+	at = o.sp_angle.pos_um;
+	run_updates(&r, &o, 2000);
+	assert_int_equal(o.sp_angle.pos_um, at);
+	assert_int_equal(o.state, ORDER_STATE_ROTATE);
+}
+
+/* RESUME: the paused order goes on to the same target from where the robot stands. A GOTO
+ * re-aims from the estimate at the first update (the robot was pushed 20 mm aside while
+ * paused), speeds up at the master's acceleration again (not PAUSE's), and ends DONE on its
+ * target as it would have. A turn paused goes on turning, then goes straight to its point. */
+static void test_resume_goes_on_to_the_same_target(void **state)
+{
+	struct orders o;
+	struct robot r;
+	struct run u;
+
+	(void)state;
+	cruise(&o, &r, 2000000);
+	/* Just after a re-aim: without RESUME's, the next would be aim_period updates away. */
+	while (!orders_aimed(&o) && CONFIG_FIX)
+		run_updates(&r, &o, 1);
+	orders_pause(&o);
+	assert_true(run_to_rest(&r, &o, &u, 1000) < 1000);
+	run_updates(&r, &o, 500);
+	r.y_um += 20000;
+	orders_resume(&o);
+	assert_int_equal(o.state, ORDER_STATE_TRANSLATE);
+	assert_int_equal(orders_busy(&o), 1);
+	assert_int_equal(step(&r, &o), END_REASON_NONE);
+	assert_int_equal(orders_aimed(&o), CONFIG_FIX);
+	run_order(&r, &o, &u, 20000);
+	assert_int_equal(u.reason, END_REASON_DONE);
+	assert_int_equal(o.designation, PROTO_GOTO);
+	assert_int_equal(u.max_dist_vel, 500000);
+	assert_in_range(u.max_dist_dv, 999, 1001); /* 1 m/s^2, the master's */
+	assert_true(u.min_dist_vel >= 0);
+	finish(&r, &o);
+	assert_true(hypot(r.x_um - 2000000, r.y_um) < 500);
+
+	/* A GOTO_REVERSE (no re-aim) paused and resumed: the whole 300 mm back, DONE there. */
+	{
+		struct orders_config c;
+		struct orders_measure m;
+
+		base_config(&c);
+		make_orders(&o, &c, 1000);
+		robot_init(&r, 1000, 0, 0, 0);
+		m = robot_measure(&r);
+		orders_goto_reverse(&o, &m, 300000);
+		run_updates(&r, &o, 1000);
+		assert_int_equal(o.sp_dist.vel_um_s, -100000);
+		orders_pause(&o);
+		assert_true(run_to_rest(&r, &o, &u, 1000) < 1000);
+		run_updates(&r, &o, 300);
+		assert_true(o.sp_dist.pos_um > -100000);
+		orders_resume(&o);
+		run_order(&r, &o, &u, 20000);
+		assert_int_equal(u.reason, END_REASON_DONE);
+		assert_int_equal(o.designation, PROTO_GOTO_REVERSE);
+		finish(&r, &o);
+		assert_int_equal(o.sp_dist.pos_um, -300000);
+		assert_true(fabs(r.x_um + 300000) <= 1);
+	}
+
+	/* Paused mid-turn, resumed: the turn goes on, then the line. */
+	{
+		struct orders_config c;
+
+		base_config(&c);
+		make_orders(&o, &c, 1000);
+	}
+	robot_init(&r, 1000, 0, 0, 0);
+	goto_xy(&r, &o, 0, 1000000, 0);
+	run_updates(&r, &o, 400);
+	orders_pause(&o);
+	assert_true(run_to_rest(&r, &o, &u, 1000) < 1000);
+	run_updates(&r, &o, 300);
+	orders_resume(&o);
+	run_order(&r, &o, &u, 30000);
+	assert_int_equal(u.reason, END_REASON_DONE);
+	assert_true(u.first_in[ORDER_STATE_ROTATE] > 0);
+	assert_true(u.max_angle_vel <= 100000 && u.max_dist_vel <= 100000);
+	finish(&r, &o);
+	assert_true(hypot(r.x_um, r.y_um - 1000000) < 1000);
+	assert_true(fx_angle_dist(turn32_of(robot_heading(&r)), 1u << 30) < fx_deg_to_turn32(1));
+}
+
+/* What PAUSE and RESUME leave alone (orders.h, docs/protocol.md 16.3): PAUSE while idle or
+ * stopping, RESUME without a pause; a STOP or a new order ends the pause. */
+static void test_pause_and_resume_leave_alone(void **state)
+{
+	struct orders o, before;
+	struct orders_config c;
+	struct robot r;
+	struct run u;
+
+	(void)state;
+	base_config(&c);
+	make_orders(&o, &c, 1000);
+	robot_init(&r, 1000, 0, 0, 0);
+	run_updates(&r, &o, 10);
+	memcpy(&before, &o, sizeof(o));
+	orders_pause(&o);
+	assert_memory_equal(&before, &o, sizeof(o));
+	orders_resume(&o);
+	assert_memory_equal(&before, &o, sizeof(o));
+
+	/* RESUME on a running order that is not paused. */
+	cruise(&o, &r, 2000000);
+	memcpy(&before, &o, sizeof(o));
+	orders_resume(&o);
+	assert_memory_equal(&before, &o, sizeof(o));
+
+	/* PAUSE while STOP brakes: the STOP goes on at its own deceleration (the master's
+	 * 1 m/s^2: 1 mm/s an update), and ends STOPPED. */
+	orders_stop(&o);
+	run_updates(&r, &o, 10);
+	memcpy(&before, &o, sizeof(o));
+	orders_pause(&o);
+	assert_memory_equal(&before, &o, sizeof(o));
+	run_order(&r, &o, &u, 2000);
+	assert_int_equal(u.reason, END_REASON_STOPPED);
+	assert_in_range(u.max_dist_dv, 999, 1001);
+
+	/* STOP ends a pause: STOPPED, at once at rest. */
+	cruise(&o, &r, 2000000);
+	orders_pause(&o);
+	assert_true(run_to_rest(&r, &o, &u, 1000) < 1000);
+	orders_stop(&o);
+	run_order(&r, &o, &u, 10);
+	assert_int_equal(u.reason, END_REASON_STOPPED);
+
+	/* A new order ends it: it runs, and a RESUME after it changes nothing. */
+	cruise(&o, &r, 2000000);
+	orders_pause(&o);
+	assert_true(run_to_rest(&r, &o, &u, 1000) < 1000);
+	goto_xy(&r, &o, 1000000, 0, 0);
+	memcpy(&before, &o, sizeof(o));
+	orders_resume(&o);
+	assert_memory_equal(&before, &o, sizeof(o));
+	run_order(&r, &o, &u, 20000);
+	assert_int_equal(u.reason, END_REASON_DONE);
+	finish(&r, &o);
+	assert_true(fabs(r.x_um - 1000000) <= 1);
+}
+
+/* SET_SPEED_SCALE (docs/protocol.md 16.4): the running order slows from 50 to 20 cm/s at 40 %
+ * at its acceleration limit (1 m/s^2: 0.3 s), and never goes faster; back at 100 % it speeds up
+ * again the same way, and ends on its target. Above 100 reads 100; 0 leaves 1 um/s, a creep.
+ * The scale holds for the orders that follow, on both axes. */
+static void test_speed_scale(void **state)
+{
+	struct orders o;
+	struct orders_config c;
+	struct robot r;
+	struct run u;
+
+	(void)state;
+	cruise(&o, &r, 3000000);
+	orders_set_speed_scale(&o, 40);
+	assert_int_equal(o.state, ORDER_STATE_TRANSLATE);
+	run_order(&r, &o, &u, 300);
+	assert_int_equal(u.reason, END_REASON_NONE);
+	assert_int_equal(o.sp_dist.vel_um_s, 200000);
+	assert_in_range(u.max_dist_dv, 999, 1001);
+	assert_true(u.max_dist_vel < 500000);
+	for (uint32_t i = 0; i < 1000; i++) {
+		assert_int_equal(step(&r, &o), END_REASON_NONE);
+		assert_int_equal(o.sp_dist.vel_um_s, 200000);
+	}
+	orders_set_speed_scale(&o, 100);
+	run_order(&r, &o, &u, 300);
+	assert_int_equal(o.sp_dist.vel_um_s, 500000);
+	assert_in_range(u.max_dist_dv, 999, 1001);
+	run_order(&r, &o, &u, 20000);
+	assert_int_equal(u.reason, END_REASON_DONE);
+	assert_int_equal(u.max_dist_vel, 500000);
+	finish(&r, &o);
+	assert_true(fabs(r.x_um - 3000000) <= 1);
+
+	/* 255 reads 100 %. */
+	cruise(&o, &r, 3000000);
+	orders_set_speed_scale(&o, 255);
+	for (uint32_t i = 0; i < 1000; i++) {
+		assert_int_equal(step(&r, &o), END_REASON_NONE);
+		assert_int_equal(o.sp_dist.vel_um_s, 500000);
+	}
+
+	/* 0: braked to 1 um/s at the acceleration limit (0.5 s), still running. */
+	orders_set_speed_scale(&o, 0);
+	run_order(&r, &o, &u, 600);
+	assert_int_equal(u.reason, END_REASON_NONE);
+	assert_in_range(o.sp_dist.vel_um_s, 0, 1);
+	assert_in_range(u.max_dist_dv, 999, 1001);
+	assert_int_equal(orders_busy(&o), 1);
+
+	/* Set while idle: the next GOTO cruises at 5 cm/s (50 % of 10), and its turn at 5 cm/s
+	 * of arc. */
+	base_config(&c);
+	make_orders(&o, &c, 1000);
+	robot_init(&r, 1000, 0, 0, 0);
+	orders_set_speed_scale(&o, 50);
+	goto_xy(&r, &o, 0, 300000, 0);
+	run_order(&r, &o, &u, 20000);
+	assert_int_equal(u.reason, END_REASON_DONE);
+	assert_int_equal(u.max_angle_vel, 50000);
+	assert_int_equal(u.max_dist_vel, 50000);
+	finish(&r, &o);
+	assert_true(hypot(r.x_um, r.y_um - 300000) < 1000);
+}
+
+/* The angle set point on a curve of turn_um after s um of it (docs/control.md "Corners"): a
+ * clothoid, the arc, a clothoid back. */
+static double curve_angle_at(const struct orders_curve *c, double turn_um, double s)
+{
+	double w = (double)c->clothoid_um + c->arc_um, len = w + c->clothoid_um;
+
+	if (s <= c->clothoid_um)
+		return turn_um * s * s / (2.0 * c->clothoid_um * w);
+	if (s <= w)
+		return turn_um * (2 * s - c->clothoid_um) / (2 * w);
+	return turn_um - turn_um * (len - s) * (len - s) / (2.0 * c->clothoid_um * w);
+}
+
+/* Where a curve of turn_um [um of arc] ends, from the origin heading 0. */
+static void curve_end(const struct orders_curve *c, double turn_um, double *x, double *y)
+{
+	double len = 2.0 * c->clothoid_um + c->arc_um, ds = 10;
+
+	*x = *y = 0;
+	for (double s = 0; s < len; s += ds) {
+		double h = curve_angle_at(c, turn_um, s + ds / 2) / (TRACK_UM / 2.0);
+
+		*x += ds * cos(h);
+		*y += ds * sin(h);
+	}
+}
+
+/* One GOTO through a pass-through corner's curve (orders_curve_start()), with PAUSE and RESUME
+ * at update pause_at of the curve (0: none): the curve's updates run in ROTATE, the line never
+ * stopping. Returns the curve's updates. */
+static uint32_t run_curve(uint32_t pause_at)
+{
+	const struct orders_curve c = {.v_um_s = 100000,
+				       .a_um_s2 = 400000,
+				       .clothoid_um = 100000,
+				       .arc_um = 200000,
+				       .rest_um = 500000};
+	double turn = PI * TRACK_UM / 4; /* a quarter turn */
+	double ex, ey, x0, tx, ty;
+	struct orders o;
+	struct orders_config cfg;
+	struct orders_measure m;
+	struct robot r;
+	int32_t d0, a0;
+	uint32_t n = 0, paused_for = 0, rest = 0;
+	uint8_t reason = END_REASON_NONE;
+
+	base_config(&cfg);
+	make_orders(&o, &cfg, 1000);
+	robot_init(&r, 1000, 0, 0, 0);
+	goto_xy(&r, &o, 2000000, 0, 0);
+	run_updates(&r, &o, 1000);
+	assert_int_equal(o.sp_dist.vel_um_s, 100000);
+	/* The next line, at up to 30 cm/s once off the curve: from where the curve ends, 500 mm
+	 * along +Y. */
+	orders_set_traj_limits(&o, 30, 0);
+	x0 = r.x_um;
+	curve_end(&c, turn, &ex, &ey);
+	tx = x0 + ex;
+	ty = ey + c.rest_um;
+	m = robot_measure(&r);
+	orders_goto(&o, &m, (int32_t)lround(tx), (int32_t)lround(ty), 0);
+	assert_int_equal(o.state, ORDER_STATE_ROTATE);
+	d0 = o.sp_dist.pos_um;
+	a0 = o.sp_angle.pos_um;
+	orders_curve_start(&o, &m, &c, 1u << 30);
+	while (o.state == ORDER_STATE_ROTATE && n < 20000) {
+		struct orders_axis pd = o.sp_dist;
+		double s, rate;
+
+		if (pause_at && n == pause_at)
+			orders_pause(&o);
+		if (pause_at && n > pause_at && !rest && o.sp_dist.vel_um_s == 0)
+			rest = n;
+		if (rest && paused_for < 300 && ++paused_for == 300)
+			orders_resume(&o);
+		reason = step(&r, &o);
+		assert_int_equal(reason, END_REASON_NONE);
+		n++;
+		if (o.state != ORDER_STATE_ROTATE)
+			break;
+		/* The heading slaved to the line along the curve, whatever its speed does. */
+		s = o.sp_dist.pos_um - d0;
+		assert_true(fabs(o.sp_angle.pos_um - a0 - curve_angle_at(&c, turn, s)) <= 2);
+		/* At most the curve's speed and acceleration; the line only stops paused. */
+		assert_true(o.sp_dist.vel_um_s <= c.v_um_s);
+		assert_true(abs(o.sp_dist.vel_um_s - pd.vel_um_s) <= c.a_um_s2 / 1000 + 1);
+		if (!pause_at)
+			assert_int_equal(o.sp_dist.vel_um_s, c.v_um_s);
+		/* On the arc, the heading's rate is the line's over the radius. */
+		rate = turn * o.sp_dist.vel_um_s / (c.clothoid_um + c.arc_um);
+		if (s > c.clothoid_um + 1000 && s < c.clothoid_um + c.arc_um - 1000)
+			assert_true(fabs(o.sp_angle.vel_um_s - rate) <= 1);
+	}
+	/* The curve's end: the next line's heading exactly, then its point, DONE. */
+	assert_int_equal(o.state, ORDER_STATE_TRANSLATE);
+	assert_true(o.sp_dist.pos_um - d0 >= 2 * c.clothoid_um + c.arc_um);
+	assert_true(fabs(o.sp_angle.pos_um - a0 - turn) <= 1);
+	assert_true(fx_angle_dist(turn32_of(robot_heading(&r)), 1u << 30) < fx_deg_to_turn32(1));
+	if (pause_at) {
+		assert_true(rest > pause_at);
+		assert_int_equal(paused_for, 300);
+	}
+	while (reason == END_REASON_NONE && n < 40000) {
+		reason = step(&r, &o);
+		n++;
+	}
+	assert_int_equal(reason, END_REASON_DONE);
+	finish(&r, &o);
+	assert_true(hypot(r.x_um - tx, r.y_um - ty) < 1000);
+	return n;
+}
+
+/* orders_curve_start() (docs/control.md "Corners"): the GOTO that has just started from a robot
+ * moving at 10 cm/s turns a quarter turn on a clothoid (100 mm), an arc (200 mm) and a clothoid
+ * back, translating at the curve's speed all the way (the line's limit, 30 cm/s, capped at it),
+ * its heading a function of the distance travelled; then the line to its point. A PAUSE on the
+ * arc brakes the line at the curve's acceleration along the curve, and RESUME goes on along it.
+ * Nothing for an order that is not a GOTO that has just started. */
+static void test_curve_start(void **state)
+{
+	const struct orders_curve c = {100000, 400000, 100000, 200000, 0, 500000};
+	struct orders o, before;
+	struct robot r;
+	struct orders_measure m;
+
+	(void)state;
+	run_curve(0);
+	run_curve(2000);
+
+	cruise(&o, &r, 2000000); /* TRANSLATE */
+	m = robot_measure(&r);
+	memcpy(&before, &o, sizeof(o));
+	orders_curve_start(&o, &m, &c, 1u << 30);
+	assert_memory_equal(&before, &o, sizeof(o));
+	orders_goto_reverse(&o, &m, 100000);
+	memcpy(&before, &o, sizeof(o));
+	orders_curve_start(&o, &m, &c, 1u << 30);
+	assert_memory_equal(&before, &o, sizeof(o));
+	orders_goto_panier(&o, &m, 1u << 30); /* ROTATE, but not a GOTO */
+	memcpy(&before, &o, sizeof(o));
+	orders_curve_start(&o, &m, &c, 1u << 30);
+	assert_memory_equal(&before, &o, sizeof(o));
+	goto_xy(&r, &o, m.pose.x_um + 10000, 20000, 0); /* within the freeze radius */
+	memcpy(&before, &o, sizeof(o));
+	orders_curve_start(&o, &m, &c, 1u << 30);
+	assert_memory_equal(&before, &o, sizeof(o));
+}
+
+/* orders_aimed() (what the planner keeps a fix's fusion out of): 1 after the updates that
+ * re-aimed a GOTO, every aim_period updates (4 at 1 kHz, every one at 125 Hz) until the target
+ * is within the freeze radius, never for GOTO_REVERSE, STOP or while idle; always 0 without
+ * CONFIG_FIX. */
+static void test_aimed(void **state)
+{
+	static const uint16_t rates[] = {1000, 125};
+
+	(void)state;
+	for (size_t k = 0; k < 2; k++) {
+		uint16_t hz = rates[k];
+		uint32_t period = hz == 1000 ? 4 : 1;
+		struct orders o;
+		struct orders_config c;
+		struct robot r;
+		struct orders_measure m;
+		uint32_t n = 0, aims = 0, last = 0, gap_bad = 0;
+		double last_dist = 0;
+		uint8_t reason = END_REASON_NONE;
+
+		base_config(&c);
+		make_orders(&o, &c, hz);
+		robot_init(&r, hz, 0, 0, 0);
+		run_updates(&r, &o, 3);
+		assert_int_equal(orders_aimed(&o), 0);
+		goto_xy(&r, &o, 300000, 0, 0);
+		while (reason == END_REASON_NONE && n < 10u * hz) {
+			double dist = hypot(300000 - r.x_um, r.y_um);
+
+			reason = step(&r, &o);
+			n++;
+			if (!orders_aimed(&o))
+				continue;
+			/* The first update aims twice (ROTATE, then TRANSLATE): one report. */
+			if (aims > 0 && n - last != period)
+				gap_bad++;
+			aims++;
+			last = n;
+			last_dist = dist;
+		}
+		assert_int_equal(reason, END_REASON_DONE);
+		assert_int_equal(orders_aimed(&o), 0);
+		if (!CONFIG_FIX) {
+			assert_int_equal(aims, 0);
+			continue;
+		}
+		assert_int_equal(gap_bad, 0);
+		assert_int_equal(aims, (last - 1) / period + 1);
+		/* The last one found the target within 30 mm, and froze it; the one before, a
+		 * period's travel at 10 cm/s earlier, did not. */
+		assert_true(last_dist <= 30000 && last_dist > 30000 - 100000.0 / hz * period);
+		run_updates(&r, &o, 10);
+		assert_int_equal(orders_aimed(&o), 0);
+
+		m = robot_measure(&r);
+		orders_goto_reverse(&o, &m, 100000);
+		for (uint32_t i = 0; i < hz; i++) {
+			step(&r, &o);
+			assert_int_equal(orders_aimed(&o), 0);
+		}
+		goto_xy(&r, &o, 500000, 0, 0);
+		run_updates(&r, &o, hz / 2);
+		orders_stop(&o);
+		for (uint32_t i = 0; i < hz; i++) {
+			step(&r, &o);
+			assert_int_equal(orders_aimed(&o), 0);
+		}
+	}
+}
+
 /* The states an update may move to from each state (bit per ORDER_STATE_*). */
 static const uint8_t next_states[8] = {
 	[ORDER_STATE_IDLE] = 1u << ORDER_STATE_IDLE,
@@ -1292,6 +1829,13 @@ int main(void)
 		cmocka_unit_test(test_shock_rebound_is_not_pulled_back),
 		cmocka_unit_test(test_border_recalibration),
 		cmocka_unit_test(test_basket),
+		cmocka_unit_test(test_pause_brakes_to_rest_and_holds),
+		cmocka_unit_test(test_pause_in_a_turn_brakes_the_turn),
+		cmocka_unit_test(test_resume_goes_on_to_the_same_target),
+		cmocka_unit_test(test_pause_and_resume_leave_alone),
+		cmocka_unit_test(test_speed_scale),
+		cmocka_unit_test(test_curve_start),
+		cmocka_unit_test(test_aimed),
 		cmocka_unit_test(test_soak_1khz),
 		cmocka_unit_test(test_soak_125hz),
 	};

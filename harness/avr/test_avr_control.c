@@ -398,7 +398,7 @@ static void control_round(struct target *t)
 	}
 }
 
-/* odometry_advance along arcs of a tick and of a period (board.c integrates the position once
+/* odometry_advance along arcs of a tick and of a period (planner.c integrates the position once
  * per period with two rates): small and large wheel travels, either way, with heading changes
  * around each of the arc correction's paths (none below 2^15 turn * 2^-32, 32 bits below 2^24,
  * 64 bits above), from the position and kept sine and cosine of the last arc. The first arc is

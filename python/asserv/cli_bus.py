@@ -442,7 +442,7 @@ def _opened(bus: ClosableBus) -> BusFactory:
 
 def run_bus_command(args: argparse.Namespace, bus_factory: BusFactory | None = None) -> int:
     """Run a parsed bus command; return the exit code (0 done, 1 bus or board error, 2 bad
-    arguments). ``bus_factory(N)`` opens bus N: the registry's (``asserv.bus.BACKENDS``) by
+    arguments). ``bus_factory(N)`` opens bus N: the registry's (``asserv.backends.BACKENDS``) by
     default, or a VirtualBus in tests."""
     cmd = getattr(args, "bus_command", None) or "?"
     prog = f"asserv {cmd}"

@@ -271,7 +271,7 @@ def test_the_bus_gives_the_c_layer_what_a_direct_call_gives(
 
 
 def test_the_bus_registry_opens_by_kind(monkeypatch: pytest.MonkeyPatch) -> None:
-    """One registry (asserv.bus.BACKENDS) opens every bus a command names: --bus N, --sim."""
+    """One registry (asserv.backends.BACKENDS) opens every bus a command names: --bus N, --sim."""
     from asserv import backends as bus_mod
 
     assert set(bus_mod.BACKENDS) == {"smbus2", "sim"}

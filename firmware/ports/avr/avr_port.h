@@ -19,6 +19,12 @@ extern struct board asserv_board;
 /* The cause of this start (RESET_CAUSE_*) of MCUSR as the reset left it (reset.c). */
 uint8_t avr_reset_cause(uint8_t mcusr);
 
+/* The watchdog (watchdog.c): turned off by the start-up's .init3 code (a watchdog reset leaves
+ * it on), started by main() with a 60 ms window, fed by the main loop. */
+void avr_watchdog_off(void);
+void avr_watchdog_start(void);
+void avr_watchdog_feed(void);
+
 /* Set-up, once, interrupts off: pins and pull-ups (sensors.c), encoder decoding (encoder.c),
  * PWM, direction pins and the current-sense ADC (motor.c). */
 void avr_sensors_init(void);

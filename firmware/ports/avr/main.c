@@ -5,7 +5,6 @@
 
 #include <avr/interrupt.h>
 #include <avr/io.h>
-#include <avr/wdt.h>
 
 #include "avr_port.h"
 #include "hal.h"
@@ -28,13 +27,13 @@ static struct hal_nvm avr_nvm;
 volatile uint16_t avr_tick_overruns;
 
 /* After a watchdog reset the watchdog stays on: turn it off before anything else (WDRF must be
- * cleared first), keeping the reset flags for main(). */
+ * cleared first: watchdog.c), keeping the reset flags for main(). */
 void avr_early_init(void) __attribute__((naked, used, section(".init3")));
 void avr_early_init(void)
 {
 	avr_mcusr = MCUSR;
 	MCUSR = 0;
-	wdt_disable();
+	avr_watchdog_off();
 }
 
 int main(void)
@@ -65,7 +64,7 @@ int main(void)
 	hal_nvm_load(&avr_nvm, &asserv_board);
 	hal_i2c_slave_init(PROTO_ADDRESS);
 	hal_tick_start(cfg.tick_hz);
-	wdt_enable(WDTO_60MS);
+	avr_watchdog_start(); /* 60 ms (watchdog.c) */
 	sei();
 #if CONFIG_AVR_SLOW_SHIFT == 0
 	for (;;) {
@@ -78,7 +77,7 @@ int main(void)
 		port_control_tick(&asserv_board);
 		PORTD &= (uint8_t)~_BV(PIN_TICK_BIT);
 		hal_nvm_poll(&avr_nvm, &asserv_board); /* a byte at most, never waited for */
-		wdt_reset();
+		avr_watchdog_feed();
 	}
 #else
 	for (;;) {
@@ -92,7 +91,7 @@ int main(void)
 		 * the watchdog stop the motors. */
 		if (avr_servo_alive) {
 			avr_servo_alive = 0;
-			wdt_reset();
+			avr_watchdog_feed();
 		}
 	}
 #endif

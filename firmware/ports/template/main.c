@@ -3,10 +3,12 @@
  * the porting contract (firmware/hal/) is a stub that says what it must do, one file per header:
  * encoder.c, motor.c, sensors.c, i2c.c, tick.c, nvm.c (hal_nvm.h is implemented for byte storage
  * by ports/common/nvm_bytes.c: nvm.c stubs its four byte functions, and says when a port writes
- * its own instead). To start a port: copy this folder to
- * ports/<name>, rename the template_ prefix, fill in each stub from the chip's reference manual,
- * attach template_tick_isr() and template_i2c_event() to the chip's interrupts, and describe the
- * robot in robot/<name>.toml. ports/avr and ports/stm32 are two finished examples. */
+ * its own instead). The rest has the finished ports' file names: robot.c (the configuration),
+ * reset.c (why the chip started), watchdog.c, and this main.c (the start-up's order). To start
+ * a port: copy this folder to ports/<name>, rename the template_ prefix, fill in each stub from
+ * the chip's reference manual, attach template_tick_isr() and template_i2c_event() to the chip's
+ * interrupts, and describe the robot in robot/<name>.toml. ports/avr and ports/stm32 are two
+ * finished examples. */
 #include <stddef.h>
 
 #include "hal.h"
@@ -15,6 +17,8 @@
 #include "protocol_defs.h"
 #include "template_port.h"
 
+/* A real port puts it in RAM its start-up does not clear (the AVR's and the STM32's .noinit
+ * section), so that board_restart() finds in it what a reset keeps (keep.h). */
 struct board asserv_board;
 
 /* The calibration's records in the storage (hal_nvm.h): loaded at start, written by the main
@@ -22,36 +26,31 @@ struct board asserv_board;
  * port's own, as stm32_nvm.h's. */
 static struct hal_nvm template_nvm;
 
-/* The robot this board drives: the reference robot's defaults here; a real port takes its own,
- * generated from robot/<name>.toml (the AVR's avr_robot_config(), the STM32's). */
-void template_robot_config(struct board_config *cfg)
-{
-	board_default_config(cfg);
-}
-
 int main(void)
 {
 	struct board_config cfg;
 	struct board_inputs in;
+	uint8_t cause = template_reset_cause(); /* first, before anything clears the flags */
 
 	/* Clocks, pins, timers, ADC: the chip's own start-up, with the motors off. */
 	template_robot_config(&cfg);
 	/* The counts the odometry starts from, so that the first tick sees no jump. */
 	port_sample(&in);
 	port_sample_period(&in);
-	if (board_init(&asserv_board, &cfg, &in) != 0) {
+	/* board_init(), then after any reset but a power-on the pose a reset kept resumes. */
+	if (board_restart(&asserv_board, &cfg, &in, cause, template_down_ms(cause)) != 0) {
 		/* A configuration the core refuses: motors off, no bus, wait for a new binary. */
 		for (;;)
 			;
 	}
-	/* After board_init(), before the bus and the ticks: the calibration the storage keeps,
+	/* After board_restart(), before the bus and the ticks: the calibration the storage keeps,
 	 * installed. A blank or corrupt record leaves the board uncalibrated: it runs all the same.
 	 * nvm_bytes_init() names the storage (NULL: the one chip nvm.c drives); a flash port with
 	 * its own hal_nvm has no such call. */
 	nvm_bytes_init(&template_nvm, NULL);
 	hal_nvm_load(&template_nvm, &asserv_board);
 	hal_i2c_slave_init(PROTO_ADDRESS);
-	/* start the watchdog here */
+	template_watchdog_start();
 	hal_tick_start(cfg.tick_hz);
 	/* enable interrupts here */
 	for (;;) {

@@ -32,7 +32,16 @@ uint8_t template_i2c_event(enum template_i2c_event ev, uint8_t byte);
 /* The control interrupt (tick.c): one control period. */
 void template_tick_isr(void);
 
-/* The port's robot: the board configuration the core runs with (main.c). */
+/* The port's robot: the board configuration the core runs with (robot.c). */
 void template_robot_config(struct board_config *cfg);
+
+/* Why the chip started, RESET_CAUSE_*, and how long the board may have been down [ms]
+ * (reset.c). */
+uint8_t template_reset_cause(void);
+uint16_t template_down_ms(uint8_t cause);
+
+/* The watchdog (watchdog.c): started by main(), fed after each tick. */
+void template_watchdog_start(void);
+void template_watchdog_feed(void);
 
 #endif

@@ -28,5 +28,5 @@ void template_tick_isr(void)
 {
 	port_control_tick(&asserv_board);
 	port_slow(&asserv_board);
-	/* feed the watchdog here */
+	template_watchdog_feed(); /* or in the main loop (above) */
 }
