@@ -15,6 +15,7 @@ error) <= 3, outliers rejected, few good fixes rejected (<= 1 %).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from concurrent.futures import ProcessPoolExecutor
 
@@ -32,13 +33,23 @@ def one(args: tuple[int, float, bool]) -> MatchResult:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", type=int, default=50)
-    ap.add_argument("--seconds", type=float, default=90.0)
+    ap = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        epilog=__doc__.split("\n\n", 1)[1],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument("--robots", type=int, default=50, help="randomized robots (default 50)")
+    ap.add_argument("--seconds", type=float, default=90.0, help="each match's length (default 90)")
     ap.add_argument("--quick", action="store_true", help="8 robots x 30 s")
-    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--jobs", type=int, default=2, help="processes (default 2)")
     add_strict_flag(ap)
     a = ap.parse_args(argv)
+    if a.robots < 1:
+        ap.error(f"--robots must be 1 or more, not {a.robots}")
+    if not 0 < a.seconds < math.inf:
+        ap.error(f"--seconds must be a positive number, not {a.seconds}")
+    if a.jobs < 1:
+        ap.error(f"--jobs must be 1 or more, not {a.jobs}")
     robots, seconds = (8, 30.0) if a.quick else (a.robots, a.seconds)
     work = [(seed, seconds, f) for seed in range(1, robots + 1) for f in (True, False)]
     with ProcessPoolExecutor(max_workers=a.jobs) as ex:

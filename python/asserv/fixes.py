@@ -57,6 +57,12 @@ class FixSource:
             raise ValueError("FixSource: latency_ms +- latency_jitter_ms must stay within 0..500")
         if not 0 <= self.outlier_rate <= 1:
             raise ValueError(f"FixSource: outlier_rate={self.outlier_rate} must be 0..1")
+        for name in ("outlier_mm", "outlier_deg"):
+            lo, hi = getattr(self, name)
+            if not (0 <= lo <= hi < math.inf):
+                raise ValueError(
+                    f"FixSource: {name}={(lo, hi)} must be (low, high), 0 <= low <= high"
+                )
 
 
 @dataclass

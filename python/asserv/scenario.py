@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING, Any
 
 from . import codec
 from . import field as fieldmod
-from ._protocol import Capability, EndReason, Filtre, Status
+from ._protocol import Capability, EndReason, Filtre, ResetCause, Status
 from .codec import Pose
 from .driver import AsservError, Board, GotoOption, Outcome, outcome_of
 from .fixes import FixSource
@@ -117,8 +117,10 @@ BUS_COMMANDS: dict[str, tuple[str, list[Parser], list[Parser], str]] = {
     "version": ("version", [], [], "version"),
     "last_reject": ("last_reject", [], [], "last_reject"),
     "debug": ("debug", [], [], "debug"),
+    "set_timeout": ("set_timeout", [_int], [], "set_timeout MS"),
     "heartbeat": ("heartbeat", [], [], "heartbeat"),
     "fix_info": ("fix_info", [], [], "fix_info"),
+    "reset_info": ("reset_info", [], [], "reset_info"),
     "pause": ("pause", [], [], "pause"),
     "resume": ("resume", [], [], "resume"),
     "set_speed_scale": ("set_speed_scale", [_int], [], "set_speed_scale PERCENT"),
@@ -149,6 +151,7 @@ EVENTS: dict[str, str] = {
     "battery": "battery VOLTS",
     "move_obstacle": "move_obstacle INDEX X_MM Y_MM",
     "opponent_path": "opponent_path INDEX SPEED_MM_S X_MM Y_MM ... [loop]",
+    "reset": "reset BROWN_OUT|WATCHDOG|PIN|SOFTWARE [kept|lost] [DOWN_MS]",
 }
 SETUP = (
     "field",
@@ -257,8 +260,8 @@ class Scenario:
     def prepare(self, sim: Simulator, out: Callable[[str], None] = print) -> None:
         """Put the opponents on ``sim``'s field, start the fix source and schedule the timed
         events."""
-        if self.fixes is not None:
-            sim.add_fix_source(self.fixes)
+        if self.fixes is not None:  # drawn from the scenario's seed, wherever its line is
+            sim.add_fix_source(dataclasses.replace(self.fixes, seed=self.seed))
         for o in self.opponents:
             if o.route is not None:
                 speed = o.speed_mm_s if o.speed_mm_s > 0 else None
@@ -287,6 +290,14 @@ def _event_action(ev: Event, out: Callable[[str], None]) -> Callable[[Simulator]
             sim.move_obstacle(a[0], a[1], a[2])
         elif ev.kind == "opponent_path":
             sim.set_opponent_path(a[0], a[2], a[1], a[3])
+        elif ev.kind == "reset":
+            reset(sim)
+
+    def reset(sim: Simulator) -> None:  # between two of the master's transactions
+        if sim.bus_busy:
+            sim.at(sim.time_s + 0.0005, reset)
+        else:
+            sim.reset(ev.args[0], keep_ram=ev.args[1], down_ms=ev.args[2])
 
     return run
 
@@ -611,6 +622,8 @@ def _parse_event(rest: list[str], n: int, raw: str, fail: Fail) -> Event:
             if not speed > 0 or len(path) > 16:
                 raise ValueError
             args = [_int(words[0]), speed, path, loop]
+        elif kind == "reset":
+            args = _reset_args(words)
         else:
             if len(words) != 1:
                 raise ValueError
@@ -618,6 +631,27 @@ def _parse_event(rest: list[str], n: int, raw: str, fail: Fail) -> Event:
     except ValueError:
         raise fail(f"at {rest[0]} {kind} takes {usage}") from None
     return Event(n, t, kind, args, " ".join([kind, *words]))
+
+
+def _reset_args(words: list[str]) -> list[Any]:
+    """``reset CAUSE [kept|lost] [DOWN_MS]``: the cause's name, whether the RAM is kept (the
+    default), the time down (0..1000 ms, default 30, as ``Simulator.reset``)."""
+    if not 1 <= len(words) <= 3:
+        raise ValueError
+    cause = ResetCause[words[0].upper()] if words[0].upper() in ResetCause.__members__ else None
+    if cause in (None, ResetCause.POWER_ON):
+        raise ValueError
+    keep, down = True, 30
+    rest = words[1:]
+    if rest and rest[0].lower() in ("kept", "lost"):
+        keep = rest.pop(0).lower() == "kept"
+    if rest:
+        down = _int(rest.pop(0))
+        if not 0 <= down <= 1000:
+            raise ValueError
+    if rest:
+        raise ValueError
+    return [cause, keep, down]
 
 
 def _parse_expect(scn: Scenario, rest: list[str], n: int, raw: str, fail: Fail) -> Step:

@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import log
-from ._protocol import OrderState, Status
+from ._protocol import EndReason, OrderState, ResetCause, Status
 from .field import Field
 
 if TYPE_CHECKING:
@@ -89,21 +89,30 @@ def status_names(status: int) -> list[str]:
     return [str(s.name) for s in Status if s.name and status & s]
 
 
+#: The end reasons the page names beside PB_MOTEUR: an order abandoned for the master's
+#: silence or a reset rather than a motor problem (docs/protocol.md, DEBUG's end_reason).
+_NAMED_ENDS = (EndReason.TIMEOUT, EndReason.RESET)
+
+
 @dataclass
 class Outcome:
-    """Follows the status rows and says how the last order ended."""
+    """Follows the status rows and says how the last order ended: its end bits, and DEBUG's
+    end reason beside them where the rows have it and it is a timeout or a reset
+    (``PB_MOTEUR (RESET)``)."""
 
     busy: bool = False
     last: str = ""  # "" before any order has ended
     orders: int = 0
 
-    def update(self, status: int) -> None:
+    def update(self, status: int, end_reason: float = math.nan) -> None:
         busy = bool(status & _BUSY)
         if busy and not self.busy:
             self.orders += 1
         if self.busy and not busy:
             bits = [str(b.name) for b in _END_BITS if status & b]
             self.last = "|".join(bits) if bits else "done"
+            if not math.isnan(end_reason) and int(end_reason) in set(_NAMED_ENDS):
+                self.last += f" ({EndReason(int(end_reason)).name})"
         self.busy = busy
 
 
@@ -165,6 +174,9 @@ class Source:
     #: Match play (issue 31): what MOTION says, the points queued by this view that the board
     #: has not reached, the lidar's hits on the field; None where the board or bus has none.
     match: MatchState | None = None
+    #: RESET_INFO (issue 28): the board's last reset, as ``reset_state()`` gives it; None where
+    #: the board has none or the source cannot ask (a replay).
+    reset: dict[str, Any] | None = None
 
     def why_no_goto(self) -> str:
         """Why the page's clicks send no GOTO here ("" when they do)."""
@@ -192,6 +204,7 @@ class Source:
             "orders": self.outcome.orders,
             "message": self.message,
             "match": None if self.match is None else self.match.as_dict(),
+            "reset": self.reset,
         }
 
     def advance(self, dt_s: float) -> np.ndarray:
@@ -262,6 +275,24 @@ def read_match(board: Board, state: MatchState | None) -> MatchState | None:
     return state
 
 
+def reset_state(board: Board) -> dict[str, Any] | None:
+    """RESET_INFO for the page: the last reset's cause (its name), the resets since power-on,
+    whether the pose was lost (motion orders refused until SET_NEW_POS) and the radius's
+    widening [mm]; None on a board without RESET_INFO."""
+    from .driver import Unsupported
+
+    try:
+        r = board.reset_info()
+    except Unsupported:
+        return None
+    return {
+        "cause": ResetCause(r.cause).name,
+        "count": int(r.count),
+        "pose_lost": bool(r.pose_lost),
+        "widened_mm": int(r.widened_mm),
+    }
+
+
 def _decimate(rows: np.ndarray, n: int = MAX_ROWS_PER_FRAME) -> np.ndarray:
     """At most n rows, evenly spread, the last one kept (it is the pose shown)."""
     if len(rows) <= n:
@@ -320,11 +351,13 @@ class SimSource(Source):
             self.match.sent(*self.target, append)
 
     def _read_match(self) -> None:
-        """MOTION (the view is a master on the bus, as a strategy is) and the lidar's hits."""
+        """MOTION and RESET_INFO (the view is a master on the bus, as a strategy is) and the
+        lidar's hits."""
         from .driver import AsservError
 
         try:
             self.match = read_match(self.board, self.match)
+            self.reset = reset_state(self.board)
         except AsservError:
             return
         if self.match is not None and self.sim.lidar_targets:
@@ -397,7 +430,7 @@ class SimSource(Source):
         raw = _take_trace(self.sim)
         rows = self._rows(raw)
         for s in rows["status"]:
-            self.outcome.update(int(s))
+            self.outcome.update(int(s))  # the trace has no end reason: RESET_INFO says it
         return rows
 
     def _rows(self, raw: np.ndarray) -> np.ndarray:
@@ -451,6 +484,7 @@ class BoardSource(Source):
                 self._rows.put(row)
                 if n % 5 == 0:
                     self._read_match(row)
+                    self.reset = reset_state(self.board)
                 while not self._orders.empty():
                     x, y = self._orders.get()
                     try:
@@ -488,8 +522,8 @@ class BoardSource(Source):
         while not self._rows.empty():
             rows.append(self._rows.get())
         out = np.array(rows, dtype=log.LOG_DTYPE) if rows else log.empty(0)
-        for s in out["status"]:
-            self.outcome.update(int(s))
+        for s, why in zip(out["status"], out["end_reason"], strict=True):
+            self.outcome.update(int(s), float(why))
         return log.empty(0) if self.paused else out
 
     def close(self) -> None:
@@ -541,9 +575,9 @@ class ReplaySource(Source):
         j = int(np.searchsorted(self.rows["t_s"], self.t, side="right"))
         out = self.rows[self._i : j]
         self._i = max(self._i, j)
-        for s in out["status"]:
+        for s, why in zip(out["status"], out["end_reason"], strict=True):
             if not math.isnan(s):
-                self.outcome.update(int(s))
+                self.outcome.update(int(s), float(why))
         if self._i >= len(self.rows):
             self.paused = True
             self.message = "end of the log (play: from the start again)"

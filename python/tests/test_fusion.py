@@ -1,6 +1,7 @@
 """The promises of SET_FIX (issue 28, items 1-3): the radius stays honest with fixes, on
 randomized robots, calibrated or not, with fixes of the noise they declare plus 1 % outliers and
-latencies anywhere in 0..350 ms; a fix pulls by its noise; an outlier changes nothing.
+latencies anywhere in 0..350 ms; a fix pulls by its noise; an outlier changes nothing; the
+simulated fix source is the model asserv.fixes documents.
 
 The property runs a few short matches per example (asserv.sim.fusion.run_match, derandomized);
 bench/fusion.py is the long form, 50 robots x 90 s.
@@ -11,6 +12,7 @@ from __future__ import annotations
 import math
 import random
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
@@ -71,6 +73,91 @@ def test_the_radius_stays_honest_with_fixes(robots: list[tuple[int, bool, FixSou
     # A good fix is rarely taken for an outlier (an outlier within the declared noise of the
     # truth cannot be told from a good fix: the radius's coverage is what covers it).
     assert p.good_rejected <= max(1, 0.01 * p.good), p
+
+
+@settings(max_examples=12, deadline=None, derandomize=True, phases=[Phase.explicit, Phase.generate])
+@given(
+    rate_hz=st.sampled_from([5.0, 10.0, 20.0]),
+    sigma_mm=st.sampled_from([2.0, 10.0, 30.0]),
+    sigma_deg=st.sampled_from([None, 0.5, 2.0]),
+    latency_ms=st.integers(0, 350),
+    jitter_ms=st.integers(0, 100),
+    seed=st.integers(0, 2**16),
+)
+def test_the_fix_source_is_the_model_it_documents(
+    rate_hz: float,
+    sigma_mm: float,
+    sigma_deg: float | None,
+    latency_ms: int,
+    jitter_ms: int,
+    seed: int,
+) -> None:
+    """asserv.fixes: a fix every 1 / rate_hz s, of the true pose at that moment (the trace's),
+    sent latency +- jitter ms later with that age, Gaussian noise of the declared sigmas, and
+    outliers at the declared rate, outlier_mm away (here 20 %, to count them)."""
+    jitter = min(jitter_ms, latency_ms, 500 - latency_ms)
+    src = FixSource(rate_hz, sigma_mm, sigma_deg, latency_ms, jitter, 0.2, seed=seed)
+    sim = Simulator({"start": (-900.0, 0.0, 0.0)}, seed=seed)
+    board = Board(sim.bus)
+    feed = sim.add_fix_source(src)
+    board.set_vitesse_traj(50, 100)
+    board.goto(900, 0)
+    sim.advance(20.0)
+    feed.stop()
+    sim.advance(0.1)  # the last fix sent fused (within 20 periods)
+    log = [r for r in feed.log if not math.isnan(r.t_sent_s)]
+    assert len(log) >= (20 - 0.5) * rate_hz - 1  # those still in flight at the stop left out
+    t = np.array([r.t_measured_s for r in feed.log])
+    assert np.allclose(np.diff(t), 1 / rate_hz, atol=1e-3)
+    tr = sim.trace
+    for r in log:
+        row = tr[int(np.argmin(np.abs(tr["t_s"] - r.t_measured_s)))]
+        assert math.hypot(r.true_x_mm - row["x_mm"], r.true_y_mm - row["y_mm"]) <= 1.0
+        late_ms = (r.t_sent_s - r.t_measured_s) * 1000
+        assert latency_ms - jitter - 0.5 <= late_ms <= latency_ms + jitter + 1.0
+        assert r.age_ms == round(late_ms)
+        assert (r.heading_deg is None) == (sigma_deg is None)
+    good = [r for r in log if not r.outlier]
+    dx = np.array([r.x_mm - r.true_x_mm for r in good] + [r.y_mm - r.true_y_mm for r in good])
+    assert abs(dx.mean()) <= 4 * sigma_mm / math.sqrt(len(dx))
+    assert 0.8 <= dx.std() / sigma_mm <= 1.2
+    if sigma_deg is not None:
+        dh = np.array(
+            [
+                (h - r.true_heading_deg + 180) % 360 - 180
+                for r in good
+                if (h := r.heading_deg) is not None
+            ]
+        )
+        assert 0.8 <= dh.std() / sigma_deg <= 1.2
+    n_out = len(log) - len(good)
+    assert abs(n_out - 0.2 * len(log)) <= 4 * math.sqrt(0.2 * 0.8 * len(log))
+    for r in log:
+        if r.outlier:
+            d = math.hypot(r.x_mm - r.true_x_mm, r.y_mm - r.true_y_mm)
+            assert 150 - 5 * sigma_mm <= d <= 600 + 5 * sigma_mm
+    info = board.fix_info()
+    assert info.fused + info.outliers + info.too_old == len(log)
+
+
+@pytest.mark.parametrize(
+    "kw",
+    [
+        {"rate_hz": 0},
+        {"rate_hz": math.nan},
+        {"sigma_mm": 0.5},
+        {"sigma_deg": 30.0},
+        {"latency_ms": 480, "latency_jitter_ms": 30},
+        {"latency_jitter_ms": -1},
+        {"outlier_rate": 1.5},
+        {"outlier_mm": (600.0, 150.0)},
+        {"outlier_mm": (-10.0, 150.0)},
+        {"outlier_deg": (10.0, math.inf)},
+    ],
+)
+def test_a_bad_fix_source_is_refused_with_its_reason(kw: dict[str, object]) -> None:
+    with pytest.raises(ValueError, match="FixSource: "):
+        FixSource(**kw)  # type: ignore[arg-type]
 
 
 def lane(radius_mm: float = 3, **kw: object) -> tuple[Simulator, Board]:

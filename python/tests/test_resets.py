@@ -116,8 +116,11 @@ def test_the_radius_widens_by_the_travel_while_down() -> None:
 
 
 def test_the_simulator_refuses_a_bad_reset() -> None:
-    sim, _ = started(3)
-    with pytest.raises(KeyError):
+    sim, board = started(3)
+    with pytest.raises(ValueError, match=r"no cause 'UNPLUGGED' \(the causes: POWER_ON, BROWN_OUT"):
         sim.reset("UNPLUGGED")
+    with pytest.raises(ValueError, match="no cause 9 "):
+        sim.reset(9)
     with pytest.raises(ValueError):
         sim.reset("WATCHDOG", down_ms=1001)
+    assert board.reset_info() == ResetInfo(ResetCause.POWER_ON, 0, False, 0)  # nothing done

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from asserv import Status, scenario
+from asserv import ResetCause, Status, scenario
 from asserv.cli import main
 
 
@@ -30,6 +30,12 @@ from asserv.cli import main
         ("board slow_shiftt 3\ngoto 0 0\n", 1, "unknown board setting 'slow_shiftt'"),
         ("board slow_shift 4\ngoto 0 0\n", 1, "the simulator refused this configuration"),
         ("board slow_shift\ngoto 0 0\n", 1, "board takes a setting and its value"),
+        ("goto 0 0\nat 1 reset POWER_ON\n", 2, "at 1 reset takes reset BROWN_OUT|"),
+        ("goto 0 0\nat 1 reset UNPLUGGED\n", 2, "at 1 reset takes"),
+        ("goto 0 0\nat 1 reset WATCHDOG maybe\n", 2, "at 1 reset takes"),
+        ("goto 0 0\nat 1 reset WATCHDOG kept 1001\n", 2, "at 1 reset takes"),
+        ("goto 0 0\nat 1 reset WATCHDOG kept 30 5\n", 2, "at 1 reset takes"),
+        ("set_timeout -1\n", 1, "set_timeout: "),
     ],
 )
 def test_bad_lines_are_named(text: str, line: int, message: str) -> None:
@@ -133,3 +139,40 @@ def test_start_uncertainty_lines(tmp_path: Path) -> None:
         scenario.parse("start_uncertainty 2 100\n", "s.txt")
     with pytest.raises(scenario.ScenarioError, match=r"s.txt:2: 'board_start' is a setup line"):
         scenario.parse("goto 0 -800\nboard_start 0 0 0\n", "s.txt")
+
+
+def test_a_reset_rehearsed_mid_goto() -> None:
+    """scenarios/reset_mid_goto.txt: a watchdog reset during a GOTO, the RAM kept; the order
+    ends abandoned, RESET_INFO says why, and the GOTO sent again ends where it should."""
+    scn = scenario.load(scenario.SCENARIO_DIR / "reset_mid_goto.txt")
+    lines: list[str] = []
+    res = scenario.play(scn, lines.append)
+    assert res.ok, lines[-5:]
+    info = res.board.reset_info()
+    assert (info.cause, info.count, info.pose_lost) == (ResetCause.WATCHDOG, 1, False)
+    assert any("event (line" in ln and "reset WATCHDOG kept 30" in ln for ln in lines)
+    assert any("RESET_INFO -> ResetInfo(cause=<ResetCause.WATCHDOG" in ln for ln in lines)
+
+
+def test_a_reset_that_loses_the_ram_refuses_the_next_goto() -> None:
+    scn = scenario.parse(
+        "goto 600 -500\nat 0.5 reset BROWN_OUT lost 0\nwait\nexpect motor\ngoto 0 -500\n"
+    )
+    lines: list[str] = []
+    res = scenario.play(scn, lines.append)
+    assert not res.ok
+    assert any("REFUSED_NO_POSE" in ln for ln in lines), lines[-5:]
+    assert res.board.reset_info().pose_lost
+
+
+def test_the_fix_source_draws_from_the_seed_wherever_its_line_is() -> None:
+    first = scenario.parse("fixes 10 10 1 100\nseed 7\nposition\n")
+    last = scenario.parse("seed 7\nfixes 10 10 1 100\nposition\n")
+    seeds = []
+    for scn in (first, last):
+        sim = scn.simulator(record=False)
+        feeds: list[object] = []
+        sim.add_fix_source = feeds.append  # type: ignore[method-assign,assignment]
+        scn.prepare(sim, lambda _: None)
+        seeds.append(feeds[0].seed)  # type: ignore[attr-defined]
+    assert seeds == [7, 7]

@@ -186,3 +186,23 @@ def test_a_line_pair_takes_the_heading_only_while_driving_straight() -> None:
     assert err <= radius
     _, ok = covered(sim)
     assert np.all(ok[settled_mask(sim.trace)])
+
+
+def test_the_soaks_ending_table_covers_every_end_reason_as_the_board_ends_it() -> None:
+    """asserv.sim.soak.ENDING_BITS has every end reason, and a timeout's and a reset's endings as
+    the board reports them (PB_MOTEUR: abandoned, not finished)."""
+    from asserv import EndReason
+    from asserv.sim.soak import END_BITS, ENDING_BITS
+
+    assert set(ENDING_BITS) == set(EndReason) - {EndReason.NONE}
+    for reason in (EndReason.TIMEOUT, EndReason.RESET):
+        sim = Simulator({"start": (-900, -300, 0)})
+        board = Board(sim.bus)
+        board.set_timeout(200 if reason == EndReason.TIMEOUT else 0)
+        board.goto(900, -300)
+        sim.advance(0.5)
+        if reason == EndReason.RESET:
+            sim.reset("BROWN_OUT")
+        end = board.wait_idle(10)
+        assert board.debug().end_reason == reason
+        assert int(end & END_BITS) in ENDING_BITS[reason]

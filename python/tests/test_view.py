@@ -41,6 +41,92 @@ def test_outcome_follows_the_status(status: list[int]) -> None:
         assert o.last == ""
 
 
+def test_outcome_names_a_timeout_or_a_reset() -> None:
+    o = view.Outcome()
+    for status, why, last in [
+        (BUSY, 0, ""),
+        (32, 12, "PB_MOTEUR (RESET)"),
+        (BUSY, 12, "PB_MOTEUR (RESET)"),
+        (32, 8, "PB_MOTEUR (TIMEOUT)"),
+        (BUSY, 8, "PB_MOTEUR (TIMEOUT)"),
+        (32, 3, "PB_MOTEUR"),  # a motor problem: the bits say it
+        (BUSY, math.nan, "PB_MOTEUR"),
+        (32, math.nan, "PB_MOTEUR"),  # rows without DEBUG (the simulator's trace)
+    ]:
+        o.update(status, why)
+        assert o.last == last
+
+
+def advance_until(src: view.Source, done: Any, seconds: float) -> None:
+    for _ in range(round(seconds * 30)):
+        src.advance(1 / 30)
+        if done():
+            return
+    raise AssertionError("the view never showed it")
+
+
+@pytest.mark.parametrize("keep_ram", [True, False])
+def test_the_sim_source_shows_a_reset(keep_ram: bool) -> None:
+    """A brown-out mid-GOTO: the page's state carries RESET_INFO (the cause, the count, the
+    pose kept or lost), and the order's outcome reads abandoned."""
+    src = view.SimSource()
+    advance_until(src, lambda: src.reset is not None, 1)
+    assert src.state()["reset"] == {
+        "cause": "POWER_ON",
+        "count": 0,
+        "pose_lost": False,
+        "widened_mm": 0,
+    }
+    src.goto(-300, -600)
+    advance_until(src, lambda: src.outcome.orders == 1, 1)
+    src.sim.reset("BROWN_OUT", keep_ram=keep_ram, down_ms=50)
+    advance_until(src, lambda: src.outcome.last != "", 1)
+    assert src.outcome.last == "PB_MOTEUR"
+    state = json.loads(json.dumps(src.state()))  # what the page gets
+    assert state["reset"]["cause"] == "BROWN_OUT" and state["reset"]["count"] == 1
+    assert state["reset"]["pose_lost"] == (not keep_ram)
+
+
+def test_the_board_source_shows_a_reset_and_names_the_ending() -> None:
+    """A watchdog reset mid-GOTO on a polled board: RESET_INFO in the state, and the ending
+    with DEBUG's end reason, which the polled rows have."""
+    sim = Simulator()
+
+    def reset(s: Simulator) -> None:  # between two of the polling thread's transactions
+        if s.bus_busy:
+            s.at(s.time_s + 0.0005, reset)
+        else:
+            s.reset("WATCHDOG", keep_ram=True, down_ms=20)
+
+    sim.at(0.6, reset)
+    src = view.BoardSource(Board(sim.bus), hz=50)
+    try:
+        src.goto(-300, -600)
+        for _ in range(2000):
+            src.advance(0.02)
+            if src.outcome.last and src.reset is not None and src.reset["count"]:
+                break
+            time.sleep(0.005)
+        assert src.outcome.last == "PB_MOTEUR (RESET)"
+        assert src.reset is not None
+        assert (src.reset["cause"], src.reset["count"], src.reset["pose_lost"]) == (
+            "WATCHDOG",
+            1,
+            False,
+        )
+    finally:
+        src.close()
+
+
+def test_a_board_without_reset_info_shows_none() -> None:
+    from test_driver_match import Without
+
+    from asserv import Capability, VirtualBus
+
+    board = Board(VirtualBus({2: Without(int(Capability.RESET_INFO))}))
+    assert view.reset_state(board) is None
+
+
 def test_sim_source_is_paced_by_the_speed_and_pauses() -> None:
     src = view.SimSource()
     t0 = src.sim.time_s

@@ -383,3 +383,28 @@ def test_a_board_is_driven_from_the_page_only_with_control(
     assert mode == "driving the board: a click sends a GOTO"
     page.wait_for_function("window.asserv.state.outcome === 'done'", timeout=30000)
     assert sim.true_pose().x_mm == pytest.approx(300, abs=15)
+
+
+def test_the_page_shows_a_reset(browser: Browser, serve: Any) -> None:
+    """Issue 28: RESET_INFO on the panel, "none since power-on" at first; after a brown-out
+    that lost the RAM, its cause and count and the lost pose, in red."""
+    src = view.SimSource()
+    page = _open(browser, serve(src))
+    page.wait_for_function("document.getElementById('reset').textContent !== '-'")
+    assert page.inner_text("#reset") == "none since power-on"
+
+    def reset(s: Simulator) -> None:  # between two of the view's transactions
+        if s.bus_busy:
+            s.at(s.time_s + 0.0005, reset)
+        else:
+            s.reset("BROWN_OUT", keep_ram=False)
+
+    src.sim.at(src.sim.time_s + 0.2, reset)
+    page.wait_for_function(
+        "document.getElementById('reset').textContent.startsWith('BROWN_OUT')", timeout=10000
+    )
+    assert page.inner_text("#reset") == (
+        "BROWN_OUT, 1 since power-on; POSE LOST: orders refused until the position is set"
+    )
+    assert page.evaluate("document.getElementById('reset').classList.contains('lost')")
+    assert page.failed == []  # type: ignore[attr-defined]

@@ -400,7 +400,11 @@ class Simulator:
         RAM it kept (``keep_ram``: its pose and radius resume, widened), or from RAM the reset
         scrambled (the pose is lost: motion orders refused until SET_NEW_POS). A running order
         reads PB_MOTEUR, DEBUG end_reason RESET; ``Board.reset_info()`` says the rest."""
-        c = ResetCause[cause] if isinstance(cause, str) else ResetCause(cause)
+        names = ", ".join(ResetCause.__members__)
+        try:
+            c = ResetCause[cause] if isinstance(cause, str) else ResetCause(cause)
+        except (KeyError, ValueError):
+            raise ValueError(f"reset: no cause {cause!r} (the causes: {names})") from None
         if not 0 <= down_ms <= 1000:
             raise ValueError(f"reset: down_ms must be 0..1000, not {down_ms}")
         if lib.host_reset(self._h, int(c), 1 if keep_ram else 0, down_ms):

@@ -50,13 +50,14 @@ END_BITS = Status.CHOC_BORD | Status.CHOC_PANIER | Status.PB_MOTEUR | Status.PB_
 ENDING_BITS: dict[int, set[int]] = {
     EndReason.DONE: {0},
     EndReason.STOPPED: {0},
-    EndReason.TIMEOUT: {0},
+    EndReason.TIMEOUT: {int(Status.PB_MOTEUR)},  # abandoned, not finished (SET_TIMEOUT)
     EndReason.BORDER: {int(Status.CHOC_BORD)},
     EndReason.BASKET: {int(Status.CHOC_PANIER)},
     EndReason.SHOCK: {int(Status.CHOC_BORD), int(Status.CHOC_PANIER)},
     EndReason.MOTOR: {int(Status.PB_MOTEUR)},
     EndReason.FAULT: {int(Status.PB_GRAVE), int(Status.PB_GRAVE | Status.PB_MOTEUR)},
     EndReason.NO_BASKET: {int(Status.PB_MOTEUR)},
+    EndReason.RESET: {int(Status.PB_MOTEUR)},
 }
 
 

@@ -274,6 +274,15 @@ function drawPlot(p) {
 function text(id, v) { document.getElementById(id).textContent = v; }
 function fmt(v, d) { return v === null || v === undefined ? "-" : v.toFixed(d); }
 
+// RESET_INFO (view.py's reset_state): the last reset, and whether the board kept its pose.
+function resetText(rs) {
+  if (!rs) return "-";
+  if (rs.cause === "POWER_ON" && rs.count === 0) return "none since power-on";
+  const kept = rs.pose_lost ? "POSE LOST: orders refused until the position is set"
+    : `pose kept, radius widened ${rs.widened_mm} mm`;
+  return `${rs.cause}, ${rs.count} since power-on; ${kept}`;
+}
+
 function updatePanel() {
   const r = view.last;
   const st = view.state;
@@ -297,6 +306,8 @@ function updatePanel() {
   const m = st.match;
   text("match", !m ? "-" : `${m.paused ? "PAUSED" : "running"}, ${m.pending} pending,` +
     ` braking ${m.braking_mm} mm, scale ${m.scale_percent} %, ${m.lidar.length} lidar hits`);
+  text("reset", resetText(st.reset));
+  document.getElementById("reset").classList.toggle("lost", !!(st.reset && st.reset.pose_lost));
   const target = st.target || view.pendingTarget;
   text("target", target ? `(${target[0].toFixed(0)}, ${target[1].toFixed(0)})` : "none");
   document.getElementById("play").textContent = st.paused ? "play" : "pause";
