@@ -248,22 +248,25 @@ static void corner_shape(struct corner_shape *sh, const int64_t lim[6], uint32_t
  * radius whose arc alone passes within five eighths of the tolerance, ((r / cos) - r), the
  * clothoids' shift p within what that leaves of seven eighths (the curve passes (r + p) / cos
  * - r from the point), and the curve within half of either line (its radius smaller until it
- * is). 0, or -1 when no curve fits. */
+ * is), at most v_cap_um_s and r_max_um. 0, or -1 when no curve fits. */
 static int corner_fit(struct corner_shape *sh, const struct orders *o, int32_t tol_um,
-		      uint32_t theta, int64_t len1_um, int64_t len2_um, int64_t free_um)
+		      uint32_t theta, int64_t len1_um, int64_t len2_um, int64_t free_um,
+		      int64_t v_cap_um_s, int64_t r_max_um)
 {
 	int64_t lim[6], half = (len1_um < len2_um ? len1_um : len2_um) / 2, dev = tol_um * 5 / 8;
 	int32_t s, c;
 
 	corner_limits(o, lim);
+	if (lim[0] > v_cap_um_s)
+		lim[0] = v_cap_um_s;
 	if (theta < ((uint32_t)1 << 22)) { /* a third of a degree: the line goes on */
 		*sh = (struct corner_shape){.r_um = CORNER_R_MAX_UM, .v_um_s = lim[0]};
 		return 0;
 	}
 	fx_sincos(theta / 2u, &s, &c);
 	sh->r_um = Q30 - c > 0 ? dev * c / (Q30 - c) : CORNER_R_MAX_UM;
-	if (sh->r_um > CORNER_R_MAX_UM)
-		sh->r_um = CORNER_R_MAX_UM;
+	if (sh->r_um > r_max_um)
+		sh->r_um = r_max_um;
 	for (uint8_t i = 0; i < 6; i++) {
 		int64_t tail;
 
@@ -421,6 +424,55 @@ static void update_braking(struct motion *mo, const struct orders *o)
 	}
 }
 
+/* A GOTO that a curve may join: no recalibration bit. */
+static int curve_joins(const struct proto_msg *msg)
+{
+	return msg->designation == PROTO_GOTO &&
+	       !(msg->arg[ARG_GOTO_OPTIONS] & (ORDERS_OPT_LINE | ORDERS_OPT_BORDER));
+}
+
+#if CONFIG_MOTION_CORNERS
+/* Looking one corner ahead (docs/control.md "Corners", 4): the curve at the next order's point,
+ * planned as it will be when this corner's curve starts (the line after this curve, rest_um,
+ * towards that point along heading_turn32), when the next order passes through to a GOTO
+ * waiting behind it. Its speed is taken at most what stops the line halfway along the line
+ * after it, where no curve there can start earlier (corner_fit() keeps a curve within half of
+ * either line): that curve's own look ahead then never asks it slower. Into k->ahead_*: the
+ * speed [um/s] the line must be able to slow down to, and how far before the point; 0 and 0,
+ * a stop at the point, when there is no such curve. */
+static void corner_ahead(struct motion_corner *k, const struct planner *pl,
+			 const struct motion_entry *next, int64_t rest_um, int64_t free_um)
+{
+	const struct motion *mo = &pl->motion;
+	const struct orders *o = &pl->orders;
+	const struct motion_entry *after = &mo->queue[(mo->head + 1u) % PROTO_MOTION_QUEUE_DEPTH];
+	int64_t dx, dy, len3, room, v, a = o->grip_a_um_s2[0];
+	struct corner_shape sh;
+
+	k->ahead_len1_um = (int32_t)rest_um;
+	k->ahead_seq = after->seq;
+	k->ahead_v_um_s = 0;
+	k->ahead_reach_um = 0;
+	if (mo->count < 2 || !(options_of(&next->msg) & PROTO_OPT_PASS_THROUGH) ||
+	    !curve_joins(&after->msg))
+		return;
+	dx = (int64_t)(after->msg.arg[ARG_GOTO_X_MM] - next->msg.arg[ARG_GOTO_X_MM]) * UM_PER_MM;
+	dy = (int64_t)(after->msg.arg[ARG_GOTO_Y_MM] - next->msg.arg[ARG_GOTO_Y_MM]) * UM_PER_MM;
+	len3 = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
+	if (corner_fit(&sh, o, mo->corner_um,
+		       fx_angle_dist(fx_atan2((int32_t)dy, (int32_t)dx), k->heading_turn32),
+		       rest_um, len3, free_um, INT32_MAX, CORNER_R_MAX_UM) < 0)
+		return;
+	room = len3 / 2 - sh.reach_um;
+	v = sh.v_um_s;
+	if (v * v > 2 * a * room)
+		v = room > 0 ? (int64_t)fx_isqrt64((uint64_t)(2 * a * room)) : 0;
+	k->ahead_v_um_s = (int32_t)v;
+	k->ahead_reach_um = (int32_t)sh.reach_um;
+}
+
+#endif
+
 /* The running order's corner with the next one waiting, k (motion.h), planned again when either
  * order, a limit or the tolerance changed: the next order a GOTO without recalibration, the
  * trapezoid (no jerk limit), the line able to brake to the curve's speed before the curve. The
@@ -434,6 +486,7 @@ static void corner_plan(struct planner *pl, const struct board_config *cfg,
 	int64_t dy = (int64_t)next->msg.arg[ARG_GOTO_Y_MM] * UM_PER_MM - o->target_y_um;
 	int64_t px = (int64_t)o->target_x_um - pl->m.pose.x_um, lim[6], g7, u, a, v, len2;
 	int64_t py = (int64_t)o->target_y_um - pl->m.pose.y_um;
+	int64_t free_um = (int64_t)(cfg->orders.drive_track_um / 2u) * 65536 / pl->free_ratio_q16;
 	/* On a curve, the line after it; else from the estimate to the point, along the bearing */
 	int32_t len1 =
 		o->curve ? o->cv.rest_um : (int32_t)fx_isqrt64((uint64_t)(px * px + py * py));
@@ -441,20 +494,40 @@ static void corner_plan(struct planner *pl, const struct board_config *cfg,
 	struct corner_shape sh;
 
 	k->ok = 0;
-	if (k->seq != pl->motion.running_seq || k->next_seq != next->seq)
+	if (k->seq != pl->motion.running_seq || k->next_seq != next->seq) {
+#if CONFIG_MOTION_CORNERS
+		/* The curve looked ahead at, as the last corner planned it */
+		if (o->curve && k->next_seq == pl->motion.running_seq &&
+		    k->ahead_seq == next->seq && k->ahead_len1_um < len1)
+			len1 = k->ahead_len1_um;
+#endif
 		k->len1_um = len1;
+	}
 	k->seq = pl->motion.running_seq;
 	k->next_seq = next->seq;
-	if (next->msg.designation != PROTO_GOTO || o->cfg.jerk_um_s3 != 0 || o->frozen ||
-	    (!o->curve && !o->bearing_valid) ||
-	    (next->msg.arg[ARG_GOTO_OPTIONS] & (ORDERS_OPT_LINE | ORDERS_OPT_BORDER)))
+	if (!curve_joins(&next->msg) || o->cfg.jerk_um_s3 != 0 || o->frozen ||
+	    (!o->curve && !o->bearing_valid))
 		return;
 	k->heading_turn32 = fx_atan2((int32_t)dy, (int32_t)dx);
 	len2 = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
 	if (corner_fit(&sh, o, pl->motion.corner_um, fx_angle_dist(k->heading_turn32, line),
-		       k->len1_um, len2,
-		       (int64_t)(cfg->orders.drive_track_um / 2u) * 65536 / pl->free_ratio_q16) < 0)
+		       k->len1_um, len2, free_um, INT32_MAX, CORNER_R_MAX_UM) < 0)
 		return;
+	a = o->grip_a_um_s2[0]; /* the line's, out of the curve */
+#if CONFIG_MOTION_CORNERS
+	/* No faster than the line after the curve can slow down for what follows it */
+	int64_t cap;
+
+	corner_ahead(k, pl, next, len2 - sh.reach_um, free_um);
+	cap = (int64_t)k->ahead_v_um_s * k->ahead_v_um_s +
+	      2 * a * (len2 - sh.reach_um - k->ahead_reach_um - UM_PER_MM);
+	cap = cap > 0 ? (int64_t)fx_isqrt64((uint64_t)cap) : 0;
+	/* Slower, on the same radius at most: the curve starts no earlier, its clothoids shorter */
+	if (cap < sh.v_um_s &&
+	    corner_fit(&sh, o, pl->motion.corner_um, fx_angle_dist(k->heading_turn32, line),
+		       k->len1_um, len2, free_um, cap, sh.r_um) < 0)
+		return;
+#endif
 	corner_limits(o, lim);
 	g7 = cfg->orders.grip_um_s2 - (cfg->orders.grip_um_s2 >> 3);
 	a = g7 / 4 * sh.r_um / (sh.r_um + lim[5]);

@@ -8,6 +8,7 @@
 
 #include <stdint.h>
 
+#include "feature_set.h"
 #include "orders.h"
 #include "protocol.h"
 
@@ -28,6 +29,13 @@ struct motion_corner {
 	int32_t brake_um;        /* the line's braking to the curve's speed [um] */
 	uint32_t heading_turn32; /* the next line's */
 	struct orders_curve c;
+#if CONFIG_MOTION_CORNERS /* the AVR's layout as without them: its budget is tight */
+	/* The corner after it, looked ahead at (motion.c, corner_ahead()) */
+	uint8_t ahead_seq;      /* the order after the next one */
+	int32_t ahead_len1_um;  /* the line after this curve, as that corner is planned with */
+	int32_t ahead_v_um_s;   /* the speed the line slows down to for it (0: a stop) */
+	int32_t ahead_reach_um; /* ... this far before the next point */
+#endif
 };
 
 struct motion {

@@ -12,10 +12,10 @@ every 5 ms the simulator's truth is read:
 - every order ends, and MOTION's last ending is one the master's actions explain.
 
 The draws that also change the gains at random moments are a second test, at one rate. Issue
-31's item 7 (a change to stiffer gains mid-curve slips; its fix is on branch ``quiet``) needs
-soft gains, a replacement that curves and the change within a few hundred ms: these draws have
-not hit it, so the test passes as it is; item 7's regression belongs to that fix. At the AVR's
-rates they found a slip without any gain change, older than issue 31: the last test keeps it.
+31's item 7 (a change to stiffer gains mid-curve slipped) needs soft gains, a replacement that
+curves and the change within a few hundred ms: these draws have not hit it; its regression and
+its own soak are test_gain_change_sim.py. At the AVR's rates these draws found a slip without
+any gain change, older than issue 31: the last test keeps it.
 """
 
 from __future__ import annotations
