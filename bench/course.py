@@ -12,7 +12,14 @@ It prints:
   tolerance), in the board's estimate: the estimate's own error is the error radius's,
   checked below;
 - that every robot ended without PB_MOTEUR, without a contact, DONE, and with the truth within
-  the error radius of the estimate.
+  the error radius of the estimate;
+- a bound on the ratio from the limits alone (``bound_s()``), for information: what any planner
+  that keeps the master's limits could reach on the same tour. Its curves are arcs passing the
+  whole tolerance from each point, at the whole grip (the board keeps a third of it across,
+  docs/control.md "Corners") and the heading's wheel speed within SET_VITESSE_ROT; its lines at
+  SET_VITESSE_TRAJ's speed and acceleration, with no clothoids and no settling; a corner too
+  sharp for an arc of 50 mm/s turns in place at the rotation limit, with no ramps. Against the
+  stop-and-go time the board measured, it shows how much of the goal a tour's corners allow.
 
     python bench/course.py [--robots N] [--first-seed K] [--tolerance MM] [--strict]
 """
@@ -27,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from asserv import codec, field
+from asserv import codec, field, robot
 from asserv._protocol import EndReason, Reject, Status
 from asserv.driver import Board, OrderRejected
 from asserv.goals import Goals, add_strict_flag
@@ -35,6 +42,11 @@ from asserv.sim import Simulator
 
 APPEND, THROUGH = 0x04, 0x08
 GOAL_RATIO = 0.75
+_ROBOT = robot.load().values
+#: The board's grip (board_config.c: mu x the drive wheels' share of the weight x g) [m/s^2], and
+#: half its drive track [m]: what the board plans with, whatever the randomized robot.
+GRIP_M_S2 = _ROBOT["friction_coeff"] * _ROBOT["drive_weight_share"] * 9.81
+HALF_TRACK_M = _ROBOT["drive_track_mm"] / 2000
 
 
 @dataclass
@@ -64,6 +76,48 @@ def points(rng: random.Random) -> list[tuple[int, int]]:
             out.append(p)
             last = p
     return out
+
+
+def _line_s(length: float, v0: float, v1: float, v_max: float, a: float) -> float:
+    """The shortest time over a line from v0 to v1, within v_max and a [m, m/s, m/s^2]."""
+    peak = math.sqrt(max(0.0, a * length + (v0 * v0 + v1 * v1) / 2))
+    if peak <= v_max:
+        return (2 * peak - v0 - v1) / a
+    ramps = (2 * v_max * v_max - v0 * v0 - v1 * v1) / (2 * a)
+    return (2 * v_max - v0 - v1) / a + (length - ramps) / v_max
+
+
+def bound_s(limits: tuple[int, int, int, int], pts: list[tuple[int, int]], tolerance: int) -> float:
+    """A lower bound of the pass-through tour's time from the start (0, -850) [s] (the module's
+    docstring says of what): the initial turn in place, the corners, the lines between them."""
+    v_max, a, w_max = limits[0] / 100, limits[1] / 100, limits[2] / 100
+    p = [(x / 1000, y / 1000) for x, y in [(0, -850), *pts]]
+    n, tol = len(p), tolerance / 1000
+    bearing = [math.atan2(p[i + 1][1] - p[i][1], p[i + 1][0] - p[i][0]) for i in range(n - 1)]
+    v, cut, corner_s = [0.0] * n, [0.0] * n, [0.0] * n
+    for i in range(1, n - 1):
+        turn = abs((bearing[i] - bearing[i - 1] + math.pi) % (2 * math.pi) - math.pi)
+        c = math.cos(turn / 2)
+        r = tol * c / (1 - c) if c < 1 else 1e9
+        half = min(math.dist(p[i], p[i - 1]), math.dist(p[i], p[i + 1])) / 2
+        cut[i] = min(r * math.tan(turn / 2), half)
+        r = cut[i] / max(math.tan(turn / 2), 1e-9)
+        v[i] = min(v_max, math.sqrt(GRIP_M_S2 * r), w_max * r / HALF_TRACK_M)
+        if v[i] >= 0.05:
+            corner_s[i] = r * turn / v[i]
+        else:
+            v[i], cut[i], corner_s[i] = 0.0, 0.0, turn * HALF_TRACK_M / w_max
+    line = [0.0] + [math.dist(p[i], p[i - 1]) - cut[i - 1] - cut[i] for i in range(1, n)]
+    for i in range(n - 2, 0, -1):  # each corner reachable from the next, then from the last
+        v[i] = min(v[i], math.sqrt(v[i + 1] ** 2 + 2 * a * line[i + 1]))
+    for i in range(1, n - 1):
+        v[i] = min(v[i], math.sqrt(v[i - 1] ** 2 + 2 * a * line[i]))
+    first = abs((bearing[0] + math.pi) % (2 * math.pi) - math.pi)  # the start faces +x
+    return (
+        first * HALF_TRACK_M / w_max
+        + sum(corner_s)
+        + sum(_line_s(line[i], v[i - 1], v[i], v_max, a) for i in range(1, n))
+    )
 
 
 def tour(
@@ -128,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     add_strict_flag(ap)
     args = ap.parse_args(argv)
     rng = random.Random(args.first_seed)
-    ratios, nears, bad = [], [], []
+    ratios, nears, bad, bounds = [], [], [], []
     for seed in range(args.first_seed, args.first_seed + args.robots):
         limits = (
             rng.randint(50, 150),
@@ -140,6 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         stop = tour(seed, limits, pts, False, args.tolerance)
         thru = tour(seed, limits, pts, True, args.tolerance)
         ratios.append((thru.seconds / stop.seconds, seed, stop.seconds, thru.seconds))
+        bounds.append(bound_s(limits, pts, args.tolerance) / stop.seconds)
         nears += [(d, seed, i) for i, d in enumerate(thru.near_mm)]
         bad += [
             (seed, kind, t.why)
@@ -165,6 +220,11 @@ def main(argv: list[str] | None = None) -> int:
     for seed, kind, why in bad:
         print(f"  seed {seed} {kind}: {why}")
     worst_near = max(d for d, _, _ in nears)
+    print(
+        "for information, a bound on the ratio from the limits alone (bound_s(): arcs at the"
+        " whole tolerance and grip, the rotation limit, no clothoids, no settling):"
+        f" worst {max(bounds):.3f}, mean {sum(bounds) / len(bounds):.3f}"
+    )
     goals = Goals("bench/course.py")
     goals.check(f"time ratio, worst (mean {mean_ratio:.3f})", worst_ratio, "<=", GOAL_RATIO)
     goals.check(

@@ -7,7 +7,10 @@ bench/course.py.
 
 from __future__ import annotations
 
+import importlib
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +21,9 @@ from asserv import codec, field
 from asserv._protocol import EndReason, Reject, Status
 from asserv.driver import Board, OrderRejected
 from asserv.sim import AVR_RATES, Simulator
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
+course = importlib.import_module("course")
 
 APPEND, THROUGH = 0x04, 0x08
 REST_MM_S = 10.0  # the holding loop's jitter in the simulator stays below this
@@ -403,16 +409,19 @@ def test_any_tour_through_corners_stays_within_the_tolerance(
 ) -> None:
     """The corner's promise (docs/protocol.md, docs/control.md "Corners") on any tour, at any
     accepted limits, on a randomized robot: within the tolerance at each corner, in the board's
-    estimate (the estimate's own error is the error radius's), and every order done."""
+    estimate (the estimate's own error is the error radius's), and every order done; and
+    bench/course.py's bound no more than the time the tour took."""
     sim = Simulator(seed=seed, randomize=True, field=field.Field())
     board = Board(sim.bus)
     board.set_vitesse_traj(limits[0], limits[1])
     board.set_vitesse_rot(limits[2], limits[3])
     board._command("SET_CORNER", tolerance)
-    n = len(sim.trace)
+    n, t0 = len(sim.trace), sim.time_s
     for x, y in pts:
         board._command("GOTO", x, y, APPEND | THROUGH)
     assert board.wait_idle(120) & (Status.PB_MOTEUR | Status.PB_GRAVE) == 0
+    # bench/course.py's bound on any planner within the limits is one indeed
+    assert course.bound_s(limits, pts, tolerance) <= sim.time_s - t0
     m = motion(board)
     assert (m.last_seq, m.last_end) == (len(pts), EndReason.DONE)
     tr = sim.trace[n:]
