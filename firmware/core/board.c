@@ -76,10 +76,7 @@ void board_keep_save(const struct planner *pl, struct board_keep *k)
 	uncertainty_keep(&pl->uncertainty, &k->u);
 	k->speed_um_s = fx_mag32(pl->m.dist_speed_um_s);
 	k->turn_um_s = fx_mag32(pl->m.angle_speed_um_s);
-	/* an order running, or abandoned at a reset and not yet replaced: reported again */
-	k->busy =
-		(uint8_t)(orders_busy(&pl->orders) || ((pl->status & STATUS_PB_MOTEUR) &&
-						       pl->orders.end_reason == END_REASON_RESET));
+	k->spare0 = 0;
 	k->resets = pl->reset.count;
 	k->pose_lost = pl->reset.pose_lost;
 	k->spare = 0;
@@ -131,12 +128,11 @@ int board_restart(struct board *b, const struct board_config *cfg, const struct 
 			uncertainty_reset(&pl->uncertainty, UINT32_MAX, (uint32_t)1 << 31);
 			pl->reset.pose_lost = 1;
 		}
-		/* abandoned, or may have been (a build without the record's periodic write does
-		 * not know) */
-		if (!CONFIG_KEEP_POSE || !valid || k.busy) {
-			pl->status |= STATUS_PB_MOTEUR;
-			pl->orders.end_reason = END_REASON_RESET;
-		}
+		/* Said at the master's next poll, idle or not, until its next order: an order may
+		 * have been abandoned, and every setting (speeds, gains, SET_TIMEOUT, scales) is
+		 * back at its power-on value, for the master to send again. */
+		pl->status |= STATUS_PB_MOTEUR;
+		pl->orders.end_reason = END_REASON_RESET;
 	}
 	board_keep_save(pl, &b->keep);
 	board_publish(pl, &b->mailbox.up[1], &b->proto);

@@ -251,7 +251,8 @@ int board_init(struct board *b, const struct board_config *cfg, const struct boa
 /* A start that knows why (keep.h): board_init(), then after any reset but a power-on the pose
  * and the radius that keep held resume, the radius widened by what the robot may have
  * travelled in down_ms (the time the board was down, start-up included) at the speed it had;
- * a running order is reported abandoned (PB_MOTEUR, DEBUG end_reason RESET). When keep does not
+ * the status reads PB_MOTEUR, DEBUG end_reason RESET, idle or not, until the next order (an
+ * order may have been abandoned, and the settings are the power-on ones). When keep does not
  * hold a valid record, the pose is lost: the radius reads 255 and motion orders are refused
  * (REFUSED_NO_POSE) until SET_NEW_POS. A power-on (cause RESET_CAUSE_POWER_ON) is board_init()
  * exactly. From then on the planner writes b->keep at every period; the port keeps b in RAM its

@@ -14,7 +14,7 @@ uint32_t keep_check_word(const struct board_keep *k)
 			      (uint32_t)k->u.turn_um,
 			      k->speed_um_s,
 			      k->turn_um_s,
-			      (uint32_t)k->busy | (uint32_t)k->resets << 8 |
+			      (uint32_t)k->spare0 | (uint32_t)k->resets << 8 |
 				      (uint32_t)k->pose_lost << 16 | (uint32_t)k->spare << 24};
 	uint32_t c = 0x6b656570u; /* "keep" */
 

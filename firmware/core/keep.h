@@ -1,5 +1,5 @@
 /* What survives a reset other than a power-on (issue 28): the planner's pose, its error radius,
- * whether an order ran and the count of resets, kept once a planner period in RAM that the
+ * whether it was lost and the count of resets, kept once a planner period in RAM that the
  * port's start-up does not clear (a .noinit section), with a check word. At the next start the
  * port gives it back with the reset cause (board_restart(), board.h): kept, the pose resumes with
  * the radius widened by what the robot may have travelled while the board was down; scrambled,
@@ -18,7 +18,7 @@ struct board_keep {
 	struct uncertainty_kept u; /* the heading's uncertainty */
 	uint32_t speed_um_s;       /* the distance axis's speed, magnitude [um/s] */
 	uint32_t turn_um_s;        /* the angle axis's [um/s of wheel arc] */
-	uint8_t busy;      /* an order was running, or abandoned at a reset and not replaced */
+	uint8_t spare0;    /* 0 (was: an order ran; every reset but a power-on now says so) */
 	uint8_t resets;    /* since power-on, saturating */
 	uint8_t pose_lost; /* lost at an earlier reset and not set since */
 	uint8_t spare;

@@ -112,7 +112,7 @@
 #define END_REASON_BORDER 7 /* GOTO with border recalibration touched the border, recalibrated and backed off (CHOC_BORD) */
 #define END_REASON_TIMEOUT 8 /* stopped because the master went silent (SET_TIMEOUT) */
 #define END_REASON_NO_BASKET 9 /* GOTO_PANIER drove its whole push without touching a basket (PB_MOTEUR) */
-#define END_REASON_RESET 12 /* the board was reset while the order ran (RESET_INFO says why); PB_MOTEUR */
+#define END_REASON_RESET 12 /* the board was reset (any cause but a power-on), an order running or not (RESET_INFO says why); PB_MOTEUR until the next order */
 
 /* fix_result codes. */
 #define FIX_RESULT_NONE 0 /* no fix since power-on */

@@ -2,7 +2,8 @@
  * reset.c) and reported in RESET_INFO with the count of resets since power-on, which the board
  * keeps in its .noinit RAM. This build leaves the pose's keeping out (CONFIG_KEEP_POSE 0: its
  * per-period record does not fit the 40 % budget, docs/avr.md): after any reset but a power-on
- * the order is reported abandoned and the pose refused until SET_NEW_POS, never silently wrong.
+ * the status reads PB_MOTEUR, RESET (as on every port, idle or not) and the pose is refused
+ * until SET_NEW_POS, never silently wrong.
  * A watchdog reset and a brown-out at random moments of a GOTO, the RAM kept or scrambled
  * (avrsim_reset()); then the master's next poll, the refusal, the pose set again, a GOTO. */
 #include <math.h>
@@ -241,7 +242,7 @@ static void test_flags_name_the_cause(void **state)
 		query(h, PROTO_RESET_INFO, info, sizeof(info));
 		assert_int_equal(info[0], cases[i].cause);
 		assert_int_equal(info[1], i + 1);
-		/* nothing ran, but this build cannot tell: the order may have been abandoned */
+		/* nothing ran: said all the same, as on every port (the settings are lost) */
 		s = check_busy(h);
 		assert_true(s & STATUS_PB_MOTEUR);
 	}

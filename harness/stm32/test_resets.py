@@ -1,9 +1,9 @@
 """Resets on the STM32 binary in the emulator (issue 28, item 4): RCC_CSR's reset flags read at
 boot (RM0390 6.3.21) and the record the planner keeps in the .noinit RAM (stm32f446re.ld). A
 watchdog reset (the ticks hang until the watchdog fires) or a brown-out at a random moment of a
-GOTO, with the RAM kept or scrambled: the master learns of it at its next poll (PB_MOTEUR,
-RESET_INFO), and the pose is within the radius or refused, never silently wrong. The same
-resets during a calibration's write to flash (a record's words, the erase of the log switch):
+GOTO, with the RAM kept or scrambled, or while idle: the master learns of it at its next poll
+(PB_MOTEUR, RESET_INFO), and the pose is within the radius or refused, never silently wrong. The
+same resets during a calibration's write to flash (a record's words, the erase of the log switch):
 the calibration installed is the old one or the new one, never a mix or none. The host's soak
 of the same promise is python/tests/test_resets.py."""
 
@@ -108,7 +108,6 @@ def test_a_reset_mid_goto_is_reported_and_the_pose_kept_or_refused(
     b, board = started(elf, seed)
     board.goto(-200, -500)
     b.sleep(at_ms / 1000)
-    was_busy = bool(board.check_busy() & Status.BUSY_TRAJET)
     scramble = None if keep_ram else Random(scramble_seed)
     if cause == ResetCause.WATCHDOG and keep_ram:
         hang_until_the_watchdog(b)  # the real thing: the robot drives on during the hang
@@ -120,9 +119,8 @@ def test_a_reset_mid_goto_is_reported_and_the_pose_kept_or_refused(
     status = board.check_busy()
     info = board.reset_info()
     assert (info.cause, info.count, info.pose_lost) == (cause, 1, not keep_ram)
-    if was_busy or not keep_ram:
-        assert status & Status.PB_MOTEUR and not status & Status.BUSY_TRAJET
-        assert board.debug().end_reason == EndReason.RESET
+    assert status & Status.PB_MOTEUR and not status & Status.BUSY_TRAJET
+    assert board.debug().end_reason == EndReason.RESET
     if keep_ram:
         assert error_mm(b, board) <= board.position().radius_mm
         b.sleep(1.0)  # the robot, motors off, coasts to rest
@@ -155,7 +153,9 @@ def test_each_flag_names_its_cause(elf: Path, cause: ResetCause) -> None:
     b.reset(FLAGS[cause])
     info = board.reset_info()
     assert (info.cause, info.count, info.pose_lost) == (cause, 1, False)
-    assert board.check_busy() == 0  # nothing ran: nothing abandoned
+    # Nothing ran, the pose kept: still said, for the settings are the power-on ones again.
+    assert board.check_busy() == Status.PB_MOTEUR
+    assert board.debug().end_reason == EndReason.RESET
     assert board.version().capabilities & (1 << 13)  # KEEP_POSE
 
 
@@ -240,8 +240,8 @@ def test_a_reset_during_a_calibration_write_keeps_the_old_or_the_new(
 ) -> None:
     """SET_ODOMETRIE, at rest or in a GOTO, then a watchdog reset or a brown-out at a random
     moment of its record's write (inside a word's program, what the cut leaves of it drawn at
-    random), the RAM kept or scrambled. At the master's next poll: the reset reported, the order
-    abandoned if one ran (and whenever the record in RAM was lost), the calibration the old one
+    random), the RAM kept or scrambled. At the master's next poll: the reset reported
+    (PB_MOTEUR, moving or not), the calibration the old one
     or the new one (the newest whole record of the logs), never a mix, never none once one was
     kept; the pose within the radius or refused. The master sends the calibration again: kept."""
     rng = Random(rng_seed)
@@ -279,8 +279,8 @@ def test_a_reset_during_a_calibration_write_keeps_the_old_or_the_new(
     status = board.check_busy()
     info = board.reset_info()
     assert (info.cause, info.count, info.pose_lost) == (cause, 1, not keep_ram)
-    # board_restart(): abandoned when an order ran, or when the record is lost (it cannot tell).
-    assert bool(status & Status.PB_MOTEUR) == (moving or not keep_ram)
+    # board_restart(): said after any reset but a power-on, an order running or not.
+    assert status & Status.PB_MOTEUR
     assert not status & Status.BUSY_TRAJET
     loaded = installed(ram_board(b))
     assert loaded == newest(b.flash), "not the newest whole record"
@@ -313,8 +313,8 @@ def test_a_reset_during_the_log_switch_keeps_the_full_logs_record(elf: Path, see
     """The active log full, SET_ODOMETRIE at rest starts the erase of the other sector; a
     watchdog reset or a brown-out, the RAM kept or scrambled, comes during the erase (the
     model leaves a random part of its bits erased) or during the first record's words in the
-    erased sector. At the next poll: the reset reported, nothing abandoned (no order ran) but
-    with the record lost, the full log's record or the new one installed, the pose kept or
+    erased sector. At the next poll: the reset reported (PB_MOTEUR, though no order ran), the
+    full log's record or the new one installed, the pose kept or
     refused; the master's second send is kept."""
     rng = Random(seed)
     cause = (ResetCause.WATCHDOG, ResetCause.BROWN_OUT)[seed % 2]
@@ -348,7 +348,7 @@ def test_a_reset_during_the_log_switch_keeps_the_full_logs_record(elf: Path, see
     status = board.check_busy()
     info = board.reset_info()
     assert (info.cause, info.count, info.pose_lost) == (cause, 1, not keep_ram)
-    assert bool(status & Status.PB_MOTEUR) == (not keep_ram)
+    assert status & Status.PB_MOTEUR
     assert b.watchdog_resets == 0  # the start-up's compaction, if any, within the watchdog
     loaded = installed(ram_board(b))
     assert loaded == newest(b.flash)

@@ -1,8 +1,8 @@
 """Resets that say so (issue 28, item 4), on the simulated board: a brown-out, a watchdog, a
 reset pin or a software reset at any moment of a GOTO, with the RAM kept or scrambled. The master
-learns of it at its next poll (PB_MOTEUR, DEBUG end_reason RESET, RESET_INFO's cause and count),
-and the pose is kept within the radius, or refused, never silently wrong. A power-on is as
-before. The emulators' tests of the ports' own reset causes are in harness/avr and
+learns of it at its next poll, idle or not (PB_MOTEUR, DEBUG end_reason RESET, RESET_INFO's cause
+and count), and the pose is kept within the radius, or refused, never silently wrong. A power-on
+is as before. The emulators' tests of the ports' own reset causes are in harness/avr and
 harness/stm32 (docs/failure-model.md says which are done).
 """
 
@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, Phase, event, given, settings
 from hypothesis import strategies as st
 
 from asserv import Board, EndReason, OrderRejected, Reject, ResetCause, ResetInfo, Status
@@ -54,7 +54,6 @@ def test_a_reset_mid_goto_is_reported_and_the_pose_kept_or_refused(
     sim, board = started(seed)
     board.goto(-200, -500)
     sim.advance(at_s)
-    was_busy = bool(sim.trace["status"][-1].astype(int) & Status.BUSY_TRAJET)
     sim.reset(cause, keep_ram=keep_ram, down_ms=down_ms)
     if twice:  # a second reset before the master polls: the count says so
         sim.advance(0.05)
@@ -65,9 +64,8 @@ def test_a_reset_mid_goto_is_reported_and_the_pose_kept_or_refused(
     assert info.cause == cause
     assert info.count == (1 + twice if keep_ram or twice else 1)
     assert info.pose_lost == (not keep_ram)
-    if was_busy or not keep_ram:
-        assert status & Status.PB_MOTEUR and not status & Status.BUSY_TRAJET
-        assert board.debug().end_reason == EndReason.RESET
+    assert status & Status.PB_MOTEUR and not status & Status.BUSY_TRAJET
+    assert board.debug().end_reason == EndReason.RESET
     if keep_ram:
         # Kept: the estimate within the radius, now and after the robot has come to rest.
         assert error_mm(sim, board) <= board.position().radius_mm
@@ -89,6 +87,78 @@ def test_a_reset_mid_goto_is_reported_and_the_pose_kept_or_refused(
         board.goto(-200, -500)
         assert board.wait_idle(20) == 0
         assert not board.reset_info().pose_lost
+
+
+@settings(
+    max_examples=30,
+    deadline=None,
+    derandomize=True,
+    phases=[Phase.explicit, Phase.generate],
+    suppress_health_check=[HealthCheck.too_slow],
+)
+@given(
+    seed=st.integers(0, 10_000),
+    order=st.sampled_from([None, (-200, -500), (0, -750)]),
+    at_s=st.floats(0.0, 4.0),
+    cause=st.sampled_from(CAUSES),
+    keep_ram=st.booleans(),
+    down_ms=st.integers(0, 200),
+)
+def test_any_reset_but_a_power_on_shows_at_the_first_poll(
+    seed: int,
+    order: tuple[int, int] | None,
+    at_s: float,
+    cause: ResetCause,
+    keep_ram: bool,
+    down_ms: int,
+) -> None:
+    """At a random moment, idle (no order yet, or one finished) or moving, RAM kept or
+    scrambled: the master's first CHECK_BUSY after the reset reads PB_MOTEUR, not busy, and
+    RESET_INFO names the cause, so a master that only polls learns that its settings are back
+    at their power-on values. It reads so until the next order: the settings sent again do not
+    clear it, the order does."""
+    sim, board = started(seed)
+    board.set_timeout(500)  # settings the reset will undo
+    board.heartbeat()
+    if order is not None:
+        board.goto(*order)
+    left = at_s
+    while left > 0:  # the master alive until the reset
+        sim.advance(min(0.2, left))
+        board.heartbeat()
+        left -= 0.2
+    before = board.check_busy()
+    assert not before & Status.PB_MOTEUR  # nothing ended badly before the reset
+    busy = bool(before & Status.BUSY_TRAJET)
+    event("moving" if busy else "idle, no order yet" if order is None else "idle, order done")
+    sim.reset(cause, keep_ram=keep_ram, down_ms=down_ms)
+
+    status = board.check_busy()  # the master's first poll
+    assert status & Status.PB_MOTEUR and not status & Status.BUSY_TRAJET, status
+    info = board.reset_info()
+    assert (info.cause, info.count, info.pose_lost) == (cause, 1, not keep_ram)
+    assert board.debug().end_reason == EndReason.RESET
+
+    # The master sends its settings again: the reset still shows, until the next order.
+    board.set_vitesse_traj(100, 100)
+    board.set_vitesse_rot(50, 100)
+    board.set_timeout(500)
+    if not keep_ram:
+        t = sim.true_pose()
+        board.declare_pose(round(t.x_mm), round(t.y_mm), round(t.heading_deg))
+    sim.advance(0.1)
+    assert board.check_busy() & Status.PB_MOTEUR
+    assert board.debug().end_reason == EndReason.RESET
+    board.heartbeat()
+    board.goto(-200, -600)
+    status = board.check_busy()
+    assert not status & Status.PB_MOTEUR
+    while status & Status.BUSY_TRAJET:  # the order runs to its end, the timeout fed
+        assert sim.time_s < 60
+        sim.advance(0.1)
+        board.heartbeat()
+        status = board.check_busy()
+    assert status == 0 and board.debug().end_reason == EndReason.DONE
 
 
 def test_a_power_on_is_as_before() -> None:

@@ -398,8 +398,9 @@ class Simulator:
         ``power_cycle()``). The motors are off for ``down_ms`` (0..1000: the start-up; the
         robot coasts, the physics runs), then the board starts again with that cause: from the
         RAM it kept (``keep_ram``: its pose and radius resume, widened), or from RAM the reset
-        scrambled (the pose is lost: motion orders refused until SET_NEW_POS). A running order
-        reads PB_MOTEUR, DEBUG end_reason RESET; ``Board.reset_info()`` says the rest."""
+        scrambled (the pose is lost: motion orders refused until SET_NEW_POS). The status reads
+        PB_MOTEUR, DEBUG end_reason RESET, until the next order, whether one ran or not (the
+        settings are the power-on ones again); ``Board.reset_info()`` says the rest."""
         names = ", ".join(ResetCause.__members__)
         try:
             c = ResetCause[cause] if isinstance(cause, str) else ResetCause(cause)
