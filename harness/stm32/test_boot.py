@@ -36,6 +36,7 @@ from test_nvm import CAL, encode
 from test_sessions import assert_same_runs, play
 
 from asserv import Board, OrderRejected, Reject, Status
+from asserv._protocol import EndReason, ResetCause
 from asserv.codec import crc8, message
 from asserv.scenario import load
 from asserv.update import (
@@ -82,9 +83,18 @@ def kept(b: BootBoard) -> bool:
 
 
 def app_runs(b: BootBoard, version: int) -> None:
-    """The application of this version runs and answers; the calibration is the factory's."""
+    """The application of this version runs and answers; the calibration is the factory's.
+    After a power-on its status reads 0; after any other reset (the system reset of BOOTLOADER
+    or START, a watchdog's) it reads the reset, PB_MOTEUR with the end reason RESET, until the
+    next order (docs/failure-model.md): the master sends its settings again."""
     assert not b.in_boot() and b.running_version() == version
-    assert Board(b.bus).check_busy() == 0
+    master = Board(b.bus)
+    info = master.reset_info()
+    if info.cause == ResetCause.POWER_ON:  # test_resets checks that each flag names its cause
+        assert master.check_busy() == 0
+    else:
+        assert master.check_busy() == Status.PB_MOTEUR
+        assert master.debug().end_reason == EndReason.RESET
     assert kept(b) and nvm_of(b)[len(NVM) :] == b"\xff" * (0x4000 - len(NVM))
     assert bytes(b.wflash.data_b[len(NVM_B) :]) == b"\xff" * (0x2_0000 - len(NVM_B))
 
