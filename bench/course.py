@@ -57,7 +57,7 @@ class Tour:
     why: str
 
 
-def _seg(
+def segment_mm(
     px: np.ndarray, py: np.ndarray, a: tuple[float, float], b: tuple[float, float]
 ) -> np.ndarray:
     """The distance of each (px, py) from the segment a-b."""
@@ -76,6 +76,21 @@ def points(rng: random.Random) -> list[tuple[int, int]]:
             out.append(p)
             last = p
     return out
+
+
+def corner_near_mm(
+    px: np.ndarray, py: np.ndarray, start: tuple[float, float], pts: list[tuple[int, int]]
+) -> list[float]:
+    """At each corner point (all but the last) of a path (px, py) from start through pts: the
+    larger of how close it passes the point and how far it strays from the polyline, over the
+    ticks nearest to that point rather than to any other."""
+    poly = [start, *pts]
+    off = np.min([segment_mm(px, py, poly[i], poly[i + 1]) for i in range(len(pts))], axis=0)
+    owner = np.argmin([np.hypot(px - x, py - y) for x, y in pts], axis=0)
+    return [
+        max(float(off[owner == i].max(initial=0.0)), float(np.hypot(px - x, py - y).min()))
+        for i, (x, y) in enumerate(pts[:-1])
+    ]
 
 
 def _line_s(length: float, v0: float, v1: float, v_max: float, a: float) -> float:
@@ -151,17 +166,9 @@ def tour(
             status |= board.wait_idle(60)
     seconds = sim.time_s - t0
     tr = sim.trace[n:]
-    # In the board's estimate: its own error is the error radius's, checked at the end. How
-    # close the path passes each corner point, and how far it strays from the polyline of the
-    # points around it (the ticks nearest to it rather than to any other point): the larger.
+    # In the board's estimate: its own error is the error radius's, checked at the end.
     ex, ey = tr["est_x_mm"], tr["est_y_mm"]
-    poly = [(float(ex[0]), float(ey[0])), *pts]
-    off = np.min([_seg(ex, ey, poly[i], poly[i + 1]) for i in range(len(poly) - 1)], axis=0)
-    owner = np.argmin([np.hypot(ex - x, ey - y) for x, y in pts], axis=0)
-    near = [
-        max(float(off[owner == i].max(initial=0.0)), float(np.hypot(ex - x, ey - y).min()))
-        for i, (x, y) in enumerate(pts[:-1])
-    ]
+    near = corner_near_mm(ex, ey, (float(ex[0]), float(ey[0])), pts)
     m = board._query("MOTION", codec.Motion)
     pos, truth = board.position(), sim.true_pose()
     err = math.hypot(pos.x_mm - truth.x_mm, pos.y_mm - truth.y_mm)

@@ -312,15 +312,6 @@ def test_pass_through_with_a_recalibration_is_rejected() -> None:
     assert motion(board).running_seq == 0 and board.check_busy() & Status.BUSY_TRAJET == 0
 
 
-def _seg(
-    px: np.ndarray, py: np.ndarray, a: tuple[float, float], b: tuple[float, float]
-) -> np.ndarray:
-    """The distance of each (px, py) from the segment a-b."""
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    t = np.clip(((px - a[0]) * dx + (py - a[1]) * dy) / max(dx * dx + dy * dy, 1e-9), 0, 1)
-    return np.hypot(px - a[0] - t * dx, py - a[1] - t * dy)
-
-
 @pytest.mark.parametrize("tolerance", [10, 30, 80])
 def test_a_tour_through_corners_stays_within_the_tolerance_and_is_faster(tolerance: int) -> None:
     pts = [(400, -500), (400, 100), (-300, 100), (-300, -500), (200, -700)]
@@ -344,7 +335,9 @@ def test_a_tour_through_corners_stays_within_the_tolerance_and_is_faster(toleran
         tr = sim.trace[n:]
         px, py = tr["x_mm"], tr["y_mm"]
         poly = [(float(px[0]), float(py[0])), *pts]
-        off = np.min([_seg(px, py, poly[i], poly[i + 1]) for i in range(len(pts))], axis=0)
+        off = np.min(
+            [course.segment_mm(px, py, poly[i], poly[i + 1]) for i in range(len(pts))], axis=0
+        )
         near = [float(np.hypot(px - x, py - y).min()) for x, y in pts[:-1]]
         return sim.time_s - t0, [*near, float(off.max())]
 
@@ -352,20 +345,6 @@ def test_a_tour_through_corners_stays_within_the_tolerance_and_is_faster(toleran
     t_through, near = tour(True)
     assert t_through < t_stop
     assert max(near) <= tolerance
-
-
-def corner_near_mm(
-    ex: np.ndarray, ey: np.ndarray, start: tuple[float, float], pts: list[tuple[int, int]]
-) -> list[float]:
-    """At each corner point, as bench/course.py measures it: the larger of how close the path
-    passed the point and how far it strayed from the polyline, over the ticks nearest to it."""
-    poly = [start, *pts]
-    off = np.min([_seg(ex, ey, poly[i], poly[i + 1]) for i in range(len(pts))], axis=0)
-    owner = np.argmin([np.hypot(ex - x, ey - y) for x, y in pts], axis=0)
-    return [
-        max(float(off[owner == i].max(initial=0.0)), float(np.hypot(ex - x, ey - y).min()))
-        for i, (x, y) in enumerate(pts[:-1])
-    ]
 
 
 @st.composite
@@ -426,5 +405,5 @@ def test_any_tour_through_corners_stays_within_the_tolerance(
     assert (m.last_seq, m.last_end) == (len(pts), EndReason.DONE)
     tr = sim.trace[n:]
     ex, ey = tr["est_x_mm"], tr["est_y_mm"]
-    near = corner_near_mm(ex, ey, (float(ex[0]), float(ey[0])), pts)
+    near = course.corner_near_mm(ex, ey, (float(ex[0]), float(ey[0])), pts)
     assert max(near) <= tolerance, near
