@@ -14,36 +14,9 @@ from hypothesis import strategies as st
 from test_sessions import assert_same_runs, pair
 
 from asserv import Board
-from asserv.sim.silence import START, Gap, Session, play
+from asserv.sim.silence import START, Session, play, sessions
 
 LATE_MS = 5  # one rate at 1 kHz, as the host: the write's period, the rounding, the snapshot
-
-
-@st.composite
-def sessions(draw: st.DrawFn) -> Session:
-    timeout = draw(st.integers(50, 300))
-    n = draw(st.integers(0, 4))
-    hang = draw(st.booleans())
-    gaps = []
-    for i in range(n + hang):
-        is_hang = i == n
-        ms = (
-            draw(st.integers(timeout + LATE_MS + 10, timeout + 150))
-            if is_hang
-            else draw(st.integers(1, timeout - 8))
-        )
-        poll = draw(st.integers(5, 40))
-        gaps.append(
-            Gap(
-                ms,
-                poll,
-                draw(st.integers(0, poll - 1)),
-                tuple(draw(st.lists(st.integers(0, ms), max_size=2))),
-                draw(st.booleans()),
-                is_hang,
-            )
-        )
-    return Session(timeout, tuple(gaps))
 
 
 @settings(
@@ -51,7 +24,12 @@ def sessions(draw: st.DrawFn) -> Session:
     phases=[Phase.explicit, Phase.generate],  # no shrinking: each example runs for a second
     suppress_health_check=[HealthCheck.too_slow],
 )
-@given(s=sessions(), seed=st.integers(0, 10_000))
+@given(
+    s=sessions(
+        LATE_MS, max_timeout_ms=300, max_writes=4, max_hang_ms=150, max_poll_ms=40, max_rejected=2
+    ),
+    seed=st.integers(0, 10_000),
+)
 def test_only_accepted_writes_feed_the_timeout(elf: Any, s: Session, seed: int) -> None:
     b, r = pair(elf, *robot({"start": START}, seed=seed, randomize=True))
     for dev in (b, r):

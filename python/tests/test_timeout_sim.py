@@ -15,40 +15,13 @@ from hypothesis import strategies as st
 
 from asserv import Board, EndReason, Status
 from asserv.sim import Simulator
-from asserv.sim.silence import START, TARGET, Gap, Session, play
+from asserv.sim.silence import START, TARGET, Gap, Session, play, sessions
 
 LATE_MS = 5  # 1 kHz: the write's period, the rounding, the snapshot
 
 
-@st.composite
-def sessions(draw: st.DrawFn, max_timeout_ms: int = 600, max_writes: int = 8) -> Session:
-    timeout = draw(st.integers(50, max_timeout_ms))
-    n = draw(st.integers(0, max_writes))
-    hang = draw(st.booleans())
-    gaps = []
-    for i in range(n + hang):
-        is_hang = i == n
-        ms = (
-            draw(st.integers(timeout + LATE_MS + 10, timeout + 400))
-            if is_hang
-            else draw(st.integers(1, timeout - 8))
-        )
-        poll = draw(st.integers(5, 60))
-        gaps.append(
-            Gap(
-                ms,
-                poll,
-                draw(st.integers(0, poll - 1)),
-                tuple(draw(st.lists(st.integers(0, ms), max_size=3))),
-                draw(st.booleans()),
-                is_hang,
-            )
-        )
-    return Session(timeout, tuple(gaps))
-
-
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(s=sessions(), seed=st.integers(0, 10_000))
+@given(s=sessions(LATE_MS), seed=st.integers(0, 10_000))
 def test_only_accepted_writes_feed_the_timeout(s: Session, seed: int) -> None:
     sim = Simulator({"start": START}, seed=seed, randomize=True)
     assert play(Board(sim.bus), sim.i2c_write, s, LATE_MS) == []

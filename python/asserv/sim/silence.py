@@ -23,11 +23,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from .._protocol import EndReason, OrderState, Status
 from ..driver import Board
 
-__all__ = ["BUS_MS", "EARLY_MS", "Gap", "Session", "play"]
+if TYPE_CHECKING:
+    from hypothesis.strategies import SearchStrategy
+
+__all__ = ["BUS_MS", "EARLY_MS", "Gap", "Session", "play", "sessions"]
 
 #: A poll this close under the timeout may already see it (a write's bus time).
 EARLY_MS = 2
@@ -68,6 +72,49 @@ class Session:
                 raise ValueError("Session: only the last gap may be a hang")
             if g.ms < 1 or g.poll_ms < 1 or g.poll_phase_ms < 0:
                 raise ValueError(f"Session: gap {i}: ms, poll_ms must be >= 1, phase >= 0")
+
+
+def sessions(
+    late_ms: int,
+    max_timeout_ms: int = 600,
+    max_writes: int = 8,
+    max_hang_ms: int = 400,
+    max_poll_ms: int = 60,
+    max_rejected: int = 3,
+) -> SearchStrategy[Session]:
+    """The hypothesis strategy of sessions that the tests play (hypothesis, a test dependency,
+    is imported here only): a timeout of 50 to ``max_timeout_ms``, up to ``max_writes`` gaps
+    under it, then maybe a hang of ``late_ms`` + 10 to ``max_hang_ms`` over it; polls every 5
+    to ``max_poll_ms`` ms, up to ``max_rejected`` rejected writes a gap."""
+    from hypothesis import strategies as st
+
+    @st.composite
+    def draw_session(draw: st.DrawFn) -> Session:
+        timeout = draw(st.integers(50, max_timeout_ms))
+        n = draw(st.integers(0, max_writes))
+        hang = draw(st.booleans())
+        gaps = []
+        for i in range(n + hang):
+            is_hang = i == n
+            ms = (
+                draw(st.integers(timeout + late_ms + 10, timeout + max_hang_ms))
+                if is_hang
+                else draw(st.integers(1, timeout - 8))
+            )
+            poll = draw(st.integers(5, max_poll_ms))
+            gaps.append(
+                Gap(
+                    ms,
+                    poll,
+                    draw(st.integers(0, poll - 1)),
+                    tuple(draw(st.lists(st.integers(0, ms), max_size=max_rejected))),
+                    draw(st.booleans()),
+                    is_hang,
+                )
+            )
+        return Session(timeout, tuple(gaps))
+
+    return draw_session()
 
 
 def play(
