@@ -71,7 +71,9 @@ def _check_watched(hello: dict[str, Any], rows: list[list[Any]], sim: Simulator)
     info = hello["info"]
     assert info["kind"] == "board" and info["truth"] is True
     named = [dict(zip(info["fields"], r, strict=True)) for r in rows]
-    assert len(named) > 20
+    # It watched the moves (how many polls that takes depends on the machine's load: on a
+    # loaded one a rehearsal of CI saw 7 rows, so no count is asserted).
+    assert any(int(r["status"]) & Status.BUSY_TRAJET for r in named)
     # The strategy's moves, seen by the view: the estimate and the truth, both near the end.
     last = named[-1]
     assert math.hypot(last["est_x_mm"] - 300, last["est_y_mm"] + 300) < 5
