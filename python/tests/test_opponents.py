@@ -187,7 +187,10 @@ def test_two_robots_head_on_both_stop_on_a_shock() -> None:
     assert results == {"a": Outcome.SHOCK, "b": Outcome.SHOCK}
     gap = b.true_pose().x_mm - a.true_pose().x_mm
     assert 245 <= gap <= 262  # bumper to bumper: two half lengths of 125 mm
-    assert abs(a.time_s - b.time_s) < 0.002  # one clock
+    # One clock: a bus transaction moves its robot ahead by its bytes until the next sleep
+    # (arena.py), and which thread ends last, with its last reads, is the scheduler's: 2.6 ms
+    # (26 bytes at 100 kHz) in a rehearsal of CI. Not seconds apart.
+    assert abs(a.time_s - b.time_s) < 0.005
 
 
 def test_a_robot_drives_past_the_other() -> None:
