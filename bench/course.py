@@ -135,6 +135,17 @@ def bound_s(limits: tuple[int, int, int, int], pts: list[tuple[int, int]], toler
     )
 
 
+def robot(seed: int, limits: tuple[int, int, int, int], tolerance: int) -> tuple[Simulator, Board]:
+    """Randomized robot ``seed`` on an empty table, at the limits (SET_VITESSE_TRAJ's speed and
+    acceleration, SET_VITESSE_ROT's) and the corner tolerance (SET_CORNER) [mm]."""
+    sim = Simulator(seed=seed, randomize=True, field=field.Field())
+    board = Board(sim.bus)
+    board.set_vitesse_traj(limits[0], limits[1])
+    board.set_vitesse_rot(limits[2], limits[3])
+    board._command("SET_CORNER", tolerance)
+    return sim, board
+
+
 def tour(
     seed: int,
     limits: tuple[int, int, int, int],
@@ -142,11 +153,7 @@ def tour(
     through: bool,
     tolerance: int,
 ) -> Tour:
-    sim = Simulator(seed=seed, randomize=True, field=field.Field())
-    board = Board(sim.bus)
-    board.set_vitesse_traj(limits[0], limits[1])
-    board.set_vitesse_rot(limits[2], limits[3])
-    board._command("SET_CORNER", tolerance)
+    sim, board = robot(seed, limits, tolerance)
     n, t0 = len(sim.trace), sim.time_s
     status = Status(0)
     if through:

@@ -390,11 +390,7 @@ def test_any_tour_through_corners_stays_within_the_tolerance(
     accepted limits, on a randomized robot: within the tolerance at each corner, in the board's
     estimate (the estimate's own error is the error radius's), and every order done; and
     bench/course.py's bound no more than the time the tour took."""
-    sim = Simulator(seed=seed, randomize=True, field=field.Field())
-    board = Board(sim.bus)
-    board.set_vitesse_traj(limits[0], limits[1])
-    board.set_vitesse_rot(limits[2], limits[3])
-    board._command("SET_CORNER", tolerance)
+    sim, board = course.robot(seed, limits, tolerance)
     n, t0 = len(sim.trace), sim.time_s
     for x, y in pts:
         board._command("GOTO", x, y, APPEND | THROUGH)
