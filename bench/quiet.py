@@ -17,13 +17,18 @@ For each, over both motors:
   the trace (asserv.log.following_errors);
 - contact force against the wall [N], the largest over the window.
 
-Each figure is the worst over the robots, beside its goal (issue 32): duty jitter 0.01 RMS or
+Each figure is the worst over the robots, beside its goal (issue 32) and the figure the commit
+before the quiet servo printed (BEFORE): duty jitter 0.01 RMS or
 less, current RMS at most 1.5 times the needed current + 0.1 A, contact force under 1 N, and the
 following error at cruise at most 1.2 times the figure of the commit before the quiet servo
 (FOLLOWING_BEFORE_MM). Each goal is marked met or MISSED; the last line sums them up
 (``bench/quiet.py: goals met: N of M``), and --strict exits 1 on a miss.
 
-    python bench/quiet.py [--robots N] [--jobs J] [--strict]
+--raw-d runs the same robots with the PIDs' derivative read raw, the difference of two ticks'
+errors (control.d_filter_ms 0: the AVR's build, docs/avr.md), to see what the low-pass buys on
+today's board.
+
+    python bench/quiet.py [--robots N] [--jobs J] [--raw-d] [--strict]
 """
 
 from __future__ import annotations
@@ -57,8 +62,21 @@ CURRENT_GAIN_GOAL, CURRENT_OFFSET_GOAL_A = 1.5, 0.1
 FORCE_GOAL_N = 1.0
 FOLLOWING_GROWTH_GOAL = 1.2
 #: The worst RMS following error at each cruise speed over the 50 robots before issue 32
-#: (`python bench/quiet.py` on main at ab41e8a) [mm].
+#: (`python bench/quiet.py` on main at ab41e8a, and the same at 70f9445) [mm].
 FOLLOWING_BEFORE_MM = {20: 0.024, 50: 0.034, 100: 0.059}
+#: What `python bench/quiet.py` printed on main at 70f9445, the commit before the quiet servo:
+#: each case's worst duty jitter [RMS] and current [A RMS], and the contact force [N].
+BEFORE: dict[str, tuple[float, float, float | None]] = {
+    "cruise 0.2 m/s": (0.0834, 0.88, None),
+    "rest after 0.2 m/s": (0.1026, 1.05, None),
+    "cruise 0.5 m/s": (0.0774, 0.81, None),
+    "rest after 0.5 m/s": (0.1023, 1.06, None),
+    "cruise 1.0 m/s": (0.0763, 0.80, None),
+    "rest after 1.0 m/s": (0.1010, 1.05, None),
+    "rest against a wall": (0.0576, 0.57, 7.4),
+}
+#: The board's settings of --raw-d: the derivative without its low-pass.
+RAW_D = {"control.d_filter_ms": 0}
 
 
 @dataclasses.dataclass
@@ -92,9 +110,13 @@ def window_of(tr: np.ndarray, following: np.ndarray | None = None) -> Window:
     return Window(jitter, rms, need, f, float(tr["contact_force_N"].max()))
 
 
-def cruise(seed: int, speed_cm_s: int) -> tuple[Window, Window]:
+def cruise(
+    seed: int, speed_cm_s: int, board_config: dict[str, int] | None = None
+) -> tuple[Window, Window]:
     """A straight at speed: its cruise, then the rest after it."""
-    sim = Simulator({"start": (START_X_MM, 0, 0.0)}, seed=seed, randomize=True)
+    sim = Simulator(
+        {"start": (START_X_MM, 0, 0.0)}, seed=seed, randomize=True, board_config=board_config
+    )
     board = Board(sim.bus)
     board.set_vitesse_traj(speed_cm_s, ACCEL_CM_S2)
     board.goto(END_X_MM, 0)
@@ -110,11 +132,13 @@ def cruise(seed: int, speed_cm_s: int) -> tuple[Window, Window]:
     return window_of(tr[run], dist[run]), window_of(tr[rest])
 
 
-def wall(seed: int) -> Window:
+def wall(seed: int, board_config: dict[str, int] | None = None) -> Window:
     """Driven into a wall at WALL_SPEED_CM_S, then at rest against it."""
     box = field.Obstacle("box", 20, 0, half_x_mm=20, half_y_mm=200)
     f = dataclasses.replace(field.load(field.DEFAULT), obstacles=(box,))
-    sim = Simulator({"start": (-400, 0, 0.0)}, seed=seed, randomize=True, field=f)
+    sim = Simulator(
+        {"start": (-400, 0, 0.0)}, seed=seed, randomize=True, field=f, board_config=board_config
+    )
     board = Board(sim.bus)
     board.set_vitesse_traj(WALL_SPEED_CM_S, ACCEL_CM_S2)
     board.goto(600, 0)
@@ -128,17 +152,24 @@ def wall(seed: int) -> Window:
     return window_of(tr[c : c + round(REST_S / TICK_S)])
 
 
-def robot(seed: int) -> dict[str, Window]:
+def robot(seed: int, board_config: dict[str, int] | None = None) -> dict[str, Window]:
     out: dict[str, Window] = {}
     for v in SPEEDS_CM_S:
-        out[f"cruise {v / 100:.1f} m/s"], out[f"rest after {v / 100:.1f} m/s"] = cruise(seed, v)
-    out["rest against a wall"] = wall(seed)
+        out[f"cruise {v / 100:.1f} m/s"], out[f"rest after {v / 100:.1f} m/s"] = cruise(
+            seed, v, board_config
+        )
+    out["rest against a wall"] = wall(seed, board_config)
     return out
 
 
-def report(results: list[dict[str, Window]], goals: Goals) -> None:
+def robot_raw_d(seed: int) -> dict[str, Window]:
+    return robot(seed, RAW_D)
+
+
+def report(results: list[dict[str, Window]], goals: Goals, raw_d: bool = False) -> None:
     n = len(results)
-    print(f"{n} randomized robots (seeds 0..{n - 1}), 1 kHz; the worst robot of each case")
+    how = "the derivative read raw (control.d_filter_ms 0)" if raw_d else "the quiet servo"
+    print(f"{n} randomized robots (seeds 0..{n - 1}), 1 kHz, {how}; the worst robot of each case")
     print(
         f"{'case':<22} {'jitter':>8} {'goal':>6}   {'I rms':>7} {'need':>7} {'goal':>7}   "
         f"{'follow':>7} {'goal':>7}   {'force':>6} {'goal':>5}"
@@ -173,22 +204,36 @@ def report(results: list[dict[str, Window]], goals: Goals) -> None:
             ok_c = goals.check(f"{case}: contact force [N]", force, "<", FORCE_GOAL_N)
             line += f"{'':>27}{force:5.1f} N {FORCE_GOAL_N:4.1f} N {ok_c.mark}"
         print(line)
+    print("before the quiet servo (what this bench printed at 70f9445):")
+    for case, (j_before, i_before, f_before) in BEFORE.items():
+        tail = f"   force {f_before:4.1f} N" if f_before is not None else ""
+        print(f"  {case:<20} jitter {j_before:6.4f}   I rms {i_before:4.2f} A{tail}")
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--robots", type=int, default=50, help="randomized robots (50)")
     ap.add_argument("--jobs", type=int, default=1, help="processes (1)")
+    ap.add_argument(
+        "--raw-d",
+        action="store_true",
+        help="the derivative read raw (control.d_filter_ms 0, the AVR's build)",
+    )
     add_strict_flag(ap)
     args = ap.parse_args(argv)
+    if args.robots < 1:
+        ap.error(f"--robots: {args.robots} robots: give 1 or more")
+    if args.jobs < 1:
+        ap.error(f"--jobs: {args.jobs} processes: give 1 or more")
     seeds = range(args.robots)
+    run = robot_raw_d if args.raw_d else robot
     if args.jobs > 1:
         with multiprocessing.Pool(args.jobs) as pool:
-            results = pool.map(robot, seeds)
+            results = pool.map(run, seeds)
     else:
-        results = [robot(s) for s in seeds]
+        results = [run(s) for s in seeds]
     goals = Goals("bench/quiet.py")
-    report(results, goals)
+    report(results, goals, args.raw_d)
     print(goals.summary())
     return goals.exit_code(args.strict)
 

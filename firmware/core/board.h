@@ -133,7 +133,10 @@ struct board_handover {
 	uint8_t reset;      /* forget the PIDs' integrals */
 	uint8_t jump;       /* the set points at once, not over the period (a stop: hold here) */
 	uint8_t motors_off; /* PB_GRAVE or PB_MOTEUR: no control until the next order */
-	uint8_t publish;    /* a reply snapshot is drafted (proto_draft()) */
+#if CONFIG_QUIET_SERVO
+	uint8_t raw_d; /* bit axis: its PID's raw derivative (orders_raw_d()) */
+#endif
+	uint8_t publish; /* a reply snapshot is drafted (proto_draft()) */
 };
 
 /* SET_ODOMETRIE's wheels, derived by the planner (the costly part), installed by the servo at
@@ -229,8 +232,8 @@ struct board {
 	struct board_config cfg; /* read-only after board_init() */
 	struct proto proto;      /* shared with the I2C interrupt */
 	struct servo servo;
+	struct mailbox mailbox; /* beside the servo, which reads it every tick */
 	struct planner planner;
-	struct mailbox mailbox;
 	/* What survives a reset (keep.h): last, and left as it is by board_init(), so that a port
 	 * that keeps struct board in RAM its start-up does not clear finds it at board_restart().
 	 * Written at every planner period once board_restart() has run. */

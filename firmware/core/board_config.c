@@ -33,6 +33,10 @@ static void default_uncertainty(struct board_config *c)
 
 /* [ms] see default_control() */
 #define GAIN_SLEW_MS 50
+/* [ms] the PIDs' derivative's low-pass and [um] its largest lag (docs/control.md "PID"): a
+ * free-wheel count is 78.5 um, half of it on either axis */
+#define D_FILTER_MS 16
+#define D_LAG_MAX_UM 320
 
 static void default_control(struct board_config *c)
 {
@@ -48,6 +52,10 @@ static void default_control(struct board_config *c)
 	c->control.gain_slew_q15_per_s[1] =
 		(int32_t)((int64_t)ROBOT_FF_ANGLE_ACCEL_Q15_PER_M_S2 * ROBOT_GRIP_UM_S2 * 256 /
 			  ROBOT_ROT_GRIP_Q8 / GAIN_SLEW_MS / 1000);
+#if CONFIG_QUIET_SERVO
+	c->control.d_filter_ms = D_FILTER_MS;
+	c->control.d_lag_max_um = D_LAG_MAX_UM;
+#endif
 	c->control.presets[FILTRE_STD] = (struct control_gains){205, 400, 160};
 	c->control.presets[FILTRE_SOUPLE] = (struct control_gains){40, 0, 60};
 	c->control.presets[FILTRE_RAIDE] = (struct control_gains){400, 1200, 250};

@@ -22,6 +22,22 @@ static inline int16_t clip16(int32_t v, int16_t lim)
 	return (int16_t)v;
 }
 
+#if CONFIG_QUIET_SERVO
+/* The derivative's low-pass of d_filter_ms [ms] at tick_hz: 2^k ticks, the nearest power of
+ * two (within a factor sqrt 2), 0..PID_D_SHIFT_MAX; 0 ms (or under 1.5 ticks) gives 0, the raw
+ * difference. */
+static uint8_t d_shift_of(uint8_t ms, uint16_t tick_hz)
+{
+	uint32_t ticks_x2 = ((uint32_t)ms * tick_hz * 2 + 500) / 1000; /* 2 ticks, rounded */
+	uint8_t k = 0;
+
+	/* the largest k with 2^k <= ticks sqrt 2: 2^(2k) <= (2 ticks)^2 / 2 */
+	while (k < PID_D_SHIFT_MAX && ((uint32_t)1 << (2 * k + 2)) <= ticks_x2 * ticks_x2 / 2)
+		k++;
+	return k;
+}
+#endif
+
 static struct pid_config pid_config_of(const struct control_config *cfg, uint16_t tick_hz,
 				       const struct control_gains *g)
 {
@@ -32,6 +48,10 @@ static struct pid_config pid_config_of(const struct control_config *cfg, uint16_
 	pc.d = g->d;
 	pc.out_limit_q15 = cfg->duty_max_q15;
 	pc.tick_hz = tick_hz;
+#if CONFIG_QUIET_SERVO
+	pc.d_shift = d_shift_of(cfg->d_filter_ms, tick_hz);
+	pc.d_lag_max_um = cfg->d_lag_max_um;
+#endif
 	return pc;
 }
 
@@ -193,6 +213,11 @@ void control_update(struct control *c, const struct orders_axis *sp_dist,
 void control_off(struct control *c)
 {
 	control_reset(c);
+#if CONFIG_QUIET_SERVO
+	/* The PIDs do not run while the motors are off: the speed they read goes stale. */
+	pid_forget(&c->dist);
+	pid_forget(&c->angle);
+#endif
 	c->duty_q15[0] = 0;
 	c->duty_q15[1] = 0;
 }

@@ -26,6 +26,13 @@ struct control_config {
 	 * in no faster than this [duty_q15 per s], 1..2^24, distance and angle (docs/control.md
 	 * "A change of gains"). */
 	int32_t gain_slew_q15_per_s[2];
+#if CONFIG_QUIET_SERVO
+	/* [ms] the time constant of the PIDs' derivative's low-pass, rounded to a power of two
+	 * ticks (pid_config.d_shift; docs/control.md "PID"); 0: the raw difference of two ticks */
+	uint8_t d_filter_ms;
+	/* [um] ... which lags the following error by at most this, 1..4194304 (pid_config) */
+	int32_t d_lag_max_um;
+#endif
 	struct control_gains
 		presets[CONTROL_N_PRESETS]; /* FILTRE_STD, FILTRE_SOUPLE, FILTRE_RAIDE */
 };
@@ -79,6 +86,14 @@ void control_reset(struct control *c);
  * Interrupt-safe: no. */
 void control_update(struct control *c, const struct orders_axis *sp_dist,
 		    const struct orders_axis *sp_angle, int32_t dist_um, int32_t angle_um);
+
+/* bit 0 distance, bit 1 angle: that axis's PID reads the raw derivative (pid_set_raw_d()), while
+ * it brakes to rest after a shock (orders_raw_d()). Interrupt-safe: no. */
+static inline void control_raw_d(struct control *c, uint8_t axes)
+{
+	pid_set_raw_d(&c->dist, (uint8_t)(axes & 1u));
+	pid_set_raw_d(&c->angle, (uint8_t)((axes >> 1) & 1u));
+}
 
 /* Motors off (PB_GRAVE). Interrupt-safe: no. */
 void control_off(struct control *c);

@@ -36,6 +36,15 @@
 #define CONFIG_KEEP_POSE 1
 #endif
 
+/* The quiet servo (issue 32): the PIDs' derivative through a low-pass of d_filter_ms (pid.h,
+ * docs/control.md "PID"), and the raw derivative while braking after a shock (orders_raw_d()).
+ * 0 (the AVR, whose budget has no room for the low-pass outside its PID kernel): the derivative
+ * is the raw difference of two ticks' errors whatever control.d_filter_ms says, and VERSION's
+ * QUIET_SERVO bit is clear. */
+#ifndef CONFIG_QUIET_SERVO
+#define CONFIG_QUIET_SERVO 1
+#endif
+
 /* Any of match play: without one, the motion module has nothing to follow or report. */
 #define CONFIG_MOTION_ANY                                                                          \
 	(CONFIG_MOTION_PAUSE || CONFIG_MOTION_SPEED_SCALE || CONFIG_MOTION_QUEUE ||                \
@@ -46,7 +55,8 @@
 	(CAP_ALL &                                                                                 \
 	 ~((CONFIG_FIX ? 0u : CAP_FIX) | (CONFIG_MOTION_PAUSE ? 0u : CAP_PAUSE) |                  \
 	   (CONFIG_MOTION_SPEED_SCALE ? 0u : CAP_SPEED_SCALE) |                                    \
-	   (CONFIG_MOTION_QUEUE ? 0u : CAP_QUEUE) | (CONFIG_MOTION_CORNERS ? 0u : CAP_CORNERS)))
+	   (CONFIG_MOTION_QUEUE ? 0u : CAP_QUEUE) | (CONFIG_MOTION_CORNERS ? 0u : CAP_CORNERS) |   \
+	   (CONFIG_QUIET_SERVO ? 0u : CAP_QUIET_SERVO)))
 
 /* 1 when this build has the message's feature. */
 static inline int feature_set_has(uint8_t designation)

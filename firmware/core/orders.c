@@ -119,10 +119,24 @@ int orders_init(struct orders *o, const struct orders_config *cfg, uint16_t rate
 		o->rebound_um_s = 2 * count_um_s;
 	if (o->rebound_um_s > 400000)
 		o->rebound_um_s = 400000;
+	/* Thrown again once at rest (give_way_axis()): two counts, a hold at rest rocks by a count
+	 * either way; only where a tick's speed cannot tell a robot about to stop from one moving
+	 * away (2 counts a tick above arrive_speed and two ticks of braking: a slow spin reads as a
+	 * count or none). At slower rates the speed read tells it: 0, never. */
+	o->throw_um = 0;
+	o->speed_shift = 0;
+	if (2 * count_um_s > cfg->arrive_speed_um_s + 2 * o->brake_dv_um_s) {
+		o->throw_um = 2 * (count_um_s / (int32_t)rate_hz + 1);
+		/* The speed the rebound and the hold read, over rest_ticks (give_way_axis()). */
+		while (((unsigned)o->rest_ticks >> (o->speed_shift + 1u)) != 0)
+			o->speed_shift++;
+	}
 	for (uint8_t i = 0; i < 2; i++) {
 		o->shock_side[i] = 0;
 		o->still[i] = 0;
 		o->reach_um[i] = 0;
+		o->rest_um[i] = 0;
+		o->speed_q[i] = 0;
 	}
 	o->sp_dist.pos_um = dist_um;
 	o->sp_dist.vel_um_s = 0;
@@ -397,6 +411,18 @@ void orders_shock(struct orders *o, const struct orders_measure *m, uint8_t end_
 	o->still[1] = 0;
 	o->away_um_s[0] = 0;
 	o->away_um_s[1] = 0;
+	o->speed_q[0] = m->dist_speed_um_s * (1 << o->speed_shift);
+	o->speed_q[1] = m->angle_speed_um_s * (1 << o->speed_shift);
+}
+
+/* An axis's speed [um/s] low-passed over 2^speed_shift ticks (a first order: q += v - q / 2^k),
+ * from one tick's measure speed_um_s: where a tick reads a whole encoder count or none, a slow
+ * motion reads as its average, not as a count's speed on one tick in several. With speed_shift 0
+ * it is the tick's measure. */
+static int32_t smooth_speed(struct orders *o, uint8_t axis, int32_t speed_um_s)
+{
+	o->speed_q[axis] += speed_um_s - fx_floor_shr(o->speed_q[axis], o->speed_shift);
+	return fx_floor_shr(o->speed_q[axis], o->speed_shift);
 }
 
 /* a - b, the axes' wrapping difference (the positions compared are close). */
@@ -426,6 +452,29 @@ static int rebound(struct orders *o, uint8_t axis, struct profile *p, int32_t po
 	return ++o->still[axis] < o->rest_ticks;
 }
 
+/* An axis at rest after its rebound, at pos_um: 1 when it has moved away from the obstacle (side)
+ * by more than throw_um (two counts) from where it was up to twice rest_ticks ago: thrown
+ * again. One tick's speed cannot tell it: a spin slower than a count a tick reads as a count or
+ * none, as the rocking of a hold at rest. */
+static int thrown(struct orders *o, uint8_t axis, int32_t pos_um, int8_t side)
+{
+	int32_t away = wrap_sub(o->rest_um[axis], pos_um);
+
+	if (!o->throw_um)
+		return 0;
+	if (side < 0)
+		away = wrap_sub(0, away);
+	if (away > o->throw_um) {
+		o->rest_um[axis] = pos_um;
+		return 1;
+	}
+	if (++o->still[axis] >= 2 * o->rest_ticks) {
+		o->still[axis] = 0;
+		o->rest_um[axis] = pos_um;
+	}
+	return 0;
+}
+
 /* One axis of the stop after a shock (orders_shock()), at pos_um going towards the obstacle at
  * speed_um_s (m's). */
 static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int32_t pos_um,
@@ -437,6 +486,7 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 	int32_t slow = o->cfg.arrive_speed_um_s;
 	int32_t further = wrap_sub(pos_um, o->reach_um[axis]);
 	int32_t beyond = wrap_sub(p->out.pos_um, pos_um);
+	int32_t smooth = smooth_speed(o, axis, speed_um_s), away;
 
 	if (side == 0) {
 		/* Not moving at the shock: the contact moved it (a corner turned by the obstacle).
@@ -451,6 +501,7 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 		further = wrap_sub(0, further);
 		beyond = wrap_sub(0, beyond);
 		speed_um_s = -speed_um_s; /* a product of two 16-bit values (planner_measure()) */
+		smooth = -smooth;
 	}
 	if (!(o->give_way & stopped)) {
 		/* Braking for the braking time, while it still goes towards the obstacle (it went
@@ -466,6 +517,9 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 			profile_reset(p, pos_um);
 			o->gave_way = 1;
 			beyond = 0;
+			/* The low-pass from this tick's measure: not the approach's speed. */
+			smooth = speed_um_s;
+			o->speed_q[axis] = side * speed_um_s * (1 << o->speed_shift);
 		}
 		if (o->brake_ticks[axis] > 0) {
 			o->brake_ticks[axis]--;
@@ -482,12 +536,29 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 	 * and they carried the robot back towards the obstacle once it stopped. From then on a
 	 * robot on the far side of its hold point, slower than arrive_speed and two ticks of
 	 * braking, is held where it is, before the hold pulls it back. */
+	/* Moving away: a tick's measure from two counts a tick (it tells the speed, at once), the
+	 * low-passed speed below (a count on one tick in several is not a count's speed). */
+	away = -speed_um_s >= o->rebound_um_s ? -speed_um_s : -smooth;
 	if (!(o->give_way & rested)) {
-		if (rebound(o, axis, p, pos_um, -speed_um_s, beyond))
+		if (rebound(o, axis, p, pos_um, away, beyond))
 			return;
 		o->give_way |= rested;
+		o->rest_um[axis] = pos_um;
+	} else if (thrown(o, axis, pos_um, side)) {
+		/* Thrown away again once at rest (a second corner meeting the obstacle): braked as
+		 * the first rebound, until it rests again, but harder below rebound_um_s (bit 5 +
+		 * axis, brake_away()). */
+		o->give_way &= (uint8_t)~rested;
+		o->give_way |= (uint8_t)(0x20u << axis);
+		o->still[axis] = 0;
+		rebound(o, axis, p, pos_um, away, beyond);
+		return;
 	}
-	if (beyond <= 0 || speed_um_s < -(slow + 2 * o->brake_dv_um_s))
+	/* At rest, a hold point on the obstacle's side: within throw_um of the robot (the rocking
+	 * of a hold, a creep) it holds, pulling the robot back to where it rested; beyond, slower
+	 * than arrive_speed and two ticks of braking (the low-passed speed: a creep reads as a
+	 * count on some ticks), it moves to the robot. */
+	if (beyond <= o->throw_um || away > slow + 2 * o->brake_dv_um_s)
 		return;
 	profile_reset(p, pos_um);
 	o->gave_way = 1;
@@ -821,13 +892,20 @@ static int32_t brake_acc(const struct orders *o, uint8_t axis)
  * dir of the axis: its set point a period on at that speed, the feed-forward braking at the
  * grip, or in proportion below rebound_um_s. A tick's measure reads a creeping robot's speed
  * as 0 or a whole count's: braking it at the grip until it reads 0 would brake on after it has
- * stopped, back towards the obstacle; in proportion it brakes as much as it moves, on average. */
-static void brake_away(const struct orders *o, struct orders_axis *sp, int32_t v_um_s, int8_t dir)
+ * stopped, back towards the obstacle; in proportion it brakes as much as it moves, on average.
+ * An axis thrown again once at rest (bit 5 + axis of give_way) reads the low-passed speed
+ * only: it is braked in proportion below arrive_speed and two ticks of braking (a time constant
+ * of 3 ms on the reference robot, not rebound_um_s's 17 ms, which let a slow spin die out). */
+static void brake_away(const struct orders *o, uint8_t axis, struct orders_axis *sp, int32_t v_um_s,
+		       int8_t dir)
 {
 	int32_t acc = o->cfg.grip_um_s2;
+	int32_t ref = o->rebound_um_s;
 
-	if (v_um_s < o->rebound_um_s)
-		acc = (acc >> 8) * ((v_um_s << 8) / o->rebound_um_s);
+	if (o->give_way & (0x20u << axis)) /* thrown again (give_way_axis()) */
+		ref = o->cfg.arrive_speed_um_s + 2 * o->brake_dv_um_s;
+	if (v_um_s < ref)
+		acc = (acc >> 8) * ((v_um_s << 8) / ref);
 	sp->pos_um += dir * (v_um_s / (int32_t)o->rate_hz);
 	sp->vel_um_s = dir * v_um_s;
 	sp->acc_um_s2 = -dir * acc;
@@ -866,9 +944,9 @@ uint8_t orders_update(struct orders *o, const struct orders_measure *m)
 		if (o->braking & 2u)
 			o->sp_angle.acc_um_s2 = brake_acc(o, 1);
 		if (o->braking & 4u)
-			brake_away(o, &o->sp_dist, o->away_um_s[0], (int8_t)-o->shock_side[0]);
+			brake_away(o, 0, &o->sp_dist, o->away_um_s[0], (int8_t)-o->shock_side[0]);
 		if (o->braking & 8u)
-			brake_away(o, &o->sp_angle, o->away_um_s[1], (int8_t)-o->shock_side[1]);
+			brake_away(o, 1, &o->sp_angle, o->away_um_s[1], (int8_t)-o->shock_side[1]);
 	}
 	return reason;
 }
@@ -957,6 +1035,16 @@ int orders_busy(const struct orders *o)
 int orders_soft(const struct orders *o)
 {
 	return o->border && (o->state == ORDER_STATE_PUSH || o->state == ORDER_STATE_SQUARE);
+}
+
+uint8_t orders_raw_d(const struct orders *o)
+{
+	if (!o->give_way)
+		return 0;
+	for (uint8_t i = 0; i < 2; i++)
+		if (o->shock_side[i] != 0 && !(o->give_way & (8u << i)))
+			return 3;
+	return 0;
 }
 
 uint8_t orders_expected_shocks(const struct orders *o)

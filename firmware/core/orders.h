@@ -163,7 +163,7 @@ struct orders {
 	 * angle: 1 ahead, -1 behind, 0 none), where the hold never pulls the robot back to
 	 * (orders_shock()); gave_way is set when a hold point moved away from it. */
 	uint8_t give_way; /* bit 0: on; bit 1 + axis: that axis has stopped; bit 3 + axis: and
-			   * then come to rest after any rebound */
+			   * then come to rest after any rebound; bit 5 + axis: thrown again */
 	int8_t shock_side[2];
 	uint8_t gave_way;
 	uint8_t braking;         /* bit axis: brake at grip_um_s2 this tick (the feed-forward);
@@ -175,6 +175,11 @@ struct orders {
 	int32_t brake_dv_um_s;   /* the speed a tick of braking at grip_um_s2 takes away */
 	uint16_t brake_ticks[2]; /* what braking at grip_um_s2 from the shock's speed takes */
 	int32_t reach_um[2];     /* how far each axis went towards the obstacle */
+	int32_t rest_um[2];      /* at rest after its rebound: where it was up to rest_ticks ago */
+	int32_t throw_um;        /* moved away from there by more, it is thrown again (0 never) */
+	int32_t speed_q[2];      /* each axis's speed [um/s], low-passed over 2^speed_shift ticks,
+				  * in Q speed_shift (give_way_axis()) */
+	uint8_t speed_shift;     /* log2 rest_ticks: 0 where a tick reads the speed (AVR rates) */
 	uint16_t rate_hz;        /* orders_update() calls per second */
 	/* Match play (motion.c): a paused order keeps its state and its targets, its profiles
 	 * braked to rest; the speed scale [%] of both axes' speed limits; a pass-through corner's
@@ -240,9 +245,13 @@ void orders_abort(struct orders *o, const struct orders_measure *m, uint8_t end_
  * further for 8 ms (rest_ticks), its hold point moves to where it stopped. If it bounced off,
  * until it has not moved away for rest_ticks, it is braked along its motion away, at the grip
  * above rebound_um_s and in proportion to the speed read below, its hold point going with it.
- * From then on, a robot on the far side of its hold point and about to stop moving away (slower
- * than arrive_speed and two ticks of braking) is held where it is: the hold never pulls it back
- * towards the obstacle. gave_way tells the board that a hold point moved (the integrals go).
+ * Thrown away again at rest (by more than throw_um within twice rest_ticks: a second corner's
+ * contact), it is braked so again, in proportion below arrive_speed and two ticks of braking
+ * only. From then on, a robot on the far side of its hold point by more than throw_um (two
+ * counts, 0 at the AVR's rates) and about to stop moving away (slower than arrive_speed and two
+ * ticks of braking) is held where it is: the hold pulls it back towards the obstacle by
+ * throw_um at most (a creep's counts). At 1 kHz these speeds are low-passed over rest_ticks
+ * (speed_q). gave_way tells the board that a hold point moved (the integrals go).
  * Interrupt-safe: no. */
 void orders_shock(struct orders *o, const struct orders_measure *m, uint8_t end_reason);
 
@@ -283,6 +292,12 @@ int orders_busy(const struct orders *o);
 
 /* 1 while a border recalibration pushes (FILTRE_SOUPLE's gains apply). */
 int orders_soft(const struct orders *o);
+
+/* After a shock, until each axis that went towards the obstacle has come to rest after any
+ * rebound (orders_shock()): 3 (bit 0 distance, bit 1 angle), the PIDs of both axes read the raw
+ * derivative, not its low-pass (docs/control.md "PID"), whose lag behind a hard braking, or a
+ * spin the contact gave, would drive the robot on once it has stopped; else 0. */
+uint8_t orders_raw_d(const struct orders *o);
 
 /* The shock sensors an order expects to close (the front ones against the border). */
 uint8_t orders_expected_shocks(const struct orders *o);

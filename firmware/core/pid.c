@@ -16,6 +16,12 @@ static int config_valid(const struct pid_config *cfg)
 		return 0;
 	if (cfg->tick_hz < PID_TICK_HZ_MIN || cfg->tick_hz > PID_TICK_HZ_MAX)
 		return 0;
+#if CONFIG_QUIET_SERVO
+	if (cfg->d_shift > PID_D_SHIFT_MAX)
+		return 0;
+	if (cfg->d_shift > 0 && (cfg->d_lag_max_um < 1 || cfg->d_lag_max_um > PID_ERR_MAX_UM))
+		return 0;
+#endif
 	return 1;
 }
 
@@ -32,14 +38,20 @@ static int32_t err_max(int32_t k)
 
 /* duty_q15 = 32768 p 2^-12 e_mm = p e_um / 125;
  * duty_q15 = 32768 i 2^-12 (sum e_um / hz) / 1000 = i sum_e_um / (125 hz);
- * duty_q15 = 32768 d 2^-16 (de_um hz) / 1000 = d de_um hz / 2000.
- * The divisions are done once here. */
+ * duty_q15 = 32768 d 2^-16 (de_um hz) / 1000 = d de_um hz / 2000,
+ * de_um the low-passed change of the error a tick: (e - prev_err_um) / 2^d_shift (pid_update_c),
+ * so kd is divided by 2^d_shift. The divisions are done once here. */
 static void compute_gains(struct pid *c)
 {
 	int64_t hz = c->cfg.tick_hz;
+#if CONFIG_QUIET_SERVO
+	uint8_t d_shift = c->cfg.d_shift;
+#else
+	const uint8_t d_shift = 0;
+#endif
 
 	c->kp_q12 = (int32_t)div_round_pos((int64_t)c->cfg.p << 12, 125);
-	c->kd_q12 = (int32_t)div_round_pos((int64_t)c->cfg.d * hz << 12, 2000);
+	c->kd_q12 = (int32_t)div_round_pos((int64_t)c->cfg.d * hz << 12, (int64_t)2000 << d_shift);
 	/* At most 65535 2^24 / 12500 < 2^27 (tick_hz >= 100). */
 	c->ki_q24 = (uint32_t)div_round_pos((int64_t)c->cfg.i << 24, 125 * hz);
 	c->p_err_max_um = err_max(c->kp_q12);
@@ -64,16 +76,40 @@ int pid_init(struct pid *c, const struct pid_config *cfg)
 		return -1;
 	c->cfg = *cfg;
 	compute_gains(c);
+#if CONFIG_QUIET_SERVO
+	pid_forget(c);
+	c->raw_d = 0;
+#else
 	pid_reset(c);
+#endif
 	return 0;
+}
+
+/* x 2^k for |x| 2^k < 2^31 (no signed shift of a negative value). */
+static inline int32_t shl(int32_t x, uint8_t k)
+{
+	return (int32_t)((uint32_t)x << k);
 }
 
 int pid_set_config(struct pid *c, const struct pid_config *cfg)
 {
+#if CONFIG_QUIET_SERVO
+	uint8_t k = c->cfg.d_shift;
+#endif
+
 	if (!config_valid(cfg))
 		return -1;
 	c->cfg = *cfg;
 	compute_gains(c);
+#if CONFIG_QUIET_SERVO
+	if (cfg->d_shift != k) { /* a new low-pass: it starts from the last error, at rest */
+		int32_t last = k == 0 ? c->prev_err_um : c->d_last_um;
+
+		c->d_last_um = last;
+		c->prev_err_um = last;
+		c->d_lp = shl(last, cfg->d_shift);
+	}
+#endif
 	c->i_acc_q24 = clip_i8(c->i_acc_q24, c->i_max_q8);
 	return 0;
 }
@@ -81,9 +117,20 @@ int pid_set_config(struct pid *c, const struct pid_config *cfg)
 void pid_reset(struct pid *c)
 {
 	c->i_acc_q24 = fx48_make(0, 0);
-	c->prev_err_um = 0;
+	if (!pid_d_filtered(c))
+		c->prev_err_um = 0;
 	c->has_prev = 0;
 	c->out_q15 = 0;
+}
+
+void pid_forget(struct pid *c)
+{
+	pid_reset(c);
+#if CONFIG_QUIET_SERVO
+	c->prev_err_um = 0;
+	c->d_lp = 0;
+	c->d_last_um = 0;
+#endif
 }
 
 static inline int32_t clip32(int32_t v, int32_t lim)
@@ -194,14 +241,91 @@ static int16_t update(struct pid *c, int32_t e, int32_t de)
 	return duty_with(c, e, pd, i);
 }
 
-int16_t pid_update_c(struct pid *c, int32_t err_um)
+#if CONFIG_QUIET_SERVO
+/* The derivative's input with the low-pass (d_shift k > 0), e - floor(f) for the low-pass f of
+ * the error, and f moved by it: f += (e - floor(f)) / 2^k, that is d_lp += e - prev_err_um in
+ * [2^-k um]. The low-pass of the error changes by 2^-k (e - f) a tick: that is the low-pass of
+ * the error's change (both filters are linear), with kd / 2^k (compute_gains). After a reset,
+ * f first moves with the error's jump: e - f is the last tick's, the speed read. f is then held
+ * within d_lag_max_um of e: beyond, D reads the error's raw change (a shock, a rebound), not the
+ * low-passed one. Within the bounds: |e|, |d_last_um| <= 2^22 and |f| <= 2^23, so |d_lp| < 2^30
+ * and |d| (its step, d plus a move of at most 2^24 2^k) < 2^31. */
+static int32_t lowpass(struct pid *c, int32_t e)
 {
-	int32_t e = clip32(err_um, PID_ERR_MAX_UM);
-	/* Clipped like the error. */
+	uint8_t k = c->cfg.d_shift;
+	int32_t d, lag;
+
+	if (!c->has_prev) {
+		int32_t frac = c->d_lp & (((int32_t)1 << k) - 1);
+
+		lag = clip32(c->d_last_um - c->prev_err_um, PID_ERR_MAX_UM);
+		c->prev_err_um = e - lag;
+		c->d_lp = shl(c->prev_err_um, k) + frac;
+	}
+	d = e - c->prev_err_um;
+	c->d_lp += d;
+	c->prev_err_um = fx_floor_shr(c->d_lp, k);
+	c->d_last_um = e;
+	lag = c->cfg.d_lag_max_um;
+	if (c->prev_err_um < e - lag || c->prev_err_um > e + lag) {
+		/* Held lag_max from the error: its step this tick [2^-k um] is d plus the move
+		 * (from the low-pass with its fraction). */
+		int32_t f = c->prev_err_um < e - lag ? e - lag : e + lag;
+		int32_t lp = shl(f, k);
+
+		d += lp - c->d_lp;
+		c->prev_err_um = f;
+		c->d_lp = lp;
+	}
+	return d;
+}
+
+/* The derivative's input with the low-pass (d_shift k > 0) but read raw (raw_d): the error's
+ * change since the last tick [2^-k um], 0 after a reset, within +/-PID_ERR_MAX_UM as lowpass()'s;
+ * the low-pass at rest on the error, from which it goes on once raw_d is cleared. */
+static int32_t raw_change(struct pid *c, int32_t e)
+{
+	uint8_t k = c->cfg.d_shift;
+	int32_t d = c->has_prev ? shl(clip32(e - c->d_last_um, PID_ERR_MAX_UM >> k), k) : 0;
+
+	c->prev_err_um = e;
+	c->d_lp = shl(e, k);
+	c->d_last_um = e;
+	return d;
+}
+/* The derivative's input with the low-pass (d_shift > 0), and the architecture's mark. */
+static inline int32_t filtered_change(struct pid *c, int32_t e)
+{
+	int32_t de = c->raw_d ? raw_change(c, e) : clip32(lowpass(c, e), PID_ERR_MAX_UM);
+
+	c->has_prev = pid_arch_fast_mark(c->prev_err_um);
+	return de;
+}
+#else
+/* Never called: pid_d_filtered() is 0 in a build without the low-pass. */
+static inline int32_t filtered_change(struct pid *c, int32_t e)
+{
+	(void)c;
+	return e;
+}
+#endif
+
+/* The derivative's input without the low-pass (d_shift 0): the change of the error since the
+ * last tick, 0 after a reset, clipped like the error; and the architecture's mark. */
+static inline int32_t raw_difference(struct pid *c, int32_t e)
+{
 	int32_t de = c->has_prev ? clip32(e - c->prev_err_um, PID_ERR_MAX_UM) : 0;
 
 	c->prev_err_um = e;
 	c->has_prev = pid_arch_fast_mark(e);
+	return de;
+}
+
+int16_t pid_update_c(struct pid *c, int32_t err_um)
+{
+	int32_t e = clip32(err_um, PID_ERR_MAX_UM);
+	int32_t de = pid_d_filtered(c) ? filtered_change(c, e) : raw_difference(c, e);
+
 	c->out_q15 = update(c, e, de);
 	return c->out_q15;
 }

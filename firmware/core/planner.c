@@ -403,6 +403,9 @@ static void step_handover(struct planner *pl, struct mailbox *mb, uint8_t slow_s
 		orders_abort(&pl->orders, &pl->m, pl->orders.end_reason);
 		next->jump = 1;
 	}
+#if CONFIG_QUIET_SERVO
+	next->raw_d = orders_raw_d(&pl->orders);
+#endif
 	next->dist = pl->orders.sp_dist;
 	next->angle = pl->orders.sp_angle;
 	sp_step(&next->dist_step, &now->dist, &next->dist, slow_shift);

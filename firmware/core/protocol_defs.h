@@ -65,9 +65,10 @@
 #define CAP_HEARTBEAT (1u << 10) /* SET_TIMEOUT is fed by accepted writes only (orders, settings, HEARTBEAT), not by reads; a timed-out order ends PB_MOTEUR */
 #define CAP_FIX (1u << 11) /* SET_FIX and FIX_INFO: position fixes fused at their measured time, weighted by their noise */
 #define CAP_RESET_INFO (1u << 12) /* RESET_INFO: the reset cause and count; the pose kept across a reset, or orders refused until it is set */
+#define CAP_QUIET_SERVO (1u << 14) /* the PIDs' derivative through a low-pass (control.d_filter_ms): an encoder count is not a duty kick; clear where the build reads the raw difference of two ticks (the AVR) */
 #define CAP_KEEP_POSE (1u << 13) /* with RESET_INFO: the pose survives a reset that keeps the RAM; clear where the build refuses it after any reset but a power-on (the AVR) */
 #define CAP_CALIBRATED (1u << 5) /* an odometry calibration is installed (SET_ODOMETRIE, or the one the board kept: docs/calibration.md) */
-#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS | CAP_HEARTBEAT | CAP_FIX) /* the features; a state bit is set while it holds */
+#define CAP_ALL (CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS | CAP_HEARTBEAT | CAP_FIX | CAP_QUIET_SERVO) /* the features; a state bit is set while it holds */
 
 /* reject codes. */
 #define REJECT_NONE 0 /* no write rejected since reset */

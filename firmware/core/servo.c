@@ -121,6 +121,9 @@ static void take_handover(struct servo *s, struct mailbox *mb, struct proto *pro
 		h->reset = 0;
 	}
 	s->motors_off = h->motors_off;
+#if CONFIG_QUIET_SERVO
+	control_raw_d(&s->control, h->raw_d);
+#endif
 	if (h->publish) {
 		proto_flip(proto);
 		h->publish = 0;

@@ -811,9 +811,11 @@ static void test_shock_rebound_is_not_pulled_back(void **state)
 	assert_int_equal(o.sp_dist.vel_um_s, 0);
 	assert_int_equal(o.sp_dist.acc_um_s2, 0);
 	/* At rest: pushed slowly back towards the obstacle, the hold stays and resists it; drifting
-	 * slowly away from it, the robot is held where it is, not pulled back. */
+	 * slowly away from it, the hold stays within throw_um (a creep, the rocking of a hold), and
+	 * beyond it the robot is held where it is, not pulled back. */
 	at = o.sp_dist.pos_um;
-	for (int32_t i = 0; i < 40; i++) {
+	assert_true(o.throw_um > 0 && o.throw_um < 100);
+	for (int32_t i = 0; i < 120; i++) {
 		int32_t move = i < 20 ? 1 : -2;
 
 		m = robot_measure(&r);
@@ -821,12 +823,56 @@ static void test_shock_rebound_is_not_pulled_back(void **state)
 		m.dist_speed_um_s = move * 1000;
 		r.dist_um = m.dist_um;
 		assert_int_equal(orders_update(&o, &m), END_REASON_NONE);
-		if (i < 20)
+		if (i < 20 || at - m.dist_um <= o.throw_um)
 			assert_int_equal(o.sp_dist.pos_um, at);
-		else if (m.dist_um < at)
-			assert_int_equal(o.sp_dist.pos_um, m.dist_um);
+		else /* never more than throw_um on the obstacle's side of it */
+			assert_in_range(o.sp_dist.pos_um - m.dist_um, 0, o.throw_um);
 	}
-	assert_int_equal(o.sp_dist.pos_um, at - 20);
+	assert_true(o.sp_dist.pos_um < at - 180 + o.throw_um);
+}
+
+/* A shock, a rebound of 3 mm to rest, then a second throw away (a second corner meeting the
+ * obstacle) at 8 mm/s: past throw_um it is braked again along its motion, in proportion below
+ * arrive_speed and two ticks of braking (11 mm/s here), not below rebound_um_s: 8/11 of the
+ * grip once the low-passed speed reads 8 mm/s. Once it stops, the braking ends. */
+static void test_shock_thrown_again_is_braked_harder(void **state)
+{
+	struct orders o;
+	struct orders_config c;
+	struct robot r;
+	struct orders_measure m;
+	int32_t acc = (GRIP_UM_S2 >> 8) * ((8000 << 8) / 11000), thrown = -1;
+
+	(void)state;
+	base_config(&c);
+	make_orders(&o, &c, 1000);
+	robot_init(&r, 1000, 0, 0, 0);
+	goto_xy(&r, &o, 1000000, 0, 0);
+	run_updates(&r, &o, 1000);
+	m = robot_measure(&r);
+	orders_shock(&o, &m, END_REASON_SHOCK);
+	assert_true(o.rebound_um_s > 11000);
+	for (int32_t i = 0; i < 260; i++) {
+		int32_t move = i < 5 ? 20 : i < 35 ? -100 : i < 100 ? 0 : i < 190 ? -8 : 0;
+
+		m = robot_measure(&r);
+		m.dist_um += move;
+		m.dist_speed_um_s = move * 1000;
+		r.dist_um = m.dist_um;
+		assert_int_equal(orders_update(&o, &m), END_REASON_NONE);
+		if (i < 100)
+			assert_int_equal(o.give_way & 0x20u, 0);
+		else if (thrown < 0 && (o.give_way & 0x20u))
+			thrown = i;
+		if (i >= 180 && i < 190) { /* the low-pass has settled on 8 mm/s */
+			assert_int_equal(o.sp_dist.vel_um_s, -8000);
+			assert_int_equal(o.sp_dist.acc_um_s2, acc);
+		}
+	}
+	/* Past throw_um from where it was up to 16 updates (twice rest_ticks) before. */
+	assert_in_range(thrown, 100 + o.throw_um / 8, 100 + o.throw_um / 8 + 16);
+	assert_int_equal(o.sp_dist.acc_um_s2, 0);
+	assert_int_equal(o.sp_dist.pos_um, m.dist_um);
 }
 
 struct border_run {
@@ -1827,6 +1873,7 @@ int main(void)
 		cmocka_unit_test(test_abort_holds_the_measure),
 		cmocka_unit_test(test_shock_holds_where_it_stops),
 		cmocka_unit_test(test_shock_rebound_is_not_pulled_back),
+		cmocka_unit_test(test_shock_thrown_again_is_braked_harder),
 		cmocka_unit_test(test_border_recalibration),
 		cmocka_unit_test(test_basket),
 		cmocka_unit_test(test_pause_brakes_to_rest_and_holds),

@@ -86,6 +86,165 @@ static void test_d_term(void **state)
 	assert_int_equal(pid_update(&c, 3), 21);
 }
 
+/* The derivative's low-pass (pid_config.d_shift, docs/control.md "PID"): d = 125 at 1 kHz makes
+ * the D duty 62.5 per um/tick, kd_q12 exact for every d_shift up to 6. */
+static void setup_lp(struct pid *c, uint16_t d, uint8_t k, int32_t lag_um)
+{
+	struct pid_config cfg = {.d = d,
+				 .out_limit_q15 = 32767,
+				 .tick_hz = 1000,
+				 .d_shift = k,
+				 .d_lag_max_um = lag_um};
+
+	assert_int_equal(pid_init(c, &cfg), 0);
+}
+
+/* d_shift 0 is the difference of two ticks, whatever the lag cap; out-of-range settings are
+ * refused. */
+static void test_lowpass_off_and_bounds(void **state)
+{
+	struct pid a, b;
+	struct pid_config bad = {
+		.d = 1, .out_limit_q15 = 100, .tick_hz = 1000, .d_shift = 7, .d_lag_max_um = 100};
+	uint32_t x = 12345;
+
+	(void)state;
+	assert_int_equal(pid_init(&a, &bad), -1); /* d_shift past PID_D_SHIFT_MAX */
+	bad.d_shift = 4;
+	bad.d_lag_max_um = 0;
+	assert_int_equal(pid_init(&a, &bad), -1); /* a low-pass needs a lag cap */
+	bad.d_lag_max_um = PID_ERR_MAX_UM + 1;
+	assert_int_equal(pid_init(&a, &bad), -1);
+	/* d_shift 0 ignores the cap, bit for bit (test_d_term's figures). */
+	setup_lp(&a, 100, 0, 0);
+	setup_lp(&b, 100, 0, 5000);
+	for (int t = 0; t < 2000; t++) {
+		int32_t e;
+
+		x = x * 1103515245u + 12345u;
+		e = (int32_t)(x >> 8) % 3000 - 1500;
+		assert_int_equal(pid_update(&a, e), pid_update(&b, e));
+	}
+	setup_lp(&a, 100, 0, 1);
+	assert_int_equal(pid_update(&a, 0), 0);
+	assert_int_equal(pid_update(&a, 100), 5000);
+	assert_int_equal(pid_update(&a, 100), 0);
+	assert_int_equal(pid_update(&a, 99), -50);
+	/* The extremes at the largest gain, time constant and cap stay within the limit (and
+	 * within int32: the sanitizers run this). */
+	for (uint8_t k = 1; k <= PID_D_SHIFT_MAX; k++) {
+		struct pid_config cfg = {.p = 65535,
+					 .i = 65535,
+					 .d = 65535,
+					 .out_limit_q15 = 32767,
+					 .tick_hz = 2000,
+					 .d_shift = k,
+					 .d_lag_max_um = PID_ERR_MAX_UM};
+
+		assert_int_equal(pid_init(&a, &cfg), 0);
+		for (int t = 0; t < 300; t++) {
+			int16_t u = pid_update(&a, (t / 3) % 2 ? INT32_MAX : INT32_MIN);
+
+			assert_true(u >= -32767);
+		}
+		pid_reset(&a);
+		assert_true(pid_update(&a, 0) >= -32767);
+	}
+}
+
+/* A steady speed reads as that speed; a count's staircase is smoothed; the cap passes a fast
+ * change at once. */
+static void test_lowpass_response(void **state)
+{
+	struct pid c, raw;
+	int16_t u = 0, lo = 32767, hi = -32767, rlo = 32767, rhi = -32767;
+
+	(void)state;
+	/* 10 um a tick: 625, reached as 1 - (15/16)^n within a count of duty. */
+	setup_lp(&c, 125, 4, 100000);
+	for (int t = 0; t <= 200; t++) {
+		int16_t v = pid_update(&c, 10 * t);
+
+		if (t > 0)
+			assert_true(v >= u); /* monotonic */
+		u = v;
+	}
+	assert_true(u >= 624 && u <= 625);
+	/* 39 um a tick as whole counts of 78 um (every other tick): the raw difference swings
+	 * 0..4875, the low-pass within a tenth of it around 2437. */
+	setup_lp(&c, 125, 4, 100000);
+	setup_lp(&raw, 125, 0, 1);
+	for (int t = 0; t < 400; t++) {
+		int32_t e = 78 * (t / 2);
+		int16_t v = pid_update(&c, e), r = pid_update(&raw, e);
+
+		if (t >= 200) {
+			lo = v < lo ? v : lo;
+			hi = v > hi ? v : hi;
+			rlo = r < rlo ? r : rlo;
+			rhi = r > rhi ? r : rhi;
+		}
+	}
+	assert_int_equal(rlo, 0);
+	assert_int_equal(rhi, 4875);
+	assert_true(hi - lo <= 4875 / 10);
+	assert_true(lo <= 2438 && hi >= 2437);
+	/* The cap: 64 ticks, 100 um. 50 um a tick passes raw from the third tick: 3125. Stopped,
+	 * it reads what is left of the lag: 100 um over 64 ticks, 97. */
+	setup_lp(&c, 125, 6, 100);
+	for (int t = 0; t <= 10; t++)
+		u = pid_update(&c, 50 * t);
+	assert_true(u >= 3124 && u <= 3125);
+	u = pid_update(&c, 500);
+	assert_true(u >= 96 && u <= 98);
+}
+
+/* A reset keeps the speed read (a set point's jump is not a speed); pid_forget and the raw mode
+ * do not. */
+static void test_lowpass_reset_and_raw(void **state)
+{
+	struct pid c, ref;
+	int16_t u = 0;
+	uint32_t x = 99;
+
+	(void)state;
+	setup_lp(&c, 125, 4, 100000);
+	for (int t = 0; t <= 200; t++)
+		u = pid_update(&c, 10 * t);
+	assert_int_equal(u, 625);
+	pid_reset(&c);
+	/* no kick from the jump: the speed read, less the low-pass's last move (15/16) */
+	assert_int_equal(pid_update(&c, 10 * 201 + 50000), 586);
+	for (int t = 202; t <= 400; t++) {
+		int16_t v = pid_update(&c, 10 * t + 50000);
+
+		assert_true(v >= u - 40 && v <= 625); /* back to the speed read */
+		u = v;
+	}
+	assert_true(u >= 624);
+	pid_forget(&c);
+	assert_int_equal(pid_update(&c, 7000), 0);
+	/* Raw: the difference of two ticks with the same gain, bit for bit with d_shift 0 (kd
+	 * exact); then the low-pass goes on from rest. */
+	setup_lp(&c, 125, 4, 320);
+	setup_lp(&ref, 125, 0, 1);
+	pid_set_raw_d(&c, 1);
+	for (int t = 0; t < 1000; t++) {
+		int32_t e;
+
+		x = x * 1103515245u + 12345u;
+		e = (int32_t)(x >> 8) % 20000 - 10000;
+		assert_int_equal(pid_update(&c, e), pid_update(&ref, e));
+	}
+	pid_reset(&c);
+	pid_reset(&ref);
+	assert_int_equal(pid_update(&c, 4242), 0);
+	assert_int_equal(pid_update(&ref, 4242), 0);
+	pid_set_raw_d(&c, 0);
+	assert_int_equal(pid_update(&c, 4242), 0);  /* at rest */
+	assert_int_equal(pid_update(&c, 4258), 63); /* 16 um over 16 ticks: 62.5 */
+}
+
 /* All three together add up; the output is clipped to the limit, both ways. */
 static void test_sum_and_saturation(void **state)
 {
@@ -109,7 +268,7 @@ static void test_sum_and_saturation(void **state)
 	assert_int_equal(pid_update(&c, INT32_MIN), -32767);
 	/* Out-of-range settings are refused. */
 	{
-		struct pid_config bad = {1, 1, 1, 0, 1000};
+		struct pid_config bad = {1, 1, 1, 0, 1000, 0, 0};
 
 		assert_int_equal(pid_init(&c, &bad), -1);
 		bad.out_limit_q15 = 100;
@@ -154,7 +313,7 @@ static void test_anti_windup(void **state)
 
 	/* A new i gain keeps the integral's duty (bumpless); a lower limit clips it. */
 	{
-		struct pid_config cfg = {0, 100, 0, 5000, 1000};
+		struct pid_config cfg = {0, 100, 0, 5000, 1000, 0, 0};
 
 		setup(&c, 0, 4096, 0, 10000, 1000);
 		for (k = 0; k < 100; k++)
@@ -231,9 +390,15 @@ static void test_closed_loop_step(void **state)
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-		cmocka_unit_test(test_p_term),      cmocka_unit_test(test_i_term),
-		cmocka_unit_test(test_d_term),      cmocka_unit_test(test_sum_and_saturation),
-		cmocka_unit_test(test_anti_windup), cmocka_unit_test(test_closed_loop_step),
+		cmocka_unit_test(test_p_term),
+		cmocka_unit_test(test_i_term),
+		cmocka_unit_test(test_d_term),
+		cmocka_unit_test(test_sum_and_saturation),
+		cmocka_unit_test(test_anti_windup),
+		cmocka_unit_test(test_closed_loop_step),
+		cmocka_unit_test(test_lowpass_off_and_bounds),
+		cmocka_unit_test(test_lowpass_response),
+		cmocka_unit_test(test_lowpass_reset_and_raw),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

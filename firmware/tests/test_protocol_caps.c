@@ -40,7 +40,7 @@ static void test_version_says_what_is_left_out(void **state)
 	caps = (uint16_t)((v[2] << 8) | v[3]);
 	assert_int_equal(caps & (CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS), 0);
 	assert_int_equal(caps, CAP_PEC | CAP_STOP | CAP_LAST_REJECT | CAP_DEBUG | CAP_TIMEOUT |
-				       CAP_HEARTBEAT | CAP_FIX);
+				       CAP_HEARTBEAT | CAP_FIX | CAP_QUIET_SERVO);
 }
 
 static void test_the_frames_left_out_are_unsupported(void **state)

@@ -186,7 +186,7 @@ static const struct vec_step vec_steps_14[] = {
 	{'r', 0, 0, {0}, 1, {0x00}, 0},
 };
 static const struct vec_step vec_steps_15[] = {
-	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x0f, 0xdf}, 0},
+	{'W', 1, 1, {0x0d}, 4, {0x01, 0x00, 0x4f, 0xdf}, 0},
 };
 static const struct vec_step vec_steps_16[] = {
 	{'w', 0, 6, {0x00, 0x00, 0xc8, 0x00, 0x64, 0x10}, 0, {0}, 0},

@@ -156,8 +156,8 @@ def two_rates(out: str, elf_flash: int) -> tuple[str, dict[str, tuple[str, str]]
         "`avr_tick_overruns`": (", ".join(overruns), ""),
         "flash / RAM": (
             f"{k(flash)} kB ({grouped(flash)} B) / {k(ram)} kB (the board in `.noinit`) + "
-            f"{k(stack)} kB stack (match play, position fixes and the pose's keeping compiled "
-            "out)",
+            f"{k(stack)} kB stack (match play, position fixes, the pose's keeping and the quiet "
+            "servo compiled out)",
             "",
         ),
     }

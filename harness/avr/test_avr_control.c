@@ -33,12 +33,14 @@ static const char *const op_name[CTA_OPS] = {
 	[CTA_PID_SET] = "pid_set_config",
 	[CTA_PID_RESET] = "pid_reset",
 	[CTA_PID_UPDATE] = "pid_update",
+	[CTA_PID_RAW_D] = "pid_set_raw_d",
 	[CTA_CTL_INIT] = "control_init",
 	[CTA_CTL_GAINS] = "control_set_gains",
 	[CTA_CTL_PRESET] = "control_set_gains (preset)",
 	[CTA_CTL_RESET] = "control_reset",
 	[CTA_CTL_OFF] = "control_off",
 	[CTA_CTL_UPDATE] = "control_update",
+	[CTA_CTL_RAW_D] = "control_raw_d",
 	[CTA_ODO_ADVANCE] = "odometry_advance",
 };
 
@@ -94,7 +96,7 @@ static int takes_fast_path(const struct pid *c, int32_t e)
 {
 	int32_t de;
 
-	if (!within(e, c->fast.p_err_um))
+	if (pid_d_filtered(c) || !within(e, c->fast.p_err_um))
 		return 0;
 	if (c->has_prev == 1)
 		return 0;
@@ -173,12 +175,22 @@ static size_t pid_edges(const struct pid *c, int32_t *out)
 static void test_pid_edges(void **state)
 {
 	struct target *t = *state;
-	static const int32_t cfgs[][5] = {
-		{205, 400, 160, 32767, 1000},   {65535, 65535, 65535, 32767, 100},
-		{65535, 65535, 65535, 1, 2000}, {1, 1, 1, 32767, 1000},
-		{0, 0, 0, 100, 1000},           {5000, 0, 65535, 32767, 2000},
-		{300, 65535, 0, 20000, 100},    {12, 3000, 40, 5, 1000},
-		{400, 1200, 250, 32767, 1000},  {31250, 7, 2000, 16384, 500},
+	/* p, i, d, limit, rate, then the derivative's low-pass: d_shift and d_lag_max_um */
+	static const int32_t cfgs[][7] = {
+		{205, 400, 160, 32767, 1000},
+		{65535, 65535, 65535, 32767, 100},
+		{65535, 65535, 65535, 1, 2000},
+		{1, 1, 1, 32767, 1000},
+		{0, 0, 0, 100, 1000},
+		{5000, 0, 65535, 32767, 2000},
+		{300, 65535, 0, 20000, 100},
+		{12, 3000, 40, 5, 1000},
+		{400, 1200, 250, 32767, 1000},
+		{31250, 7, 2000, 16384, 500},
+		{205, 400, 160, 32767, 1000, 4, 320},
+		{65535, 65535, 65535, 32767, 100, 6, 4194304},
+		{400, 1200, 250, 32767, 2000, 1, 1},
+		{65535, 0, 65535, 32767, 2000, 6, 4194304},
 	};
 	int32_t e[64];
 
@@ -186,7 +198,8 @@ static void test_pid_edges(void **state)
 		const int32_t *g = cfgs[k];
 		size_t n;
 
-		assert_int_equal(CHECK(t, CTA_PID_INIT, g[0], g[1], g[2], g[3], g[4]), 0);
+		assert_int_equal(CHECK(t, CTA_PID_INIT, g[0], g[1], g[2], g[3], g[4], g[5], g[6]),
+				 0);
 		n = pid_edges(&t->host.pid, e);
 		for (size_t i = 0; i < n; i++)
 			for (size_t j = 0; j < n; j++) {
@@ -200,7 +213,7 @@ static void test_pid_edges(void **state)
 
 /* The feed-forward's coefficients per m/s around 2^16 per um/s * 2^20 (62 499 gives 65 535,
  * 62 500 gives 65 536), and velocities and accelerations at the profiles' bounds and at the
- * rounding's ties (k = 1: v = +-2^19). */
+ * rounding's ties (k = 1: v = +-2^19); half of them with the derivative's low-pass. */
 static void test_control_edges(void **state)
 {
 	struct target *t = *state;
@@ -213,7 +226,7 @@ static void test_control_edges(void **state)
 		for (size_t b = 0; b < nc; b++) {
 			assert_int_equal(CHECK(t, CTA_CTL_INIT, 1000, 32767, coef[a], coef[b],
 					       coef[nc - 1 - b], 205, 400, 160, 40, 0, 60, 400,
-					       1200, 250, 131800),
+					       1200, 250, 131800, (a + b) % 2 ? 16 : 0, 320),
 					 0);
 			for (size_t i = 0; i < nv; i++)
 				for (size_t j = 0; j < nv; j++)
@@ -300,13 +313,34 @@ static uint16_t hz(void)
 	return k == 0 ? 1000 : k == 1 ? (rnd() & 1 ? 100 : 2000) : (uint16_t)(100 + below(1901));
 }
 
+/* The derivative's low-pass: none, or 2^1..2^6 ticks; now and then 2^7 (refused). */
+static int32_t d_shift(void)
+{
+	uint32_t k = below(8);
+
+	return k < 2 ? 0 : k < 7 ? (int32_t)(1 + below(6)) : 7;
+}
+
+/* Its largest lag [um]: the robot's, a count, anywhere up to its bound; now and then 0
+ * (refused with a low-pass). */
+static int32_t d_lag(void)
+{
+	uint32_t k = below(10);
+
+	return k == 0  ? 0
+	       : k < 3 ? 320
+	       : k < 5 ? 1
+	       : k < 7 ? 4194304
+		       : (int32_t)(1 + below(4194304));
+}
+
 static void pid_round(struct target *t)
 {
 	int32_t prev = 0;
 
 	/* now and then out of range (a limit of 0, a rate of 99): refused on both */
 	if (CHECK(t, CTA_PID_INIT, gain(), gain(), gain(), below(30) ? limit() : 0,
-		  below(30) ? hz() : 99))
+		  below(30) ? hz() : 99, d_shift(), d_lag()))
 		return;
 	for (int s = 0; s < STEPS_PER_ROUND; s++) {
 		uint32_t k = below(100);
@@ -315,7 +349,10 @@ static void pid_round(struct target *t)
 			CHECK(t, CTA_PID_RESET, 0);
 		else if (k == 1)
 			CHECK(t, CTA_PID_SET, gain(), gain(), gain(), limit(),
-			      below(4) ? t->host.pid.cfg.tick_hz : hz());
+			      below(4) ? t->host.pid.cfg.tick_hz : hz(),
+			      below(2) ? t->host.pid.cfg.d_shift : d_shift(), d_lag());
+		else if (k < 4)
+			CHECK(t, CTA_PID_RAW_D, (int32_t)below(2));
 		else
 			pid_update_both(t, prev = err_val(&t->host.pid, prev));
 	}
@@ -354,6 +391,8 @@ static void control_round(struct target *t)
 	/* The gain slew: 1 a tick at most, the robot's, or at its bound (2^24 [duty_q15/s]). */
 	static const int32_t slews[] = {1, 131800, (int32_t)1 << 24};
 	int32_t sl = slews[below(3)];
+	/* The derivative's low-pass [ms]: none, the robot's, or any */
+	int32_t df = below(3) == 0 ? 0 : below(2) ? 16 : (int32_t)below(256), dl = d_lag();
 
 	for (int j = 0; j < 9; j++)
 		g[j] = gain();
@@ -362,11 +401,12 @@ static void control_round(struct target *t)
 
 		memcpy(g, robot, sizeof(g));
 		fs = 19980, fa = 1400, fan = 900, h = 1000, l = 32767, sl = 131800;
+		df = 16, dl = 320;
 	}
 	if (below(20) == 0)
 		l = -(int32_t)below(3);
 	if (CHECK(t, CTA_CTL_INIT, h, l, fs, fa, fan, g[0], g[1], g[2], g[3], g[4], g[5], g[6],
-		  g[7], g[8], sl))
+		  g[7], g[8], sl, df, dl))
 		return;
 	for (int s = 0; s < STEPS_PER_ROUND; s++) {
 		uint32_t k = below(100);
@@ -379,6 +419,8 @@ static void control_round(struct target *t)
 			CHECK(t, CTA_CTL_PRESET, below(4));
 		} else if (k == 3) {
 			CHECK(t, CTA_CTL_GAINS, gain(), gain(), gain());
+		} else if (k < 6) {
+			CHECK(t, CTA_CTL_RAW_D, (int32_t)below(4));
 		} else {
 			const struct pid *axis[2] = {&t->host.ctl.dist, &t->host.ctl.angle};
 

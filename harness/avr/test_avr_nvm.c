@@ -22,10 +22,12 @@
 #include "protocol.h"
 #include "robot.h"
 
-/* The AVR's capabilities: position fixes and match play are compiled out (docs/avr.md); it
- * reports its resets (RESET_INFO) but does not keep the pose across them (no KEEP_POSE). */
+/* The AVR's capabilities: position fixes, match play and the quiet servo are compiled out
+ * (docs/avr.md); it reports its resets (RESET_INFO) but does not keep the pose across them (no
+ * KEEP_POSE). */
 #define AVR_CAPS                                                                                   \
-	((CAP_ALL & ~(CAP_FIX | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS)) |          \
+	((CAP_ALL &                                                                                \
+	  ~(CAP_FIX | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS | CAP_QUIET_SERVO)) |  \
 	 CAP_RESET_INFO)
 
 static const char *elf_path;

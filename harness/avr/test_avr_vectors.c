@@ -21,7 +21,8 @@
 #define N_OF(a) (sizeof(a) / sizeof((a)[0]))
 
 /* The capabilities the AVR's build leaves out (docs/avr.md). */
-#define AVR_LEFT_OUT (CAP_FIX | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS)
+#define AVR_LEFT_OUT                                                                               \
+	(CAP_FIX | CAP_PAUSE | CAP_SPEED_SCALE | CAP_QUEUE | CAP_CORNERS | CAP_QUIET_SERVO)
 static const char *elf_path;
 
 static struct avrsim *boot(void)

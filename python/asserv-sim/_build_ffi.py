@@ -293,6 +293,8 @@ struct control_config {
     int32_t ff_accel_q15_per_m_s2;
     int32_t ff_angle_accel_q15_per_m_s2;
     int32_t gain_slew_q15_per_s[2];
+    uint8_t d_filter_ms;
+    int32_t d_lag_max_um;
     struct control_gains presets[...];
 };
 struct faults_config {

@@ -365,6 +365,7 @@ class Capability(enum.IntFlag):
     HEARTBEAT = 1024
     FIX = 2048
     RESET_INFO = 4096
+    QUIET_SERVO = 16384
     KEEP_POSE = 8192
     CALIBRATED = 32
 

@@ -130,8 +130,8 @@ def test_queries_print_what_the_board_says(capsys: pytest.CaptureFixture[str]) -
     assert out["status"] == "status 0x08: CHOC_PANIER\n"
     assert out["info-choc"] == "sensors 0x81: CAPTEUR_0 CAPTEUR_7\n"
     assert out["version"] == (
-        "protocol 1.0, capabilities 0x0fdf: PEC STOP LAST_REJECT DEBUG TIMEOUT"
-        " PAUSE SPEED_SCALE QUEUE CORNERS HEARTBEAT FIX\n"
+        "protocol 1.0, capabilities 0x4fdf: PEC STOP LAST_REJECT DEBUG TIMEOUT"
+        " PAUSE SPEED_SCALE QUEUE CORNERS HEARTBEAT FIX QUIET_SERVO\n"
     )
     assert out["last-reject"] == "no write rejected since reset\n"
     lines = out["debug"].splitlines()

@@ -33,4 +33,10 @@ void avr_robot_config(struct board_config *cfg)
 	/* A GOTO's first aim at the step after the one that takes it: both in one step (both
 	 * profiles' first runs) take the worst load over a period from 38 % to 45 % at 1 m/s. */
 	cfg->orders.aim_delay_steps = CONFIG_AVR_SLOW_SHIFT == 0 ? 0 : 1;
+	/* The PIDs' derivative without its low-pass: the AVR's build leaves the quiet servo out
+	 * (CONFIG_QUIET_SERVO=0, docs/avr.md); a host build of this configuration (the simavr
+	 * harness's reference run) has it, and runs without it, as the AVR. */
+#if CONFIG_QUIET_SERVO
+	cfg->control.d_filter_ms = 0;
+#endif
 }

@@ -4,7 +4,7 @@
 
 #include "control_avr.h"
 
-/* The pid's settings as converted and its state: res[0..12]. */
+/* The pid's settings as converted and its state: res[0..15]. */
 static void pid_dump(const struct pid *c, int32_t *res)
 {
 	res[0] = c->kp_q12;
@@ -20,16 +20,27 @@ static void pid_dump(const struct pid *c, int32_t *res)
 	res[10] = c->prev_err_um;
 	res[11] = c->has_prev;
 	res[12] = c->out_q15;
+#if CONFIG_QUIET_SERVO
+	res[13] = c->d_lp;
+	res[14] = c->d_last_um;
+	res[15] = c->raw_d;
+#endif
 }
 
-/* The state a pid keeps across ticks: res[0..4]. */
-static void pid_state(const struct pid *c, int32_t *res)
+/* The state a pid keeps across ticks: res[0..4], and its derivative's low-pass: low[0..1]. */
+static void pid_state(const struct pid *c, int32_t *res, int32_t *low)
 {
 	res[0] = c->i_acc_q24.hi;
 	res[1] = c->i_acc_q24.lo;
 	res[2] = c->prev_err_um;
 	res[3] = c->has_prev;
 	res[4] = c->out_q15;
+#if CONFIG_QUIET_SERVO
+	low[0] = c->d_lp;
+	low[1] = c->d_last_um;
+#else
+	(void)low;
+#endif
 }
 
 static void pid_config_of(const int32_t *arg, struct pid_config *pc)
@@ -39,6 +50,10 @@ static void pid_config_of(const int32_t *arg, struct pid_config *pc)
 	pc->d = (uint16_t)arg[2];
 	pc->out_limit_q15 = (int16_t)arg[3];
 	pc->tick_hz = (uint16_t)arg[4];
+#if CONFIG_QUIET_SERVO
+	pc->d_shift = (uint8_t)arg[5];
+	pc->d_lag_max_um = arg[6];
+#endif
 }
 
 static void axis_of(const int32_t *arg, struct orders_axis *sp)
@@ -72,6 +87,9 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 	case CTA_PID_UPDATE:
 		ret = pid_update(&s->pid, arg[0]);
 		break;
+	case CTA_PID_RAW_D:
+		pid_set_raw_d(&s->pid, (uint8_t)arg[0]);
+		break;
 	case CTA_CTL_INIT:
 		memset(&cc, 0, sizeof(cc));
 		cc.duty_max_q15 = (int16_t)arg[1];
@@ -85,6 +103,10 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		}
 		cc.gain_slew_q15_per_s[0] = arg[14];
 		cc.gain_slew_q15_per_s[1] = arg[14] / 3 + 1;
+#if CONFIG_QUIET_SERVO
+		cc.d_filter_ms = (uint8_t)arg[15];
+		cc.d_lag_max_um = arg[16];
+#endif
 		ret = control_init(c, &cc, (uint16_t)arg[0]);
 		break;
 	case CTA_CTL_GAINS:
@@ -111,6 +133,9 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		axis_of(arg + 3, &sa);
 		control_update(c, &sd, &sa, arg[6], arg[7]);
 		break;
+	case CTA_CTL_RAW_D:
+		control_raw_d(c, (uint8_t)arg[0]);
+		break;
 	case CTA_ODO_ADVANCE: {
 		struct odometry_arc a;
 		struct odometry_position *o = &s->odo;
@@ -131,9 +156,9 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 	}
 	memset(res, 0, CTA_N_RES * sizeof(*res));
 	res[0] = ret;
-	if (op >= CTA_PID_INIT && op <= CTA_PID_UPDATE) {
+	if (op >= CTA_PID_INIT && op <= CTA_PID_RAW_D) {
 		pid_dump(&s->pid, res + 1);
-	} else if (op >= CTA_CTL_INIT && op <= CTA_CTL_UPDATE) {
+	} else if (op >= CTA_CTL_INIT && op <= CTA_CTL_RAW_D) {
 		res[1] = c->duty_q15[0];
 		res[2] = c->duty_q15[1];
 		res[3] = c->dist_err_um;
@@ -149,8 +174,8 @@ void cta_run(struct cta_state *s, uint8_t op, const int32_t *arg, int32_t *res)
 		res[13] = c->dist.kd_q12;
 		res[14] = c->dist.fast.p_err_um;
 		res[15] = c->dist.fast.d_err_um;
-		pid_state(&c->dist, res + 16);
-		pid_state(&c->angle, res + 21);
+		pid_state(&c->dist, res + 16, res + 28);
+		pid_state(&c->angle, res + 21, res + 30);
 		res[26] = c->bump_q15[0];
 		res[27] = c->bump_q15[1];
 	} else if (op == CTA_ODO_ADVANCE) {

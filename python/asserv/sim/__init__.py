@@ -116,9 +116,15 @@ class Calibration(NamedTuple):
 #: The AVR board's rates (firmware/ports/avr/robot.c, docs/avr.md): the planner every 8th tick
 #: (125 Hz at 1 kHz), its results taken 3 ticks after its snapshot, where the AVR's main loop
 #: runs it preempted by the servo. ``Simulator(board_config=AVR_RATES)`` runs a board as the AVR
-#: does (and a GOTO aims a planner step after it is taken, orders.aim_delay_steps); the default
-#: is one rate, the planner in the tick.
-AVR_RATES: Mapping[str, int] = {"slow_shift": 3, "planner_ticks": 3, "orders.aim_delay_steps": 1}
+#: does (and a GOTO aims a planner step after it is taken, orders.aim_delay_steps, and its PIDs
+#: read the raw derivative, control.d_filter_ms 0: no "quiet servo", docs/control.md "PID"); the
+#: default is one rate, the planner in the tick.
+AVR_RATES: Mapping[str, int] = {
+    "slow_shift": 3,
+    "planner_ticks": 3,
+    "orders.aim_delay_steps": 1,
+    "control.d_filter_ms": 0,
+}
 
 #: Bytes of the simulated board's storage (firmware/ports/host/host.h).
 NVM_SIZE = int(lib.HOST_NVM_SIZE)
