@@ -61,6 +61,32 @@ static void grip_share(struct orders *o)
 	grip_split(o, o->traj.a_max_um_s2, o->rot.a_max_um_s2, o->grip_a_um_s2);
 }
 
+/* The stop after a shock's settings at rate_hz (orders_shock()); its state is zero (memset). */
+static void init_give_way(struct orders *o, int32_t count_um_s)
+{
+	uint16_t rate_hz = o->rate_hz;
+
+	o->rest_ticks = (uint8_t)(rate_hz >= 250 ? rate_hz / 125 : 1); /* 8 ms */
+	o->brake_dv_um_s = o->cfg.grip_um_s2 / (int32_t)rate_hz;       /* >= 50 */
+	/* Two counts a tick: one reads anything from 0 to 2 counts' speed. At most 0.4 m/s, so
+	 * that brake_away() stays in 32 bits. */
+	o->rebound_um_s = o->cfg.arrive_speed_um_s + 2 * o->brake_dv_um_s;
+	if (o->rebound_um_s < 2 * count_um_s)
+		o->rebound_um_s = 2 * count_um_s;
+	if (o->rebound_um_s > 400000)
+		o->rebound_um_s = 400000;
+	/* Thrown again once at rest (give_way_axis()): two counts, a hold at rest rocks by a count
+	 * either way; only where a tick's speed cannot tell a robot about to stop from one moving
+	 * away (2 counts a tick above arrive_speed and two ticks of braking: a slow spin reads as a
+	 * count or none). At slower rates the speed read tells it: 0, never. */
+	if (2 * count_um_s > o->cfg.arrive_speed_um_s + 2 * o->brake_dv_um_s) {
+		o->throw_um = 2 * (count_um_s / (int32_t)rate_hz + 1);
+		/* The speed the rebound and the hold read, over rest_ticks (give_way_axis()). */
+		while (((unsigned)o->rest_ticks >> (o->speed_shift + 1u)) != 0)
+			o->speed_shift++;
+	}
+}
+
 int orders_init(struct orders *o, const struct orders_config *cfg, uint16_t rate_hz,
 		int32_t count_um_s, int32_t dist_um, int32_t angle_um)
 {
@@ -107,37 +133,7 @@ int orders_init(struct orders *o, const struct orders_config *cfg, uint16_t rate
 	o->trig_valid = 0;
 	o->state = ORDER_STATE_IDLE;
 	o->end_reason = END_REASON_NONE;
-	o->give_way = 0;
-	o->gave_way = 0;
-	o->braking = 0;
-	o->rest_ticks = (uint8_t)(rate_hz >= 250 ? rate_hz / 125 : 1); /* 8 ms */
-	o->brake_dv_um_s = cfg->grip_um_s2 / (int32_t)rate_hz;         /* >= 50 */
-	/* Two counts a tick: one reads anything from 0 to 2 counts' speed. At most 0.4 m/s, so
-	 * that brake_away() stays in 32 bits. */
-	o->rebound_um_s = cfg->arrive_speed_um_s + 2 * o->brake_dv_um_s;
-	if (o->rebound_um_s < 2 * count_um_s)
-		o->rebound_um_s = 2 * count_um_s;
-	if (o->rebound_um_s > 400000)
-		o->rebound_um_s = 400000;
-	/* Thrown again once at rest (give_way_axis()): two counts, a hold at rest rocks by a count
-	 * either way; only where a tick's speed cannot tell a robot about to stop from one moving
-	 * away (2 counts a tick above arrive_speed and two ticks of braking: a slow spin reads as a
-	 * count or none). At slower rates the speed read tells it: 0, never. */
-	o->throw_um = 0;
-	o->speed_shift = 0;
-	if (2 * count_um_s > cfg->arrive_speed_um_s + 2 * o->brake_dv_um_s) {
-		o->throw_um = 2 * (count_um_s / (int32_t)rate_hz + 1);
-		/* The speed the rebound and the hold read, over rest_ticks (give_way_axis()). */
-		while (((unsigned)o->rest_ticks >> (o->speed_shift + 1u)) != 0)
-			o->speed_shift++;
-	}
-	for (uint8_t i = 0; i < 2; i++) {
-		o->shock_side[i] = 0;
-		o->still[i] = 0;
-		o->reach_um[i] = 0;
-		o->rest_um[i] = 0;
-		o->speed_q[i] = 0;
-	}
+	init_give_way(o, count_um_s);
 	o->sp_dist.pos_um = dist_um;
 	o->sp_dist.vel_um_s = 0;
 	o->sp_dist.acc_um_s2 = 0;
@@ -475,6 +471,9 @@ static int thrown(struct orders *o, uint8_t axis, int32_t pos_um, int8_t side)
 	return 0;
 }
 
+static void give_way_rest(struct orders *o, uint8_t axis, struct profile *p, int32_t pos_um,
+			  int32_t away, int32_t beyond);
+
 /* One axis of the stop after a shock (orders_shock()), at pos_um going towards the obstacle at
  * speed_um_s (m's). */
 static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int32_t pos_um,
@@ -482,7 +481,6 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 {
 	int8_t side = o->shock_side[axis];
 	uint8_t stopped = (uint8_t)(2u << axis);
-	uint8_t rested = (uint8_t)(8u << axis);
 	int32_t slow = o->cfg.arrive_speed_um_s;
 	int32_t further = wrap_sub(pos_um, o->reach_um[axis]);
 	int32_t beyond = wrap_sub(p->out.pos_um, pos_um);
@@ -530,21 +528,31 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 		if (!(o->give_way & stopped))
 			return;
 	}
-	/* Stopped, or bouncing off. Until it first comes to rest, a robot moving away is braked
-	 * along its own motion, its hold point going with it (rebound(), brake_away()). A hold left
-	 * behind braked it instead: it drove the wheels to full duty, spinning against the motion,
-	 * and they carried the robot back towards the obstacle once it stopped. From then on a
-	 * robot on the far side of its hold point, slower than arrive_speed and two ticks of
-	 * braking, is held where it is, before the hold pulls it back. */
 	/* Moving away: a tick's measure from two counts a tick (it tells the speed, at once), the
 	 * low-passed speed below (a count on one tick in several is not a count's speed). */
 	away = -speed_um_s >= o->rebound_um_s ? -speed_um_s : -smooth;
+	give_way_rest(o, axis, p, pos_um, away, beyond);
+}
+
+/* An axis of the stop after a shock once stopped, or bouncing off (give_way_axis()), at pos_um
+ * moving away from the obstacle at away_um_s, its hold point beyond_um on the obstacle's side.
+ * Until it first comes to rest, a robot moving away is braked along its own motion, its hold
+ * point going with it (rebound(), brake_away()). A hold left behind braked it instead: it drove
+ * the wheels to full duty, spinning against the motion, and they carried the robot back towards
+ * the obstacle once it stopped. From then on a robot on the far side of its hold point, slower
+ * than arrive_speed and two ticks of braking, is held where it is, before the hold pulls it
+ * back. */
+static void give_way_rest(struct orders *o, uint8_t axis, struct profile *p, int32_t pos_um,
+			  int32_t away, int32_t beyond)
+{
+	uint8_t rested = (uint8_t)(8u << axis);
+
 	if (!(o->give_way & rested)) {
 		if (rebound(o, axis, p, pos_um, away, beyond))
 			return;
 		o->give_way |= rested;
 		o->rest_um[axis] = pos_um;
-	} else if (thrown(o, axis, pos_um, side)) {
+	} else if (thrown(o, axis, pos_um, o->shock_side[axis])) {
 		/* Thrown away again once at rest (a second corner meeting the obstacle): braked as
 		 * the first rebound, until it rests again, but harder below rebound_um_s (bit 5 +
 		 * axis, brake_away()). */
@@ -558,7 +566,7 @@ static void give_way_axis(struct orders *o, uint8_t axis, struct profile *p, int
 	 * of a hold, a creep) it holds, pulling the robot back to where it rested; beyond, slower
 	 * than arrive_speed and two ticks of braking (the low-passed speed: a creep reads as a
 	 * count on some ticks), it moves to the robot. */
-	if (beyond <= o->throw_um || away > slow + 2 * o->brake_dv_um_s)
+	if (beyond <= o->throw_um || away > o->cfg.arrive_speed_um_s + 2 * o->brake_dv_um_s)
 		return;
 	profile_reset(p, pos_um);
 	o->gave_way = 1;
