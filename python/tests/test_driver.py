@@ -183,7 +183,9 @@ def test_version_last_reject_and_debug(pec: bool) -> None:
     assert (v.major, v.minor) == (1, 0)
     assert v.capabilities == Capability.PEC | Capability.STOP | Capability.LAST_REJECT | (
         Capability.DEBUG | Capability.TIMEOUT | Capability.HEARTBEAT | Capability.FIX
-    ) | (Capability.PAUSE | Capability.SPEED_SCALE | Capability.QUEUE | Capability.CORNERS)
+    ) | (Capability.PAUSE | Capability.SPEED_SCALE | Capability.QUEUE | Capability.CORNERS) | (
+        Capability.QUIET_SERVO
+    )
     assert board.last_reject().reason == Reject.NONE
     fields: dict[str, Any] = {
         "tick": 65535,
