@@ -293,6 +293,7 @@ static int32_t raw_change(struct pid *c, int32_t e)
 	c->d_last_um = e;
 	return d;
 }
+
 /* The derivative's input with the low-pass (d_shift > 0), and the architecture's mark. */
 static inline int32_t filtered_change(struct pid *c, int32_t e)
 {

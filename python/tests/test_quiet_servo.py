@@ -9,6 +9,7 @@ from __future__ import annotations
 import importlib
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import given, settings
@@ -22,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
 quiet = importlib.import_module("quiet")
 
 
-def within_goals(w: object) -> list[str]:
+def within_goals(w: Any) -> list[str]:
     """What of a window misses bench/quiet.py's goals: duty jitter, current."""
     out = []
     if w.jitter > quiet.JITTER_GOAL:
