@@ -21,7 +21,11 @@ It prints:
   sharp for an arc of 50 mm/s turns in place at the rotation limit, with no ramps. Against the
   stop-and-go time the board measured, it shows how much of the goal a tour's corners allow.
 
-    python bench/course.py [--robots N] [--first-seed K] [--tolerance MM] [--strict]
+``--max-turn DEG`` (60 to 180) draws tours whose corners turn by DEG at most (as a team chains
+its points with PASS_THROUGH, stopping for the sharper ones), instead of any turn.
+
+    python bench/course.py [--robots N] [--first-seed K] [--tolerance MM] [--max-turn DEG]
+                           [--strict]
 """
 
 from __future__ import annotations
@@ -66,15 +70,32 @@ def segment_mm(
     return np.hypot(px - a[0] - t * dx, py - a[1] - t * dy)
 
 
-def points(rng: random.Random) -> list[tuple[int, int]]:
-    """10 points inside the table, each 300 mm or more from the last."""
+def turn_deg(a: tuple[float, float], b: tuple[float, float], c: tuple[float, float]) -> float:
+    """The turn at b of the path a-b-c [deg], 0..180."""
+    t = math.atan2(c[1] - b[1], c[0] - b[0]) - math.atan2(b[1] - a[1], b[0] - a[0])
+    return abs(math.degrees((t + math.pi) % (2 * math.pi) - math.pi))
+
+
+def points(rng: random.Random, max_turn_deg: float | None = None) -> list[tuple[int, int]]:
+    """10 points inside the table, each 300 mm or more from the last; with max_turn_deg, each
+    corner (the turn at each point but the last) at most that. A tour that cannot go on within
+    it (a point near a border, facing out) is drawn again."""
     out: list[tuple[int, int]] = []
     last = (0, -850)
+    tries = 0
     while len(out) < 10:
+        tries += 1
+        if tries > 2000:
+            out, last, tries = [], (0, -850), 0
         p = (rng.randint(-1100, 1100), rng.randint(-700, 700))
-        if math.dist(p, last) >= 300:
-            out.append(p)
-            last = p
+        if math.dist(p, last) < 300:
+            continue
+        if max_turn_deg is not None and out:
+            before = out[-2] if len(out) > 1 else (0, -850)
+            if turn_deg(before, last, p) > max_turn_deg:
+                continue
+        out.append(p)
+        last = p
     return out
 
 
@@ -193,8 +214,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--robots", type=int, default=50, help="randomized robots (50)")
     ap.add_argument("--first-seed", type=int, default=0, help="seed of the first robot (0)")
     ap.add_argument("--tolerance", type=int, default=30, help="SET_CORNER [mm] (30)")
+    ap.add_argument(
+        "--max-turn",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="corners of at most DEG degrees, 60..180 (any turn)",
+    )
     add_strict_flag(ap)
     args = ap.parse_args(argv)
+    if args.max_turn is not None and not 60 <= args.max_turn <= 180:
+        ap.error(f"--max-turn: {args.max_turn:g} degrees: give 60 to 180")
     rng = random.Random(args.first_seed)
     ratios, nears, bad, bounds = [], [], [], []
     for seed in range(args.first_seed, args.first_seed + args.robots):
@@ -204,7 +234,7 @@ def main(argv: list[str] | None = None) -> int:
             rng.randint(30, 100),
             rng.randint(50, 200),
         )
-        pts = points(rng)
+        pts = points(rng, args.max_turn)
         stop = tour(seed, limits, pts, False, args.tolerance)
         thru = tour(seed, limits, pts, True, args.tolerance)
         ratios.append((thru.seconds / stop.seconds, seed, stop.seconds, thru.seconds))
@@ -215,8 +245,9 @@ def main(argv: list[str] | None = None) -> int:
             for kind, t in (("stop-and-go", stop), ("through", thru))
             if not t.ok
         ]
+    turns = "any corner" if args.max_turn is None else f"corners of {args.max_turn:g} deg at most"
     print(
-        f"10-point tours: {args.robots} randomized robots, 1 kHz,"
+        f"10-point tours ({turns}): {args.robots} randomized robots, 1 kHz,"
         f" corner tolerance {args.tolerance} mm"
     )
     print("time pass-through / stop-and-go, worst first (goal: 0.75 or less):")

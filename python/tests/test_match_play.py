@@ -8,7 +8,9 @@ bench/course.py.
 from __future__ import annotations
 
 import importlib
+import itertools
 import math
+import random
 import sys
 from pathlib import Path
 
@@ -375,6 +377,17 @@ def tours(draw: st.DrawFn) -> list[tuple[int, int]]:
     tolerance=30,
     pts=[(306, 191), (650, 506), (1037, 520), (1098, -576)],
 )
+# bench/course.py --max-turn 90's seed 16, its last corners: a curve at 485 mm/s turning at 199
+# deg/s, about v^2/r = grip/3, ends PB_MOTEUR with no contact and no fault (following errors
+# under 1 mm, currents under 1.3 A: the slip check). A
+# known defect of the corners (issue 31): xfail until the curve keeps the drive wheels' slip
+# within the check.
+@example(
+    seed=16,
+    limits=(64, 173, 77, 152),
+    tolerance=30,
+    pts=[(1069, -167), (-738, -624), (-1033, -372), (-421, 533)],
+).xfail(raises=AssertionError, reason="issue 31: a fast curve ends PB_MOTEUR (slip check)")
 @given(
     seed=st.integers(0, 10_000),
     limits=st.tuples(
@@ -403,3 +416,25 @@ def test_any_tour_through_corners_stays_within_the_tolerance(
     ex, ey = tr["est_x_mm"], tr["est_y_mm"]
     near = course.corner_near_mm(ex, ey, (float(ex[0]), float(ey[0])), pts)
     assert max(near) <= tolerance, near
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), max_turn=st.integers(60, 180))
+def test_a_course_tour_turns_no_more_than_asked(seed: int, max_turn: int) -> None:
+    """bench/course.py --max-turn: 10 points inside the table, 300 mm apart or more, each corner
+    within the turn asked."""
+    pts = course.points(random.Random(seed), max_turn)
+    path = [(0, -850), *pts]
+    assert len(pts) == 10
+    assert all(abs(x) <= 1100 and abs(y) <= 700 for x, y in pts)
+    assert all(math.dist(a, b) >= 300 for a, b in itertools.pairwise(path))
+    turns = [course.turn_deg(*path[i - 1 : i + 2]) for i in range(1, len(path) - 1)]
+    assert max(turns) <= max_turn + 1e-9, turns
+
+
+@pytest.mark.parametrize("bad", ["59", "181", "x"])
+def test_course_rejects_a_bad_max_turn(bad: str, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as e:
+        course.main(["--max-turn", bad])
+    assert e.value.code == 2
+    assert "--max-turn" in capsys.readouterr().err
