@@ -714,6 +714,30 @@ static void test_abort_holds_the_measure(void **state)
 	assert_int_equal(o.sp_dist.vel_um_s, 0);
 }
 
+/* 1 s into a GOTO of 1 m, cruising at 10 cm/s: the measure a shock takes (the shock tests). */
+static struct orders_measure cruising_10cm_s(struct orders *o, struct orders_config *c,
+					     struct robot *r)
+{
+	base_config(c);
+	make_orders(o, c, 1000);
+	robot_init(r, 1000, 0, 0, 0);
+	goto_xy(r, o, 1000000, 0, 0);
+	run_updates(r, o, 1000);
+	return robot_measure(r);
+}
+
+/* The robot moved by move_um on the distance axis in one update (move_um a ms): its measure, the
+ * robot where it says. */
+static struct orders_measure moved_by(struct robot *r, int32_t move_um)
+{
+	struct orders_measure m = robot_measure(r);
+
+	m.dist_um += move_um;
+	m.dist_speed_um_s = move_um * 1000;
+	r->dist_um = m.dist_um;
+	return m;
+}
+
 /* A shock at 10 cm/s against an obstacle that gives 2 mm: the set point stops at the measure at
  * once, the feed-forward brakes at the grip (3 m/s^2) while the robot still goes on, for at most
  * what braking from 10 cm/s takes (33 updates), and once it has gone no further for 8 ms the
@@ -727,12 +751,7 @@ static void test_shock_holds_where_it_stops(void **state)
 	int32_t at, braked = 0, rest = -1;
 
 	(void)state;
-	base_config(&c);
-	make_orders(&o, &c, 1000);
-	robot_init(&r, 1000, 0, 0, 0);
-	goto_xy(&r, &o, 1000000, 0, 0);
-	run_updates(&r, &o, 1000);
-	m = robot_measure(&r);
+	m = cruising_10cm_s(&o, &c, &r);
 	assert_int_equal(m.dist_speed_um_s, 100000);
 	at = m.dist_um;
 	orders_shock(&o, &m, END_REASON_SHOCK);
@@ -745,10 +764,7 @@ static void test_shock_holds_where_it_stops(void **state)
 	for (int32_t i = 0; i < 200; i++) {
 		int32_t move = i < 40 ? 50 : 0;
 
-		m = robot_measure(&r);
-		m.dist_um += move;
-		m.dist_speed_um_s = move * 1000;
-		r.dist_um = m.dist_um;
+		m = moved_by(&r, move);
 		r.dist_speed_um_s = m.dist_speed_um_s;
 		assert_int_equal(orders_update(&o, &m), END_REASON_NONE);
 		if (o.sp_dist.acc_um_s2 == -GRIP_UM_S2)
@@ -783,21 +799,13 @@ static void test_shock_rebound_is_not_pulled_back(void **state)
 	int32_t at;
 
 	(void)state;
-	base_config(&c);
-	make_orders(&o, &c, 1000);
-	robot_init(&r, 1000, 0, 0, 0);
-	goto_xy(&r, &o, 1000000, 0, 0);
-	run_updates(&r, &o, 1000);
-	m = robot_measure(&r);
+	m = cruising_10cm_s(&o, &c, &r);
 	at = m.dist_um;
 	orders_shock(&o, &m, END_REASON_SHOCK);
 	for (int32_t i = 0; i < 300; i++) {
 		int32_t move = i < 5 ? 20 : i < 35 ? -100 : 0; /* 0.1 mm forward, 3 mm back */
 
-		m = robot_measure(&r);
-		m.dist_um += move;
-		m.dist_speed_um_s = move * 1000;
-		r.dist_um = m.dist_um;
+		m = moved_by(&r, move);
 		assert_int_equal(orders_update(&o, &m), END_REASON_NONE);
 		/* At most a tick's motion away ahead of the robot, towards the obstacle. */
 		assert_true(o.sp_dist.pos_um <= m.dist_um + 100);
@@ -818,10 +826,7 @@ static void test_shock_rebound_is_not_pulled_back(void **state)
 	for (int32_t i = 0; i < 120; i++) {
 		int32_t move = i < 20 ? 1 : -2;
 
-		m = robot_measure(&r);
-		m.dist_um += move;
-		m.dist_speed_um_s = move * 1000;
-		r.dist_um = m.dist_um;
+		m = moved_by(&r, move);
 		assert_int_equal(orders_update(&o, &m), END_REASON_NONE);
 		if (i < 20 || at - m.dist_um <= o.throw_um)
 			assert_int_equal(o.sp_dist.pos_um, at);
@@ -844,21 +849,13 @@ static void test_shock_thrown_again_is_braked_harder(void **state)
 	int32_t acc = (GRIP_UM_S2 >> 8) * ((8000 << 8) / 11000), thrown = -1;
 
 	(void)state;
-	base_config(&c);
-	make_orders(&o, &c, 1000);
-	robot_init(&r, 1000, 0, 0, 0);
-	goto_xy(&r, &o, 1000000, 0, 0);
-	run_updates(&r, &o, 1000);
-	m = robot_measure(&r);
+	m = cruising_10cm_s(&o, &c, &r);
 	orders_shock(&o, &m, END_REASON_SHOCK);
 	assert_true(o.rebound_um_s > 11000);
 	for (int32_t i = 0; i < 260; i++) {
 		int32_t move = i < 5 ? 20 : i < 35 ? -100 : i < 100 ? 0 : i < 190 ? -8 : 0;
 
-		m = robot_measure(&r);
-		m.dist_um += move;
-		m.dist_speed_um_s = move * 1000;
-		r.dist_um = m.dist_um;
+		m = moved_by(&r, move);
 		assert_int_equal(orders_update(&o, &m), END_REASON_NONE);
 		if (i < 100)
 			assert_int_equal(o.give_way & 0x20u, 0);
