@@ -13,13 +13,15 @@ It prints:
   checked below;
 - that every robot ended without PB_MOTEUR, without a contact, DONE, and with the truth within
   the error radius of the estimate;
-- a bound on the ratio from the limits alone (``bound_s()``), for information: what any planner
-  that keeps the master's limits could reach on the same tour. Its curves are arcs passing the
-  whole tolerance from each point, at the whole grip (the board keeps a third of it across,
-  docs/control.md "Corners") and the heading's wheel speed within SET_VITESSE_ROT; its lines at
-  SET_VITESSE_TRAJ's speed and acceleration, with no clothoids and no settling; a corner too
-  sharp for an arc of 50 mm/s turns in place at the rotation limit, with no ramps. Against the
-  stop-and-go time the board measured, it shows how much of the goal a tour's corners allow.
+- a bound on the ratio from the limits alone (``bound_s()``), for information: what a planner
+  within the master's limits but the rotation acceleration could reach on the same tour. Its
+  curves are arcs passing the whole tolerance from each point, at the whole grip (the board
+  keeps a third of it across, docs/control.md "Corners") and the heading's wheel speed within
+  SET_VITESSE_ROT; its lines at SET_VITESSE_TRAJ's speed and acceleration, with no clothoids
+  and no settling; a corner too sharp for an arc of 50 mm/s turns in place at the rotation
+  limit, with no ramps. Its arcs step the heading's rate, beyond any rotation acceleration;
+- the turns alone over the stop-and-go time (``turns_s()``), for information: each corner's
+  heading change from rest to rest at SET_VITESSE_ROT, which a curve takes too.
 
 ``--max-turn DEG`` (60 to 180) draws tours whose corners turn by DEG at most (as a team chains
 its points with PASS_THROUGH, stopping for the sharper ones), instead of any turn.
@@ -156,6 +158,19 @@ def bound_s(limits: tuple[int, int, int, int], pts: list[tuple[int, int]], toler
     )
 
 
+def turns_s(limits: tuple[int, int, int, int], pts: list[tuple[int, int]]) -> float:
+    """The turns alone [s]: the start's and each corner's heading change, from rest to rest at
+    SET_VITESSE_ROT's wheel speed and acceleration. A curve turns its heading from the line's
+    rate of nought to nought again within that acceleration (docs/control.md "Corners"), as a
+    turn in place does: whatever the line does meanwhile, each corner takes this long in either
+    mode."""
+    w_max, a_rot = limits[2] / 100, limits[3] / 100
+    p = [(0, -850), *pts]
+    turns = [abs(math.atan2(p[1][1] - p[0][1], p[1][0] - p[0][0]))]  # the start faces +x
+    turns += [math.radians(turn_deg(*p[i - 1 : i + 2])) for i in range(1, len(p) - 1)]
+    return sum(_line_s(t * HALF_TRACK_M, 0.0, 0.0, w_max, a_rot) for t in turns)
+
+
 def robot(seed: int, limits: tuple[int, int, int, int], tolerance: int) -> tuple[Simulator, Board]:
     """Randomized robot ``seed`` on an empty table, at the limits (SET_VITESSE_TRAJ's speed and
     acceleration, SET_VITESSE_ROT's) and the corner tolerance (SET_CORNER) [mm]."""
@@ -226,7 +241,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.max_turn is not None and not 60 <= args.max_turn <= 180:
         ap.error(f"--max-turn: {args.max_turn:g} degrees: give 60 to 180")
     rng = random.Random(args.first_seed)
-    ratios, nears, bad, bounds = [], [], [], []
+    ratios, nears, bad, bounds, turns = [], [], [], [], []
     for seed in range(args.first_seed, args.first_seed + args.robots):
         limits = (
             rng.randint(50, 150),
@@ -239,15 +254,16 @@ def main(argv: list[str] | None = None) -> int:
         thru = tour(seed, limits, pts, True, args.tolerance)
         ratios.append((thru.seconds / stop.seconds, seed, stop.seconds, thru.seconds))
         bounds.append(bound_s(limits, pts, args.tolerance) / stop.seconds)
+        turns.append(turns_s(limits, pts) / stop.seconds)
         nears += [(d, seed, i) for i, d in enumerate(thru.near_mm)]
         bad += [
             (seed, kind, t.why)
             for kind, t in (("stop-and-go", stop), ("through", thru))
             if not t.ok
         ]
-    turns = "any corner" if args.max_turn is None else f"corners of {args.max_turn:g} deg at most"
+    kind = "any corner" if args.max_turn is None else f"corners of {args.max_turn:g} deg at most"
     print(
-        f"10-point tours ({turns}): {args.robots} randomized robots, 1 kHz,"
+        f"10-point tours ({kind}): {args.robots} randomized robots, 1 kHz,"
         f" corner tolerance {args.tolerance} mm"
     )
     print("time pass-through / stop-and-go, worst first (goal: 0.75 or less):")
@@ -269,6 +285,11 @@ def main(argv: list[str] | None = None) -> int:
         "for information, a bound on the ratio from the limits alone (bound_s(): arcs at the"
         " whole tolerance and grip, the rotation limit, no clothoids, no settling):"
         f" worst {max(bounds):.3f}, mean {sum(bounds) / len(bounds):.3f}"
+    )
+    print(
+        "for information, the turns alone over the stop-and-go time (turns_s(): each corner's"
+        " heading from rest to rest at SET_VITESSE_ROT, as a curve turns it too):"
+        f" worst {max(turns):.3f}, mean {sum(turns) / len(turns):.3f}"
     )
     goals = Goals("bench/course.py")
     goals.check(f"time ratio, worst (mean {mean_ratio:.3f})", worst_ratio, "<=", GOAL_RATIO)
