@@ -18,8 +18,9 @@ It prints:
   curves are arcs passing the whole tolerance from each point, at the whole grip (the board
   keeps a third of it across, docs/control.md "Corners") and the heading's wheel speed within
   SET_VITESSE_ROT; its lines at SET_VITESSE_TRAJ's speed and acceleration, with no clothoids
-  and no settling; a corner too sharp for an arc of 50 mm/s turns in place at the rotation
-  limit, with no ramps. Its arcs step the heading's rate, beyond any rotation acceleration;
+  and no settling; a corner may also stop at its point, its turn taking no time of its own (as
+  a pivot's overlaps the lines' ramps), and must where no arc of 50 mm/s fits; the fastest of
+  these choices. Its arcs step the heading's rate, beyond any rotation acceleration;
 - the turns alone over the stop-and-go time (``turns_s()``), for information: each corner's
   heading change from rest to rest at SET_VITESSE_ROT, which a curve takes too.
 
@@ -33,6 +34,7 @@ its points with PASS_THROUGH, stopping for the sharper ones), instead of any tur
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import random
 import sys
@@ -127,35 +129,39 @@ def _line_s(length: float, v0: float, v1: float, v_max: float, a: float) -> floa
 
 def bound_s(limits: tuple[int, int, int, int], pts: list[tuple[int, int]], tolerance: int) -> float:
     """A lower bound of the pass-through tour's time from the start (0, -850) [s] (the module's
-    docstring says of what): the initial turn in place, the corners, the lines between them."""
+    docstring says of what): the initial turn in place, the corners, the lines between them;
+    each corner an arc or a stop whose turn takes no time of its own, whichever of all these
+    choices gives the shortest tour."""
     v_max, a, w_max = limits[0] / 100, limits[1] / 100, limits[2] / 100
     p = [(x / 1000, y / 1000) for x, y in [(0, -850), *pts]]
     n, tol = len(p), tolerance / 1000
     bearing = [math.atan2(p[i + 1][1] - p[i][1], p[i + 1][0] - p[i][0]) for i in range(n - 1)]
-    v, cut, corner_s = [0.0] * n, [0.0] * n, [0.0] * n
+    arcs: dict[int, tuple[float, float, float]] = {}  # each arc's speed, cut and time
     for i in range(1, n - 1):
         turn = abs((bearing[i] - bearing[i - 1] + math.pi) % (2 * math.pi) - math.pi)
         c = math.cos(turn / 2)
         r = tol * c / (1 - c) if c < 1 else 1e9
         half = min(math.dist(p[i], p[i - 1]), math.dist(p[i], p[i + 1])) / 2
-        cut[i] = min(r * math.tan(turn / 2), half)
-        r = cut[i] / max(math.tan(turn / 2), 1e-9)
-        v[i] = min(v_max, math.sqrt(GRIP_M_S2 * r), w_max * r / HALF_TRACK_M)
-        if v[i] >= 0.05:
-            corner_s[i] = r * turn / v[i]
-        else:
-            v[i], cut[i], corner_s[i] = 0.0, 0.0, turn * HALF_TRACK_M / w_max
-    line = [0.0] + [math.dist(p[i], p[i - 1]) - cut[i - 1] - cut[i] for i in range(1, n)]
-    for i in range(n - 2, 0, -1):  # each corner reachable from the next, then from the last
-        v[i] = min(v[i], math.sqrt(v[i + 1] ** 2 + 2 * a * line[i + 1]))
-    for i in range(1, n - 1):
-        v[i] = min(v[i], math.sqrt(v[i - 1] ** 2 + 2 * a * line[i]))
+        cut = min(r * math.tan(turn / 2), half)
+        r = cut / max(math.tan(turn / 2), 1e-9)
+        v = min(v_max, math.sqrt(GRIP_M_S2 * r), w_max * r / HALF_TRACK_M)
+        if v >= 0.05:
+            arcs[i] = (v, cut, r * turn / v)
     first = abs((bearing[0] + math.pi) % (2 * math.pi) - math.pi)  # the start faces +x
-    return (
-        first * HALF_TRACK_M / w_max
-        + sum(corner_s)
-        + sum(_line_s(line[i], v[i - 1], v[i], v_max, a) for i in range(1, n))
-    )
+    best = math.inf
+    for picked in itertools.product((False, True), repeat=len(arcs)):
+        v, cut, corner_s = [0.0] * n, [0.0] * n, [0.0] * n
+        for i, arc in zip(arcs, picked, strict=True):
+            if arc:
+                v[i], cut[i], corner_s[i] = arcs[i]
+        line = [0.0] + [math.dist(p[i], p[i - 1]) - cut[i - 1] - cut[i] for i in range(1, n)]
+        for i in range(n - 2, 0, -1):  # each corner reachable from the next, then from the last
+            v[i] = min(v[i], math.sqrt(v[i + 1] ** 2 + 2 * a * line[i + 1]))
+        for i in range(1, n - 1):
+            v[i] = min(v[i], math.sqrt(v[i - 1] ** 2 + 2 * a * line[i]))
+        lines_s = sum(_line_s(line[i], v[i - 1], v[i], v_max, a) for i in range(1, n))
+        best = min(best, sum(corner_s) + lines_s)
+    return first * HALF_TRACK_M / w_max + best
 
 
 def turns_s(limits: tuple[int, int, int, int], pts: list[tuple[int, int]]) -> float:
@@ -283,7 +289,8 @@ def main(argv: list[str] | None = None) -> int:
     worst_near = max(d for d, _, _ in nears)
     print(
         "for information, a bound on the ratio from the limits alone (bound_s(): arcs at the"
-        " whole tolerance and grip, the rotation limit, no clothoids, no settling):"
+        " whole tolerance and grip, the rotation limit, no clothoids, no settling, or stops whose"
+        " turns take no time):"
         f" worst {max(bounds):.3f}, mean {sum(bounds) / len(bounds):.3f}"
     )
     print(

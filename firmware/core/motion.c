@@ -292,6 +292,72 @@ static int corner_fit(struct corner_shape *sh, const struct orders *o, int32_t t
 	return sh->reach_um <= half && sh->v_um_s >= CORNER_V_MIN_UM_S ? 0 : -1;
 }
 
+#if CONFIG_MOTION_CORNERS
+/* A pivot (docs/control.md "Corners", 6): the line brakes to rest at the point while the heading
+ * starts turning e_um before it, and the next line starts while the heading brakes its last
+ * phi_um (on the angle axis). Each overlap strays from its line by at most a_h e^2 / (6 a h) and
+ * a phi^2 / (6 a_h h) (the line braking or starting at a, the heading's rate from or to rest at
+ * a_h, h half the drive track), kept within half the tolerance. Planned once for a corner and
+ * the one it looks ahead at. */
+struct pivot_shape {
+	int64_t e_um, phi_um;
+	int64_t overlap_us; /* the time both overlaps take: sqrt(2 e / a) + sqrt(2 phi / a_h) */
+};
+
+static void pivot_shape_of(struct pivot_shape *pv, const struct orders *o, int32_t tol_um)
+{
+	int64_t a = o->grip_a_um_s2[0], ah = o->grip_a_um_s2[1];
+	int64_t k = 3 * (int64_t)tol_um * (int64_t)(o->cfg.drive_track_um / 2u); /* 6 dev h */
+	int64_t turn = o->pi_track_um / 12; /* 30 degrees on the angle axis */
+
+	/* Each overlap turns the heading by 30 degrees at most: the heading turns by a_h e / a
+	 * in the first (on the angle axis), and phi in the last. */
+	pv->e_um = fx_isqrt64((uint64_t)(k * a / ah));
+	if (pv->e_um > turn * a / ah)
+		pv->e_um = turn * a / ah;
+	pv->phi_um = fx_isqrt64((uint64_t)(k * ah / a));
+	if (pv->phi_um > turn)
+		pv->phi_um = turn;
+	pv->overlap_us = fx_isqrt64((uint64_t)(2 * pv->e_um * 1000000000000 / a)) +
+			 fx_isqrt64((uint64_t)(2 * pv->phi_um * 1000000000000 / ah));
+}
+
+/* A rest-to-rest move of d_um at v_um_s and a_um_s2 at most [us]. */
+static int64_t move_us(int64_t d_um, int64_t v_um_s, int64_t a_um_s2)
+{
+	if (d_um * a_um_s2 >= v_um_s * v_um_s)
+		return d_um * 1000000 / v_um_s + v_um_s * 1000000 / a_um_s2;
+	return 2 * (int64_t)fx_isqrt64((uint64_t)(d_um * 1000000000000 / a_um_s2));
+}
+
+/* 1 when a pivot pv through a turn theta between lines len1_um and len2_um long loses less time
+ * than the curve sh (sh->v_um_s 0: none), each against the polyline at the line's speed v (the
+ * speed limit, or the peak the shorter line allows) [us]: the pivot v / a and what of the turn
+ * in place its overlaps leave (the first shorter within half the line: e no more than that);
+ * the curve its ramps from and to v, (v - v_c)^2 / (a v), and its length at v_c against the
+ * polyline's it replaces at v. */
+static int corner_pivots(const struct orders *o, const struct corner_shape *sh, uint32_t theta,
+			 int64_t len1_um, int64_t len2_um, const struct pivot_shape *pv)
+{
+	int64_t a = o->grip_a_um_s2[0], v = scaled(o, o->traj.v_max_um_s);
+	int64_t len = len1_um < len2_um ? len1_um : len2_um, vc = sh->v_um_s, turn, t;
+	int64_t curve_us, pivot_us;
+
+	if (v * v > a * len)
+		v = fx_isqrt64((uint64_t)(a * len));
+	if (vc < CORNER_V_MIN_UM_S || v <= vc)
+		return vc < CORNER_V_MIN_UM_S;
+	turn = (int64_t)((uint64_t)theta * (uint32_t)o->pi_track_um >> 32);
+	t = move_us(turn, scaled(o, o->rot.v_max_um_s), o->grip_a_um_s2[1]) -
+	    (pv->e_um > len1_um / 2 ? pv->overlap_us * len1_um / 2 / pv->e_um : pv->overlap_us);
+	pivot_us = v * 1000000 / a + (t > 0 ? t : 0);
+	curve_us = (v - vc) * (v - vc) / a * 1000000 / v +
+		   (2 * sh->clothoid_um + sh->arc_um) * 1000000 / vc -
+		   2 * sh->reach_um * 1000000 / v;
+	return pivot_us < curve_us;
+}
+#endif
+
 /* The robot at rest: an order that ended on a contact (a basket) ended at speed, held where it
  * was measured; the next one waits until the hold has stopped it. */
 static int at_rest(const struct planner *pl)
@@ -391,6 +457,17 @@ void motion_publish(const struct planner *pl, struct proto_snapshot *s)
 
 /* MOTION's braking distance and time, at the set points' speeds: computed again only when they
  * or the smoothing changed (a cruise costs nothing). */
+/* 1 / PAUSE's deceleration of an axis as ms_per_mm_s_q8: on a curve (mode 1), the curve's for
+ * the line; in a pivot (2), the pivot's; else the grip's shares. */
+static uint16_t braking_ms_per_mm_s_q8(const struct motion *mo, int32_t mode, uint8_t axis)
+{
+#if CONFIG_MOTION_CORNERS
+	if (mode == 2)
+		return mo->pivot_ms_per_mm_s_q8[axis];
+#endif
+	return mode == 1 && axis == 0 ? mo->curve_ms_per_mm_s_q8 : mo->ms_per_mm_s_q8[axis];
+}
+
 static void update_braking(struct motion *mo, const struct orders *o)
 {
 	/* Each speed rounded up to a step of 2^14 um/s (16.4 mm/s): the figures are those of the
@@ -410,6 +487,8 @@ static void update_braking(struct motion *mo, const struct orders *o)
 		ka = 0;
 		kf += (int32_t)1 << 20;
 	}
+	if (orders_pivoting(o)) /* at the pivot's accelerations */
+		kf += (int32_t)2 << 20;
 	if (kd == mo->braking_key[0] && ka == mo->braking_key[1] && kf == mo->braking_key[2])
 		return;
 	mo->braking_key[0] = kd;
@@ -418,12 +497,11 @@ static void update_braking(struct motion *mo, const struct orders *o)
 	mo->braking_mm = 0;
 	mo->braking_ms = 0;
 	if (kd != 0)
-		mo->braking_ms =
-			braking(mo, &o->dist, kd << 14,
-				kf >> 20 ? mo->curve_ms_per_mm_s_q8 : mo->ms_per_mm_s_q8[0],
-				&mo->braking_mm);
+		mo->braking_ms = braking(mo, &o->dist, kd << 14,
+					 braking_ms_per_mm_s_q8(mo, kf >> 20, 0), &mo->braking_mm);
 	if (ka != 0) {
-		ta = braking(mo, &o->angle, ka << 14, mo->ms_per_mm_s_q8[1], NULL);
+		ta = braking(mo, &o->angle, ka << 14, braking_ms_per_mm_s_q8(mo, kf >> 20, 1),
+			     NULL);
 		if (ta > mo->braking_ms)
 			mo->braking_ms = ta;
 	}
@@ -446,12 +524,14 @@ static int curve_joins(const struct proto_msg *msg)
  * speed [um/s] the line must be able to slow down to, and how far before the point; 0 and 0,
  * a stop at the point, when there is no such curve. */
 static void corner_ahead(struct motion_corner *k, const struct planner *pl,
-			 const struct motion_entry *next, int64_t rest_um, int64_t free_um)
+			 const struct motion_entry *next, int64_t rest_um, int64_t free_um,
+			 const struct pivot_shape *pv)
 {
 	const struct motion *mo = &pl->motion;
 	const struct orders *o = &pl->orders;
 	const struct motion_entry *after = &mo->queue[(mo->head + 1u) % PROTO_MOTION_QUEUE_DEPTH];
 	int64_t dx, dy, len3, room, v, a = o->grip_a_um_s2[0];
+	uint32_t theta;
 	struct corner_shape sh;
 
 	k->ahead_len1_um = (int32_t)rest_um;
@@ -464,10 +544,11 @@ static void corner_ahead(struct motion_corner *k, const struct planner *pl,
 	dx = (int64_t)(after->msg.arg[ARG_GOTO_X_MM] - next->msg.arg[ARG_GOTO_X_MM]) * UM_PER_MM;
 	dy = (int64_t)(after->msg.arg[ARG_GOTO_Y_MM] - next->msg.arg[ARG_GOTO_Y_MM]) * UM_PER_MM;
 	len3 = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
-	if (corner_fit(&sh, o, mo->corner_um,
-		       fx_angle_dist(fx_atan2((int32_t)dy, (int32_t)dx), k->heading_turn32),
-		       rest_um, len3, free_um, INT32_MAX, CORNER_R_MAX_UM) < 0)
-		return;
+	theta = fx_angle_dist(fx_atan2((int32_t)dy, (int32_t)dx), k->heading_turn32);
+	if (corner_fit(&sh, o, mo->corner_um, theta, rest_um, len3, free_um, INT32_MAX,
+		       CORNER_R_MAX_UM) < 0 ||
+	    corner_pivots(o, &sh, theta, rest_um, len3, pv))
+		return; /* a stop at the point, or a pivot there */
 	room = len3 / 2 - sh.reach_um;
 	v = sh.v_um_s;
 	if (v * v > 2 * a * room)
@@ -476,6 +557,24 @@ static void corner_ahead(struct motion_corner *k, const struct planner *pl,
 	k->ahead_reach_um = (int32_t)sh.reach_um;
 }
 
+#endif
+
+#if CONFIG_MOTION_CORNERS
+/* A pivot pv rather than the curve sh (v_um_s 0: none fits) at a corner k whose next order is a
+ * GOTO a curve may join, when it loses less time (corner_pivots(), on the line k was first
+ * planned with, as the corner before looked ahead at it): into k, 1. */
+static int pivot_plan(struct motion_corner *k, const struct orders *o,
+		      const struct corner_shape *sh, uint32_t theta, int64_t len2_um,
+		      const struct pivot_shape *pv)
+{
+	if (!corner_pivots(o, sh, theta, k->len1_um, len2_um, pv))
+		return 0;
+	k->pivot = 1;
+	k->pivot_um = (int32_t)(pv->e_um < k->len1_um / 2 ? pv->e_um : k->len1_um / 2);
+	/* phi on the angle axis as a heading [turn * 2^32] */
+	k->pivot_turn32 = (uint32_t)((pv->phi_um << 32) / o->pi_track_um);
+	return 1;
+}
 #endif
 
 /* The running order's corner with the next one waiting, k (motion.h), planned again when either
@@ -495,10 +594,13 @@ static void corner_plan(struct planner *pl, const struct board_config *cfg,
 	/* On a curve, the line after it; else from the estimate to the point, along the bearing */
 	int32_t len1 =
 		o->curve ? o->cv.rest_um : (int32_t)fx_isqrt64((uint64_t)(px * px + py * py));
-	uint32_t line = o->curve ? pl->motion.line_turn32 : o->bearing_turn32;
+	uint32_t line = o->curve ? pl->motion.line_turn32 : o->bearing_turn32, theta;
 	struct corner_shape sh;
 
 	k->ok = 0;
+#if CONFIG_MOTION_CORNERS
+	k->pivot = 0;
+#endif
 	if (k->seq != pl->motion.running_seq || k->next_seq != next->seq) {
 #if CONFIG_MOTION_CORNERS
 		/* The curve looked ahead at, as the last corner planned it */
@@ -514,23 +616,32 @@ static void corner_plan(struct planner *pl, const struct board_config *cfg,
 	    (!o->curve && !o->bearing_valid))
 		return;
 	k->heading_turn32 = fx_atan2((int32_t)dy, (int32_t)dx);
+	theta = fx_angle_dist(k->heading_turn32, line);
 	len2 = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
-	if (corner_fit(&sh, o, pl->motion.corner_um, fx_angle_dist(k->heading_turn32, line),
-		       k->len1_um, len2, free_um, INT32_MAX, CORNER_R_MAX_UM) < 0)
-		return;
+	if (corner_fit(&sh, o, pl->motion.corner_um, theta, k->len1_um, len2, free_um, INT32_MAX,
+		       CORNER_R_MAX_UM) < 0)
+		sh.v_um_s = 0;  /* no curve: a pivot, or the corner of before the curves */
 	a = o->grip_a_um_s2[0]; /* the line's, out of the curve */
+	u = o->sp_dist.vel_um_s;
 #if CONFIG_MOTION_CORNERS
-	/* No faster than the line after the curve can slow down for what follows it */
+	struct pivot_shape pv;
 	int64_t cap;
 
-	corner_ahead(k, pl, next, len2 - sh.reach_um, free_um);
+	pivot_shape_of(&pv, o, pl->motion.corner_um);
+	/* A pivot, where the line can still stop at the point */
+	if ((u * u <= 2 * a * len1 && pivot_plan(k, o, &sh, theta, len2, &pv)) || sh.v_um_s == 0)
+		return;
+	/* No faster than the line after the curve can slow down for what follows it */
+	corner_ahead(k, pl, next, len2 - sh.reach_um, free_um, &pv);
 	cap = (int64_t)k->ahead_v_um_s * k->ahead_v_um_s +
 	      2 * a * (len2 - sh.reach_um - k->ahead_reach_um - UM_PER_MM);
 	cap = cap > 0 ? (int64_t)fx_isqrt64((uint64_t)cap) : 0;
 	/* Slower, on the same radius at most: the curve starts no earlier, its clothoids shorter */
-	if (cap < sh.v_um_s &&
-	    corner_fit(&sh, o, pl->motion.corner_um, fx_angle_dist(k->heading_turn32, line),
-		       k->len1_um, len2, free_um, cap, sh.r_um) < 0)
+	if (cap < sh.v_um_s && corner_fit(&sh, o, pl->motion.corner_um, theta, k->len1_um, len2,
+					  free_um, cap, sh.r_um) < 0)
+		return;
+#else
+	if (sh.v_um_s == 0)
 		return;
 #endif
 	corner_limits(o, lim);
@@ -540,8 +651,7 @@ static void corner_plan(struct planner *pl, const struct board_config *cfg,
 	if (k->c.a_um_s2 < PROFILE_A_MIN_UM_S2)
 		k->c.a_um_s2 = PROFILE_A_MIN_UM_S2;
 	v = sh.v_um_s;
-	a = o->grip_a_um_s2[0]; /* the line's, out of the curve */
-	u = o->sp_dist.vel_um_s;
+	a = o->grip_a_um_s2[0];                           /* the line's, out of the curve */
 	if (u * u - v * v > 2 * a * (len1 - sh.reach_um)) /* too late to slow down for it */
 		return;
 	k->c.v_um_s = (int32_t)v;
@@ -575,12 +685,13 @@ static int corner_current(struct planner *pl, const struct board_config *cfg)
 
 void motion_before(struct planner *pl, const struct board_config *cfg)
 {
+#if CONFIG_MOTION_CORNERS
 	struct motion *mo = &pl->motion;
 	struct orders *o = &pl->orders;
 	const struct motion_corner *k = &mo->corner;
-	int32_t e;
+	int32_t e, stop_um;
 
-	if (!CONFIG_MOTION_CORNERS || !mo->through)
+	if (!mo->through)
 		return;
 	if (!mo->running || mo->count == 0 || mo->paused || o->designation != PROTO_GOTO ||
 	    (o->state != ORDER_STATE_TRANSLATE && !o->curve)) {
@@ -590,14 +701,16 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 	if (corner_current(pl, cfg) || o->curve) {
 		/* The line aims past the point by what braking to the curve's speed takes, less
 		 * the curve's start, from this very update on (on a curve, from its target). */
-		o->through_um = k->ok ? k->brake_um - k->reach_um : corner_reach_um(pl, cfg);
+		o->through_um = k->ok ? k->brake_um - k->reach_um
+				      : (k->pivot ? 0 : corner_reach_um(pl, cfg));
 		o->aim_wait = 1;
 		return;
 	}
-	e = k->ok ? k->brake_um : corner_reach_um(pl, cfg);
+	e = k->ok ? k->brake_um : (k->pivot ? k->pivot_um : corner_reach_um(pl, cfg));
 	if (!k->ok)
-		o->through_um = e;
-	if (profile_get_target_um(&o->dist) - o->sp_dist.pos_um > e)
+		o->through_um = k->pivot ? 0 : e;
+	stop_um = profile_get_target_um(&o->dist);
+	if (stop_um - o->sp_dist.pos_um > e)
 		return;
 	/* At the corner: this order is done, the next one starts on the curve (or turns while
 	 * the line brakes). */
@@ -614,5 +727,19 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 		mo->line_turn32 = k->heading_turn32;
 		mo->curve_ms_per_mm_s_q8 = (uint16_t)(r > 0xFFFFu ? 0xFFFFu : r);
 		mo->braking_vel[0] = INT32_MIN; /* MOTION's figures again, at the curve's */
+	} else if (k->pivot && mo->running) {
+		orders_pivot_start(o, stop_um, k->pivot_turn32);
+		for (uint8_t i = 0; i < 2;
+		     i++) { /* MOTION's figures at the pivot's accelerations */
+			uint32_t a = (uint32_t)o->grip_a_um_s2[i] / 1000u;
+			uint32_t r = ((1000u << 8) + a - 1u) / (a > 0 ? a : 1u);
+
+			mo->pivot_ms_per_mm_s_q8[i] = (uint16_t)(r > 0xFFFFu ? 0xFFFFu : r);
+		}
+		mo->braking_vel[0] = INT32_MIN;
 	}
+#else
+	(void)pl;
+	(void)cfg;
+#endif
 }

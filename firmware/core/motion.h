@@ -35,6 +35,11 @@ struct motion_corner {
 	int32_t ahead_len1_um;  /* the line after this curve, as that corner is planned with */
 	int32_t ahead_v_um_s;   /* the speed the line slows down to for it (0: a stop) */
 	int32_t ahead_reach_um; /* ... this far before the next point */
+	/* A pivot instead of a curve (ok 0; motion.c, pivot_plan()): the next order starts this
+	 * far before the point, and its line once its heading is within pivot_turn32 */
+	uint8_t pivot;
+	int32_t pivot_um;
+	uint32_t pivot_turn32;
 #endif
 };
 
@@ -65,6 +70,9 @@ struct motion {
 	uint16_t braking_ms;
 	int32_t braking_key[3];
 	int32_t braking_vel[2];
+#if CONFIG_MOTION_CORNERS
+	uint16_t pivot_ms_per_mm_s_q8[2]; /* 1 / a pivot's accelerations, as ms_per_mm_s_q8 */
+#endif
 };
 
 /* The default corner tolerance (SET_CORNER), [mm]. */

@@ -157,8 +157,10 @@ static void apply_limits(struct orders *o)
 		d.v_max_um_s = d.v_max_um_s < 1 ? 1 : d.v_max_um_s;
 		r.v_max_um_s = r.v_max_um_s < 1 ? 1 : r.v_max_um_s;
 	}
-	d.a_max_um_s2 = o->grip_a_um_s2[o->paused ? 2 : 0];
-	r.a_max_um_s2 = o->grip_a_um_s2[o->paused ? 3 : 1];
+	/* PAUSE at the grip's shares; in a pivot, at the pivot's own (within the grip too): the
+	 * line braking as it did to the point, the heading as fast as it turned */
+	d.a_max_um_s2 = o->grip_a_um_s2[o->paused && !orders_pivoting(o) ? 2 : 0];
+	r.a_max_um_s2 = o->grip_a_um_s2[o->paused && !orders_pivoting(o) ? 3 : 1];
 	if (CONFIG_MOTION_CORNERS && o->curve) { /* paused too: braking along the curve */
 		if (d.v_max_um_s > o->cv.v_um_s)
 			d.v_max_um_s = o->cv.v_um_s;
@@ -222,6 +224,9 @@ static void begin(struct orders *o, uint8_t designation)
 	o->braking = 0;
 	o->paused = 0;
 	o->through_um = 0;
+#if CONFIG_MOTION_CORNERS
+	o->pivot_turn32 = 0;
+#endif
 }
 
 static void end(struct orders *o, uint8_t reason)
@@ -618,8 +623,13 @@ static void step_goto(struct orders *o, const struct orders_measure *m)
 		return;
 	}
 	aim(o, m, bearing(o, &m->pose));
-	if (o->state == ORDER_STATE_TRANSLATE)
-		profile_set_target(&o->dist, m->dist_um + projection(o, &m->pose) + o->through_um);
+	if (o->state != ORDER_STATE_TRANSLATE)
+		return;
+	profile_set_target(&o->dist, m->dist_um + projection(o, &m->pose) + o->through_um);
+#if CONFIG_MOTION_CORNERS
+	if (o->pivot_turn32 != 0 && fx_abs32(o->sp_angle.vel_um_s) < o->cfg.arrive_speed_um_s)
+		o->pivot_turn32 = 0; /* the pivot's turn is over: a plain line */
+#endif
 }
 
 /* The curve's length [um]: a clothoid in, the arc, a clothoid out. */
@@ -643,6 +653,35 @@ void orders_curve_start(struct orders *o, const struct orders_measure *m,
 			orders_arc_um(o, fx_angle_diff(heading_turn32, m->pose.heading_turn32));
 	apply_limits(o);
 	o->through_um = 0;
+}
+
+void orders_pivot_start(struct orders *o, int32_t stop_um, uint32_t turn32)
+{
+#if CONFIG_MOTION_CORNERS
+	if (o->designation != PROTO_GOTO || o->state != ORDER_STATE_ROTATE || o->frozen)
+		return;
+	profile_set_target(&o->dist, stop_um);
+	o->pivot_turn32 = turn32 > 0 ? turn32 : 1;
+#else
+	(void)o;
+	(void)stop_um;
+	(void)turn32;
+#endif
+}
+
+/* A pivot's line may start (orders_pivot_start()): the heading within pivot_turn32 of the
+ * bearing (heading_err) and its rate braking, the line at rest at the last point. */
+static int pivot_go(const struct orders *o, uint32_t heading_err)
+{
+#if CONFIG_MOTION_CORNERS
+	return o->pivot_turn32 != 0 && heading_err <= o->pivot_turn32 &&
+	       profile_is_done(&o->dist) &&
+	       (int64_t)o->sp_angle.acc_um_s2 * o->sp_angle.vel_um_s < 0;
+#else
+	(void)o;
+	(void)heading_err;
+	return 0;
+#endif
 }
 
 /* On a curve: the line aims at the point along the curve and the line after it (and past it at
@@ -828,7 +867,7 @@ static uint8_t update_state(struct orders *o, const struct orders_measure *m)
 				? (o->bearing_valid ? o->bearing_turn32 : bearing(o, &m->pose))
 				: o->target_heading_turn32,
 			m->pose.heading_turn32);
-		if (heading_err > o->cfg.heading_window_turn32)
+		if (heading_err > o->cfg.heading_window_turn32 && !pivot_go(o, heading_err))
 			break;
 		if (o->designation == PROTO_GOTO_PANIER) {
 			enter(o, ORDER_STATE_PUSH);

@@ -195,6 +195,11 @@ struct orders {
 	struct orders_curve cv;
 	int32_t curve_d0;
 	int32_t curve_a0;
+#if CONFIG_MOTION_CORNERS
+	/* A GOTO that started on a pass-through corner's pivot (orders_pivot_start()): its line
+	 * starts once the heading is within this of the bearing and the heading's rate brakes. */
+	uint32_t pivot_turn32;
+#endif
 #if CONFIG_FIX
 	/* The last orders_update() re-aimed a GOTO: a heavy period, which a position fix's fusion
 	 * does not share (planner.c, step 6). */
@@ -282,6 +287,24 @@ void orders_resume(struct orders *o);
  * for another order or state. Interrupt-safe: no. */
 void orders_curve_start(struct orders *o, const struct orders_measure *m,
 			const struct orders_curve *c, uint32_t heading_turn32);
+
+/* A GOTO that has just started (ROTATE) from the moving robot at a pass-through corner's pivot
+ * (docs/control.md "Corners", 6): the distance axis goes on to stop_um (the last point) while
+ * the heading turns, and the line starts once the heading is within turn32 of its bearing, its
+ * rate braking, the distance axis at rest. Nothing for another order or state. Interrupt-safe:
+ * no. */
+void orders_pivot_start(struct orders *o, int32_t stop_um, uint32_t turn32);
+
+/* 1 while a GOTO that started on a pivot runs (orders_pivot_start()); 0 without the corners. */
+static inline int orders_pivoting(const struct orders *o)
+{
+#if CONFIG_MOTION_CORNERS
+	return o->pivot_turn32 != 0;
+#else
+	(void)o;
+	return 0;
+#endif
+}
 
 /* SET_SPEED_SCALE: both axes' speed limits times percent / 100 (at least 1 um/s), at once,
  * also for the running order (it slows down at its acceleration limit). Interrupt-safe: no. */
