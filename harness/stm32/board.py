@@ -302,7 +302,7 @@ class Stm32Board(_Lockstep):
     def _boot(self) -> None:
         stalled = self.flash.stalled_ns
         self.cpu.reset()
-        self.cpu.run_until_idle(max_insns=20_000_000)
+        self.cpu.run_until_idle()
         self._check_flash()
         self.boot_stall_ns = self.flash.stalled_ns - stalled
         self._check_boot()

@@ -8,12 +8,19 @@ PC = the vector) and catches the stop at the EXC_RETURN address to unstack the f
 The CPU runs until it reaches the main loop's sleep (the ``wfi`` of ``stm32_idle``) with no
 exception pending: the lockstep (board.py) then moves the world on and raises the next
 interrupt, which ends the wfi: the main loop runs after the handler, and sleeps again.
+
+A firmware that never gets there (a hang) is stopped by a watchdog thread after ``HANG_S``
+seconds of one run, not by an instruction budget: unicorn counts a budget with a callback at
+every instruction, which costs a quarter of the emulation's time.
 """
 
 from __future__ import annotations
 
 import ctypes
 import struct
+import threading
+import time
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -61,6 +68,7 @@ SYSTICK = 15  # exception numbers: PM0214 2.3.2
 IRQ0 = 16
 XPSR_STACK_ALIGN = 1 << 9  # PM0214 2.3.7: the frame was realigned to 8 bytes
 THREAD_PRIORITY = 256  # lower than any configurable priority
+HANG_S = 60.0  # [s] of wall-clock time one run of the CPU may take: past it, a hang (_Watchdog)
 # The exception frame (PM0214 2.3.7), then what entry reads besides: the registers in the order
 # they are stacked.
 FRAME_REGS = (
@@ -144,6 +152,47 @@ class RegBatch:
             raise UcError(err)
 
 
+class _Watchdog:
+    """One daemon thread per process over the CPUs that run: a run (one ``emu_start``, whose
+    count the CPU keeps odd while it lasts) that lasts more than ``HANG_S`` is stopped with
+    ``uc_emu_stop``, which unicorn lets another thread call (its own timeout does), and marked
+    ``hung`` for ``Cpu.step`` to report. A run takes milliseconds."""
+
+    def __init__(self) -> None:
+        self._cpus: weakref.WeakSet[Cpu] = weakref.WeakSet()
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+
+    def watch(self, cpu: Cpu) -> None:
+        with self._lock:
+            self._cpus.add(cpu)
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._loop, name="emu-watchdog", daemon=True)
+                self._thread.start()
+
+    def _loop(self) -> None:
+        since: dict[int, tuple[int, float]] = {}  # id(cpu) -> (its run, when first seen)
+        while True:
+            time.sleep(min(1.0, HANG_S / 4))
+            now = time.monotonic()
+            with self._lock:
+                cpus = list(self._cpus)
+            for cpu in cpus:
+                run = cpu.runs
+                if not run & 1:
+                    since.pop(id(cpu), None)
+                    continue
+                seen, t0 = since.setdefault(id(cpu), (run, now))
+                if seen != run:
+                    since[id(cpu)] = (run, now)
+                elif now - t0 > HANG_S:
+                    cpu.hung = True
+                    cpu.uc.emu_stop()
+
+
+_watchdog = _Watchdog()
+
+
 class Cpu:
     """The CPU, its memory and its exceptions. Peripheral models attach with ``mmio``; they
     report their interrupt lines through ``irq_line`` callbacks."""
@@ -202,6 +251,9 @@ class Cpu:
         self._counting = False
         self._block_insns: dict[tuple[int, int], int] = {}
         self.on_block: Callable[[int, int], None] | None = None
+        self.runs = 0  # emu_start calls begun and ended: odd while one runs (_Watchdog)
+        self.hung = False
+        _watchdog.watch(self)
 
     # ---- loading ---------------------------------------------------------------------------
     def _load(
@@ -343,31 +395,40 @@ class Cpu:
         if self.on_block is not None:
             self.on_block(address, n)
 
-    def step(self, until: int, max_insns: int) -> None:
-        """Runs from the current PC until ``until`` (or max_insns): EXC_RETURN stops are
-        unstacked here and the run goes on."""
+    def step(self, until: int, max_insns: int = 0) -> int:
+        """Runs from the current PC until ``until`` (or ``max_insns``, when given: unicorn then
+        calls its counter at every instruction; otherwise HANG_S guards): EXC_RETURN stops are
+        unstacked here and the run goes on. Returns the PC where it stopped."""
         pc = self.regs.read(UC_ARM_REG_PC)
         while True:
+            err: UcError | None = None
+            self.runs += 1
             try:
                 self.uc.emu_start(pc | 1, until, count=max_insns)
             except UcError as e:
-                pc = self.regs.read(UC_ARM_REG_PC)
-                if e.errno == UC_ERR_EXCEPTION and pc >= 0xFFFF_FFF0:
-                    pc = self.exception_return()
-                    if pc & ~1 == until:
-                        return
-                    continue
-                raise EmuError(f"CPU stopped at 0x{pc:08x}: {e}") from e
-            return
+                err = e
+            finally:
+                self.runs += 1
+            pc = self.regs.read(UC_ARM_REG_PC)
+            if self.hung:
+                raise EmuError(f"the firmware ran {HANG_S:g} s without stopping (PC 0x{pc:08x})")
+            if err is None:
+                return pc
+            if err.errno == UC_ERR_EXCEPTION and pc >= 0xFFFF_FFF0:
+                pc = self.exception_return()
+                if pc & ~1 == until:
+                    return pc
+                continue
+            raise EmuError(f"CPU stopped at 0x{pc:08x}: {err}") from err
 
     def wake(self, exc: int) -> None:
         """An exception ends the wfi the CPU sleeps in (PM0214 3.12.11): the wfi completes,
         and the exception returns to the instruction after it."""
         self._enter(exc, ((self.regs.read(UC_ARM_REG_PC) & ~1) + 2) | 1)
 
-    def run_until_idle(self, max_insns: int = 5_000_000) -> None:
+    def run_until_idle(self, max_insns: int = 0) -> None:
         """Runs the firmware, taking pending exceptions, until it sleeps in the main loop's
-        wfi with none left to take."""
+        wfi with none left to take (``max_insns``: as ``step``'s)."""
         pc = self.regs.read(UC_ARM_REG_PC) & ~1
         for _ in range(1000):
             if pc in self.idle_pcs and not self.active:
@@ -379,10 +440,9 @@ class Cpu:
                 exc = self._next_exception()
                 if exc is not None:
                     self.enter_exception(exc)
-            self.step(self.idle_pc, max_insns)
+            raw = self.step(self.idle_pc, max_insns)
             if self.halt:
                 return
-            raw = self.regs.read(UC_ARM_REG_PC)
             pc = raw & ~1
             if pc not in self.idle_pcs:
                 raise EmuError(f"the firmware did not reach its idle loop (PC 0x{raw:08x})")
