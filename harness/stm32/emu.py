@@ -203,6 +203,11 @@ class Cpu:
         would (the application alone is linked at its slot, not at the boot address)."""
         self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         self.uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
+        # SRAM first: mapped after the flash, unicorn 2.1.4 gives it the RAM offsets of the flash
+        # block at 0x08008000, so that a store at SRAM + k counts as a write to the code at
+        # 0x08008000 + k and throws its translation away (the application's struct board at
+        # 0x20008000 shares them with board_tick's code: every tick translated it again).
+        self.uc.mem_map(SRAM_BASE, SRAM_SIZE, UC_PROT_ALL)
         # Flash but its sectors 1 and 7, which the flash interface's model maps (periph.Flash).
         start = FLASH_BASE
         for base, size in NVM_AREAS:
@@ -211,7 +216,6 @@ class Cpu:
             start = base + size
         if start < FLASH_BASE + FLASH_SIZE:
             self.uc.mem_map(start, FLASH_BASE + FLASH_SIZE - start, UC_PROT_READ | UC_PROT_EXEC)
-        self.uc.mem_map(SRAM_BASE, SRAM_SIZE, UC_PROT_ALL)
         self.regs = RegFile(self.uc)
         # An exception's entry reads the frame and SP; its return writes them back (PC last).
         self._entry_regs = self.regs.batch((*FRAME_REGS, UC_ARM_REG_SP))
