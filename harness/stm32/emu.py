@@ -152,6 +152,53 @@ class RegBatch:
             raise UcError(err)
 
 
+_MMIO_READ = ctypes.CFUNCTYPE(
+    ctypes.c_uint64, ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint, ctypes.c_void_p
+)
+_MMIO_WRITE = ctypes.CFUNCTYPE(
+    None, ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint, ctypes.c_uint64, ctypes.c_void_p
+)
+
+
+def mmio_map(
+    uc: Uc,
+    address: int,
+    size: int,
+    read: Callable[[Any, int, int, Any], int],
+    read_user: Any,
+    write: Callable[[Any, int, int, int, Any], None],
+    write_user: Any,
+) -> None:
+    """``uc.mmio_map``, the callbacks called from unicorn's C directly: the binding wraps each in
+    two more Python calls (its exception guard, then its adapter), a third of an access's cost,
+    and a start-up reads the calibration's logs through 32 K of them. As in the binding, an
+    exception in a model stops the run, and ``emu_start`` raises it."""
+
+    def stopped(e: BaseException) -> None:
+        if uc._hook_exception is None:
+            uc._hook_exception = e  # type: ignore[assignment]  # (the binding's guard does so)
+        uc.emu_stop()
+
+    def rd(handle: int, offset: int, n: int, key: int) -> int:
+        try:
+            return read(uc, offset, n, read_user)
+        except BaseException as e:
+            stopped(e)
+            return 0
+
+    def wr(handle: int, offset: int, n: int, value: int, key: int) -> None:
+        try:
+            write(uc, offset, n, value, write_user)
+        except BaseException as e:
+            stopped(e)
+
+    rd_c, wr_c = _MMIO_READ(rd), _MMIO_WRITE(wr)
+    err = uclib.uc_mmio_map(uc._uch, address, size, rd_c, None, wr_c, None)
+    if err:
+        raise UcError(err)
+    uc._mmio_callbacks[(address, address + size)] = (rd_c, wr_c)  # kept alive, as the binding
+
+
 class _Watchdog:
     """One daemon thread per process over the CPUs that run: a run (one ``emu_start``, whose
     count the CPU keeps odd while it lasts) that lasts more than ``HANG_S`` is stopped with

@@ -53,6 +53,26 @@ def test_a_run_that_never_stops_is_stopped_and_reported(
     assert not cpu.runs & 1
 
 
+def test_an_exception_in_a_peripheral_model_stops_the_run_and_is_raised(
+    board: Stm32Board, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The models' callbacks are called from unicorn's C without the binding's guard
+    (emu.mmio_map): an exception in one still stops the run, and reaches the caller."""
+
+    def broken(off: int) -> int:
+        raise RuntimeError(f"GPIOA read at 0x{off:x}")
+
+    monkeypatch.setattr(board.gpio["A"], "read", broken)
+    cpu = board.cpu
+    code = SRAM_BASE + 0x1_0000  # above the firmware's RAM, below its stack
+    cpu.uc.mem_write(code, bytes.fromhex("08680868fee7"))  # ldr r0, [r1] (twice); b .
+    cpu.uc.reg_write(UC_ARM_REG_R1, 0x4002_0010)  # GPIOA IDR
+    cpu.uc.reg_write(UC_ARM_REG_PC, code | 1)
+    with pytest.raises(RuntimeError, match="GPIOA read at 0x10"):
+        cpu.step(code + 4)
+    assert not cpu.runs & 1
+
+
 def test_unicorn_stops_at_exc_return_without_the_workaround(board: Stm32Board) -> None:
     """The bug worked around: a handler's bx lr to EXC_RETURN stops the emulation."""
     cpu = board.cpu
