@@ -33,6 +33,7 @@ import math
 import re
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -163,10 +164,11 @@ class Bench(Stm32Board):
         self._timed(super().ev_read_end, ack)
 
 
-def flash_figures(elf: str) -> None:
+def flash_figures(elf: str) -> list[str]:
     """The calibration's two logs in flash (firmware/ports/stm32/nvm.c): a record's write after
     SET_ODOMETRIE, and the run-time erases of a switch from a full log to the other, in the
-    emulator."""
+    emulator: the lines to print."""
+    lines = []
     slot, slots, start_free = 16, 1024, 64  # stm32_nvm.h
     bc, sc, f = robot()
     b = Stm32Board(elf, sc, f, bc)
@@ -176,8 +178,10 @@ def flash_figures(elf: str) -> None:
     while b.flash.programs < slot // 4 or b.flash.busy():
         b.advance_ns(10_000)
     words = b.flash.programs
-    print("\n---- the calibration in flash (sectors 1 and 7, two logs of 16-byte records) ----")
-    print(
+    lines.append(
+        "\n---- the calibration in flash (sectors 1 and 7, two logs of 16-byte records) ----"
+    )
+    lines.append(
         f"a record: {words} words of 32 bits, written {(b.now_ns - t0) / 1e6:.1f} ms after "
         f"SET_ODOMETRIE's last byte; each word stalls the CPU's flash fetches "
         f"{b.flash.PROGRAM_NS / 1000:.0f} us (data sheet typical, 100 us at most); worst "
@@ -198,7 +202,7 @@ def flash_figures(elf: str) -> None:
         b.sleep(1.2)
         switched = bytes(b.flash.data_b[:slot]) * (slots - start_free)
         erase = max(b.stalls, default=0)
-        print(
+        lines.append(
             f"a run-time switch to sector {sector} (the log full, no order running, motors "
             f"off): {b.flash.erases} erase of sector {b.flash.erased[0]}, the CPU stalled "
             f"{erase / 1e6:.0f} ms (data sheet typical at x32; {most} at most), "
@@ -206,11 +210,12 @@ def flash_figures(elf: str) -> None:
             f"window widened to 5 s for it)"
         )
     b = Stm32Board(elf, sc, f, bc, nvm=log + bytes(slot))
-    print(
+    lines.append(
         f"start-up with fewer than {start_free} free slots: sector {b.flash.erased[0]} erased and "
         f"the record written there before the control starts, the start-up "
         f"{b.boot_stall_ns / 1e6:.0f} ms longer"
     )
+    return lines
 
 
 def sizes(b: Stm32Board) -> tuple[int, int]:
@@ -250,7 +255,7 @@ def side_by_side(b: Bench, avr: str) -> None:
         print(f"{name:<30} {st:>24} {av:>24}")
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("elf", nargs="?", default=str(ROOT / "build-stm32" / "asserv_stm32.elf"))
     ap.add_argument(
@@ -273,7 +278,24 @@ def main(argv: list[str] | None = None) -> int:
         "period over the whole tour",
     )
     add_strict_flag(ap)
-    args = ap.parse_args(argv)
+    return ap.parse_args(argv)
+
+
+@dataclass
+class Run:
+    """What a run of the bench measured (``measure``), for ``report`` to print and mark."""
+
+    b: Bench
+    ticks: int  # at the end of the move
+    fix_info: str  # with --fixes: FIX_INFO, read after it (the other figures count its bytes)
+    flash: list[str]  # flash_figures()
+    avr_cmd: list[str]
+    avr: str | OSError | None  # bench_avr's output, its failure to start, or None: not built
+
+
+def measure(args: argparse.Namespace) -> Run | int:
+    """The emulated runs of the bench (the move, the calibration's logs, the AVR's bench_avr
+    when built), or the exit code of an error already reported."""
     if args.fixes and args.corners:
         print("bench/stm32.py: --fixes and --corners: one at a time", file=sys.stderr)
         return 2
@@ -311,6 +333,23 @@ def main(argv: list[str] | None = None) -> int:
             age = FIX_AGES_MS[(polls // 10) % len(FIX_AGES_MS)]
             x, y, h = b.poses.get(b.ticks - age) or b.poses[max(b.poses)]
             board.fix(x + 5, y - 5, h + 0.5, 10, 1.0, age)
+    ticks = b.ticks
+    fix_info = str(board.fix_info()) if args.fixes else ""
+    flash = flash_figures(args.elf)
+    avr_bench, avr_elf = Path(args.avr_bench), Path(args.avr_elf)
+    cmd = [str(avr_bench), str(avr_elf), "--no-profile"]
+    avr: str | OSError | None = None
+    if avr_bench.is_file() and avr_elf.is_file():
+        try:
+            avr = subprocess.run(cmd, check=False, capture_output=True, text=True).stdout
+        except OSError as e:
+            avr = e
+    return Run(b, ticks, fix_info, flash, cmd, avr)
+
+
+def report(run: Run, args: argparse.Namespace) -> int:
+    """Prints the figures of ``run`` and its goal marked; the exit code."""
+    b, ticks = run.b, run.ticks
     flash, ram = sizes(b)
     print(
         f"asserv_stm32.elf on an STM32F446RE at {SYSCLK_HZ // 1_000_000} MHz (unicorn): control "
@@ -322,11 +361,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     if args.corners:
         tour = " ".join(f"({x}, {y})" for x, y in CORNER_TOUR)
-        print(f"{b.ticks} ticks ({b.ticks / 1000:.2f} s), a tour through {tour} (PASS_THROUGH)")
+        print(f"{ticks} ticks ({ticks / 1000:.2f} s), a tour through {tour} (PASS_THROUGH)")
     else:
-        print(f"{b.ticks} ticks ({b.ticks / 1000:.2f} s), 2.4 m at 1 m/s, 1 m/s^2")
+        print(f"{ticks} ticks ({ticks / 1000:.2f} s), 2.4 m at 1 m/s, 1 m/s^2")
     if args.fixes:
-        print(f"with a SET_FIX every 100 ms: {board.fix_info()}")
+        print(f"with a SET_FIX every 100 ms: {run.fix_info}")
     if "board_slow" not in b.cpu.symbols:
         print("(no board_slow symbol in this ELF: the servo / planner split is not measured)")
     for part, title in (("move", "over the move"), ("cruise", "at 1 m/s")):
@@ -364,26 +403,31 @@ def main(argv: list[str] | None = None) -> int:
         f"{ev.worst()} worst per event"
     )
     print(f"cycles per instruction assumed: {CPI}: {CPI_WHY}")
-    flash_figures(args.elf)
-    avr_bench, avr_elf = Path(args.avr_bench), Path(args.avr_elf)
+    for line in run.flash:
+        print(line)
     print("\n---- the AVR beside: ATmega1284P at 16 MHz, one rate (harness/avr/bench_avr) ----")
-    cmd = [str(avr_bench), str(avr_elf), "--no-profile"]
-    if avr_bench.is_file() and avr_elf.is_file():
-        try:
-            run = subprocess.run(cmd, check=False, capture_output=True, text=True)
-        except OSError as e:
-            print(f"bench/stm32.py: {avr_bench}: {e}", file=sys.stderr)
-            return 1
-        print(run.stdout, end="")
-        side_by_side(b, run.stdout)
+    if isinstance(run.avr, OSError):
+        print(f"bench/stm32.py: {run.avr_cmd[0]}: {run.avr}", file=sys.stderr)
+        return 1
+    if run.avr is not None:
+        print(run.avr, end="")
+        side_by_side(b, run.avr)
     else:
         print(
             "not built here; build it and print its figures with:\n"
             "  cmake -S . -B build-avr0 -G Ninja -DASSERV_AVR_HARNESS=ON -DASSERV_TESTS=OFF "
-            "-DASSERV_AVR_SLOW_SHIFT=0 && cmake --build build-avr0\n  " + " ".join(cmd)
+            "-DASSERV_AVR_SLOW_SHIFT=0 && cmake --build build-avr0\n  " + " ".join(run.avr_cmd)
         )
     print(f"\n{goals.summary()}")
     return goals.exit_code(args.strict)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    run = measure(args)
+    if isinstance(run, int):
+        return run
+    return report(run, args)
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ from pathlib import Path
 from random import Random
 from typing import Any
 
-from emu import IRQ0, SRAM_BASE, SRAM_SIZE, SYSTICK, Cpu, EmuError, struct_padding
+from emu import IRQ0, SRAM_BASE, SRAM_SIZE, SYSTICK, Cpu, EmuError, mmio_map, struct_padding
 from periph import Adc, Flash, Gpio, I2c, Iwdg, Pwr, Rcc, Regs, Scs, Timer
 from unicorn import UC_HOOK_CODE
 from unicorn.arm_const import UC_ARM_REG_R1
@@ -273,7 +273,7 @@ class Stm32Board(_Lockstep):
         for t in self.tim.values():
             t.attach(cpu.uc)
         # ADC1 and the common registers share one 1 KiB block (RM0390 Table 1).
-        cpu.uc.mmio_map(0x4001_2000, 0x400, self._adc_rd, None, self._adc_wr, None)
+        mmio_map(cpu.uc, 0x4001_2000, 0x400, self._adc_rd, None, self._adc_wr, None)
         cpu.priority = self._priority
         cpu.enabled = lambda exc: self.scs.irq_enabled(exc - IRQ0)
         cpu.irq_lines.append(self._i2c_lines)
@@ -302,7 +302,7 @@ class Stm32Board(_Lockstep):
     def _boot(self) -> None:
         stalled = self.flash.stalled_ns
         self.cpu.reset()
-        self.cpu.run_until_idle(max_insns=20_000_000)
+        self.cpu.run_until_idle()
         self._check_flash()
         self.boot_stall_ns = self.flash.stalled_ns - stalled
         self._check_boot()

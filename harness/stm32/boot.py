@@ -333,7 +333,7 @@ class BootBoard(Stm32Board):
         self.reset_requested = False
         self.flash.stall_on_sr = False  # the reset handler reads no flash register
         self.cpu.reset()
-        self.cpu.run_until_idle(max_insns=50_000_000)
+        self.cpu.run_until_idle()
         if self.reset_requested:
             raise EmuError("a system reset during the start-up")
         self._check_flash()

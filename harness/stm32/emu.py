@@ -8,11 +8,19 @@ PC = the vector) and catches the stop at the EXC_RETURN address to unstack the f
 The CPU runs until it reaches the main loop's sleep (the ``wfi`` of ``stm32_idle``) with no
 exception pending: the lockstep (board.py) then moves the world on and raises the next
 interrupt, which ends the wfi: the main loop runs after the handler, and sleeps again.
+
+A firmware that never gets there (a hang) is stopped by a watchdog thread after ``HANG_S``
+seconds of one run, not by an instruction budget: unicorn counts a budget with a callback at
+every instruction, which costs a quarter of the emulation's time.
 """
 
 from __future__ import annotations
 
+import ctypes
 import struct
+import threading
+import time
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -43,7 +51,7 @@ from unicorn.arm_const import (
     UC_ARM_REG_XPSR,
     UC_CPU_ARM_CORTEX_M4,
 )
-from unicorn.unicorn_py3.unicorn import Uc, UcError
+from unicorn.unicorn_py3.unicorn import Uc, UcError, uclib
 
 FLASH_BASE = 0x0800_0000
 FLASH_SIZE = 512 * 1024
@@ -60,6 +68,19 @@ SYSTICK = 15  # exception numbers: PM0214 2.3.2
 IRQ0 = 16
 XPSR_STACK_ALIGN = 1 << 9  # PM0214 2.3.7: the frame was realigned to 8 bytes
 THREAD_PRIORITY = 256  # lower than any configurable priority
+HANG_S = 60.0  # [s] of wall-clock time one run of the CPU may take: past it, a hang (_Watchdog)
+# The exception frame (PM0214 2.3.7), then what entry reads besides: the registers in the order
+# they are stacked.
+FRAME_REGS = (
+    UC_ARM_REG_R0,
+    UC_ARM_REG_R1,
+    UC_ARM_REG_R2,
+    UC_ARM_REG_R3,
+    UC_ARM_REG_R12,
+    UC_ARM_REG_LR,
+    UC_ARM_REG_PC,
+    UC_ARM_REG_XPSR,
+)
 
 
 class EmuError(RuntimeError):
@@ -77,6 +98,148 @@ def thumb_insn_count(code: bytes) -> int:
     return n
 
 
+class RegFile:
+    """unicorn's register calls, made on the engine's handle directly: the binding's
+    ``reg_read``/``reg_write`` choose a ctypes type per call in Python (1.4 us; 0.5 us here),
+    and the lockstep reads and writes some 30 registers per bus event; an exception's entry
+    and return read or write theirs in one batch call (14 us through the binding's
+    ``reg_read_batch``; 1.6 us here). Values are the 32-bit registers of the M profile."""
+
+    def __init__(self, uc: Uc) -> None:
+        self._h = uc._uch
+        self._val = ctypes.c_uint64()
+        self._ref = ctypes.byref(self._val)
+
+    def read(self, reg: int) -> int:
+        err = uclib.uc_reg_read(self._h, reg, self._ref)
+        if err:
+            raise UcError(err, reg)
+        return int(self._val.value)
+
+    def write(self, reg: int, value: int) -> None:
+        self._val.value = value & 0xFFFF_FFFF
+        err = uclib.uc_reg_write(self._h, reg, self._ref)
+        if err:
+            raise UcError(err, reg)
+
+    def batch(self, regs: tuple[int, ...]) -> RegBatch:
+        return RegBatch(self._h, regs)
+
+
+class RegBatch:
+    """A fixed list of registers read or written in one call, in its order."""
+
+    def __init__(self, handle: Any, regs: tuple[int, ...]) -> None:
+        n = len(regs)
+        self._h = handle
+        self._n = n
+        self._ids = (ctypes.c_int * n)(*regs)
+        self._vals = (ctypes.c_uint64 * n)()
+        base = ctypes.addressof(self._vals)
+        self._ptrs = (ctypes.c_void_p * n)(*(base + 8 * i for i in range(n)))
+
+    def read(self) -> list[int]:
+        err = uclib.uc_reg_read_batch(self._h, self._ids, self._ptrs, self._n)
+        if err:
+            raise UcError(err)
+        return list(self._vals)
+
+    def write(self, values: list[int]) -> None:
+        for i, v in enumerate(values):
+            self._vals[i] = v & 0xFFFF_FFFF
+        err = uclib.uc_reg_write_batch(self._h, self._ids, self._ptrs, self._n)
+        if err:
+            raise UcError(err)
+
+
+_MMIO_READ = ctypes.CFUNCTYPE(
+    ctypes.c_uint64, ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint, ctypes.c_void_p
+)
+_MMIO_WRITE = ctypes.CFUNCTYPE(
+    None, ctypes.c_void_p, ctypes.c_uint64, ctypes.c_uint, ctypes.c_uint64, ctypes.c_void_p
+)
+
+
+def mmio_map(
+    uc: Uc,
+    address: int,
+    size: int,
+    read: Callable[[Any, int, int, Any], int],
+    read_user: Any,
+    write: Callable[[Any, int, int, int, Any], None],
+    write_user: Any,
+) -> None:
+    """``uc.mmio_map``, the callbacks called from unicorn's C directly: the binding wraps each in
+    two more Python calls (its exception guard, then its adapter), a third of an access's cost,
+    and a start-up reads the calibration's logs through 32 K of them. As in the binding, an
+    exception in a model stops the run, and ``emu_start`` raises it."""
+
+    def stopped(e: BaseException) -> None:
+        if uc._hook_exception is None:
+            uc._hook_exception = e  # type: ignore[assignment]  # (the binding's guard does so)
+        uc.emu_stop()
+
+    def rd(handle: int, offset: int, n: int, key: int) -> int:
+        try:
+            return read(uc, offset, n, read_user)
+        except BaseException as e:
+            stopped(e)
+            return 0
+
+    def wr(handle: int, offset: int, n: int, value: int, key: int) -> None:
+        try:
+            write(uc, offset, n, value, write_user)
+        except BaseException as e:
+            stopped(e)
+
+    rd_c, wr_c = _MMIO_READ(rd), _MMIO_WRITE(wr)
+    err = uclib.uc_mmio_map(uc._uch, address, size, rd_c, None, wr_c, None)
+    if err:
+        raise UcError(err)
+    uc._mmio_callbacks[(address, address + size)] = (rd_c, wr_c)  # kept alive, as the binding
+
+
+class _Watchdog:
+    """One daemon thread per process over the CPUs that run: a run (one ``emu_start``, whose
+    count the CPU keeps odd while it lasts) that lasts more than ``HANG_S`` is stopped with
+    ``uc_emu_stop``, which unicorn lets another thread call (its own timeout does), and marked
+    ``hung`` for ``Cpu.step`` to report. A run takes milliseconds."""
+
+    def __init__(self) -> None:
+        self._cpus: weakref.WeakSet[Cpu] = weakref.WeakSet()
+        self._lock = threading.Lock()
+        self._thread: threading.Thread | None = None
+
+    def watch(self, cpu: Cpu) -> None:
+        with self._lock:
+            self._cpus.add(cpu)
+            if self._thread is None:
+                self._thread = threading.Thread(target=self._loop, name="emu-watchdog", daemon=True)
+                self._thread.start()
+
+    def _loop(self) -> None:
+        since: dict[int, tuple[int, float]] = {}  # id(cpu) -> (its run, when first seen)
+        while True:
+            time.sleep(min(1.0, HANG_S / 4))
+            now = time.monotonic()
+            with self._lock:
+                cpus = list(self._cpus)
+            for cpu in cpus:
+                run = cpu.runs
+                if not run & 1:
+                    since.pop(id(cpu), None)
+                    continue
+                seen, t0 = since.setdefault(id(cpu), (run, now))
+                if seen != run:
+                    since[id(cpu)] = (run, now)
+                elif now - t0 > HANG_S:
+                    cpu.hung = True
+                    cpu.uc.emu_stop()
+
+
+_watchdog = _Watchdog()
+
+
 class Cpu:
     """The CPU, its memory and its exceptions. Peripheral models attach with ``mmio``; they
     report their interrupt lines through ``irq_line`` callbacks."""
@@ -87,6 +250,11 @@ class Cpu:
         would (the application alone is linked at its slot, not at the boot address)."""
         self.uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
         self.uc.ctl_set_cpu_model(UC_CPU_ARM_CORTEX_M4)
+        # SRAM first: mapped after the flash, unicorn 2.1.4 gives it the RAM offsets of the flash
+        # block at 0x08008000, so that a store at SRAM + k counts as a write to the code at
+        # 0x08008000 + k and throws its translation away (the application's struct board at
+        # 0x20008000 shares them with board_tick's code: every tick translated it again).
+        self.uc.mem_map(SRAM_BASE, SRAM_SIZE, UC_PROT_ALL)
         # Flash but its sectors 1 and 7, which the flash interface's model maps (periph.Flash).
         start = FLASH_BASE
         for base, size in NVM_AREAS:
@@ -95,7 +263,12 @@ class Cpu:
             start = base + size
         if start < FLASH_BASE + FLASH_SIZE:
             self.uc.mem_map(start, FLASH_BASE + FLASH_SIZE - start, UC_PROT_READ | UC_PROT_EXEC)
-        self.uc.mem_map(SRAM_BASE, SRAM_SIZE, UC_PROT_ALL)
+        self.regs = RegFile(self.uc)
+        # An exception's entry reads the frame and SP; its return writes them back (PC last).
+        self._entry_regs = self.regs.batch((*FRAME_REGS, UC_ARM_REG_SP))
+        self._return_regs = self.regs.batch(
+            (*FRAME_REGS[:6], UC_ARM_REG_SP, UC_ARM_REG_XPSR, UC_ARM_REG_PC)
+        )
         self.symbols: dict[str, int] = {}
         self.sizes: dict[str, int] = {}
         self.sections: dict[str, int] = {}
@@ -129,6 +302,9 @@ class Cpu:
         self._counting = False
         self._block_insns: dict[tuple[int, int], int] = {}
         self.on_block: Callable[[int, int], None] | None = None
+        self.runs = 0  # emu_start calls begun and ended: odd while one runs (_Watchdog)
+        self.hung = False
+        _watchdog.watch(self)
 
     # ---- loading ---------------------------------------------------------------------------
     def _load(
@@ -176,15 +352,15 @@ class Cpu:
         self.uc.mem_write(addr, struct.pack("<I", value & 0xFFFFFFFF))
 
     def reg(self, r: int) -> int:
-        return int(self.uc.reg_read(r))
+        return self.regs.read(r)
 
     # ---- reset and exceptions --------------------------------------------------------------
     def reset(self) -> None:
         """PM0214 2.3.1 (reset): SP from vector 0, PC from vector 1 (the boot alias of flash)."""
-        self.uc.reg_write(UC_ARM_REG_SP, self.read32(self.reset_base))
-        self.uc.reg_write(UC_ARM_REG_PC, self.read32(self.reset_base + 4))
-        self.uc.reg_write(UC_ARM_REG_LR, 0xFFFF_FFFF)
-        self.uc.reg_write(UC_ARM_REG_PRIMASK, 0)  # PM0214 2.1.3: PRIMASK is 0 at reset
+        self.regs.write(UC_ARM_REG_SP, self.read32(self.reset_base))
+        self.regs.write(UC_ARM_REG_PC, self.read32(self.reset_base + 4))
+        self.regs.write(UC_ARM_REG_LR, 0xFFFF_FFFF)
+        self.regs.write(UC_ARM_REG_PRIMASK, 0)  # PM0214 2.1.3: PRIMASK is 0 at reset
         self.halt = False
 
     def _current_priority(self) -> int:
@@ -193,7 +369,7 @@ class Cpu:
     def _next_exception(self) -> int | None:
         """The pending exception to take now, if any (PM0214 2.3.4: the lowest priority value
         wins, then the lowest number)."""
-        if self.reg(UC_ARM_REG_PRIMASK) & 1:
+        if self.regs.read(UC_ARM_REG_PRIMASK) & 1:
             return None
         candidates = set(self.pending)
         for line in self.irq_lines:
@@ -213,51 +389,44 @@ class Cpu:
         """Exception entry, PM0214 2.3.7: the frame r0-r3, r12, lr, return address, xPSR
         pushed on the main stack (realigned to 8 bytes, flagged in the stacked xPSR bit 9),
         LR = EXC_RETURN, PC = the vector."""
-        sp = self.reg(UC_ARM_REG_SP)
-        xpsr = self.reg(UC_ARM_REG_XPSR)
+        self._enter(exc, None)
+
+    def _enter(self, exc: int, resume: int | None) -> None:
+        """``enter_exception``, the return address ``resume`` (default: the PC)."""
+        *frame, sp = self._entry_regs.read()
+        xpsr = frame[7]
         if sp & 4:
             sp -= 4
             xpsr |= XPSR_STACK_ALIGN
         else:
             xpsr &= ~XPSR_STACK_ALIGN
         sp -= 32
-        regs = [
-            self.reg(r)
-            for r in (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12)
-        ]
-        frame = [*regs, self.reg(UC_ARM_REG_LR), self.reg(UC_ARM_REG_PC), xpsr | 1 << 24]
+        if resume is not None:
+            frame[6] = resume
+        frame[7] = xpsr | 1 << 24
         self.uc.mem_write(sp, struct.pack("<8I", *[v & 0xFFFFFFFF for v in frame]))
-        self.uc.reg_write(UC_ARM_REG_SP, sp)
-        self.uc.reg_write(
-            UC_ARM_REG_LR, EXC_RETURN_HANDLER if self.active else EXC_RETURN_THREAD_MSP
-        )
+        regs = self.regs
+        regs.write(UC_ARM_REG_SP, sp)
+        regs.write(UC_ARM_REG_LR, EXC_RETURN_HANDLER if self.active else EXC_RETURN_THREAD_MSP)
         self.pending.discard(exc)
         self.active.append(exc)
-        vector = self.read32(self.vtor + 4 * exc)
-        self.uc.reg_write(UC_ARM_REG_PC, vector)
+        regs.write(UC_ARM_REG_PC, self.read32(self.vtor + 4 * exc))
 
-    def exception_return(self) -> None:
+    def exception_return(self) -> int:
         """Exception return (PM0214 2.3.7), done here: unstack the frame, restore the
-        alignment, leave the active exception."""
+        alignment, leave the active exception. Returns the PC it returns to."""
         if not self.active:
             raise EmuError("exception return with no active exception")
-        sp = self.reg(UC_ARM_REG_SP)
+        sp = self.regs.read(UC_ARM_REG_SP)
         r0, r1, r2, r3, r12, lr, pc, xpsr = struct.unpack("<8I", self.uc.mem_read(sp, 32))
         sp += 32
         if xpsr & XPSR_STACK_ALIGN:
             sp += 4
-        for r, v in zip(
-            (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R12),
-            (r0, r1, r2, r3, r12),
-            strict=True,
-        ):
-            self.uc.reg_write(r, v)
-        self.uc.reg_write(UC_ARM_REG_LR, lr)
-        self.uc.reg_write(UC_ARM_REG_SP, sp)
-        self.uc.reg_write(UC_ARM_REG_XPSR, xpsr & ~XPSR_STACK_ALIGN)
-        self.uc.reg_write(UC_ARM_REG_PC, pc | 1)
+        pc |= 1
+        self._return_regs.write([r0, r1, r2, r3, r12, lr, sp, xpsr & ~XPSR_STACK_ALIGN, pc])
         self.active.pop()
         self.exception_returns += 1
+        return int(pc)
 
     # ---- running ---------------------------------------------------------------------------
     def count_instructions(self, on: bool) -> None:
@@ -277,49 +446,57 @@ class Cpu:
         if self.on_block is not None:
             self.on_block(address, n)
 
-    def step(self, until: int, max_insns: int) -> None:
-        """Runs from the current PC until ``until`` (or max_insns): EXC_RETURN stops are
-        unstacked here and the run goes on."""
+    def step(self, until: int, max_insns: int = 0) -> int:
+        """Runs from the current PC until ``until`` (or ``max_insns``, when given: unicorn then
+        calls its counter at every instruction; otherwise HANG_S guards): EXC_RETURN stops are
+        unstacked here and the run goes on. Returns the PC where it stopped."""
+        pc = self.regs.read(UC_ARM_REG_PC)
         while True:
-            pc = self.reg(UC_ARM_REG_PC)
+            err: UcError | None = None
+            self.runs += 1
             try:
                 self.uc.emu_start(pc | 1, until, count=max_insns)
             except UcError as e:
-                pc = self.reg(UC_ARM_REG_PC)
-                if e.errno == UC_ERR_EXCEPTION and pc >= 0xFFFF_FFF0:
-                    self.exception_return()
-                    if self.reg(UC_ARM_REG_PC) & ~1 == until:
-                        return
-                    continue
-                raise EmuError(f"CPU stopped at 0x{pc:08x}: {e}") from e
-            return
+                err = e
+            finally:
+                self.runs += 1
+            pc = self.regs.read(UC_ARM_REG_PC)
+            if self.hung:
+                raise EmuError(f"the firmware ran {HANG_S:g} s without stopping (PC 0x{pc:08x})")
+            if err is None:
+                return pc
+            if err.errno == UC_ERR_EXCEPTION and pc >= 0xFFFF_FFF0:
+                pc = self.exception_return()
+                if pc & ~1 == until:
+                    return pc
+                continue
+            raise EmuError(f"CPU stopped at 0x{pc:08x}: {err}") from err
 
     def wake(self, exc: int) -> None:
         """An exception ends the wfi the CPU sleeps in (PM0214 3.12.11): the wfi completes,
         and the exception returns to the instruction after it."""
-        self.uc.reg_write(UC_ARM_REG_PC, ((self.reg(UC_ARM_REG_PC) & ~1) + 2) | 1)
-        self.enter_exception(exc)
+        self._enter(exc, ((self.regs.read(UC_ARM_REG_PC) & ~1) + 2) | 1)
 
-    def run_until_idle(self, max_insns: int = 5_000_000) -> None:
+    def run_until_idle(self, max_insns: int = 0) -> None:
         """Runs the firmware, taking pending exceptions, until it sleeps in the main loop's
-        wfi with none left to take."""
+        wfi with none left to take (``max_insns``: as ``step``'s)."""
+        pc = self.regs.read(UC_ARM_REG_PC) & ~1
         for _ in range(1000):
-            pc = self.reg(UC_ARM_REG_PC) & ~1
             if pc in self.idle_pcs and not self.active:
                 exc = self._next_exception()
                 if exc is None:
                     return
-                self.wake(exc)
+                self._enter(exc, (pc + 2) | 1)  # wake(): the wfi completes
             elif self.active:
                 exc = self._next_exception()
                 if exc is not None:
                     self.enter_exception(exc)
-            self.step(self.idle_pc, max_insns)
+            raw = self.step(self.idle_pc, max_insns)
             if self.halt:
                 return
-            if self.reg(UC_ARM_REG_PC) & ~1 not in self.idle_pcs:
-                pc = self.reg(UC_ARM_REG_PC)
-                raise EmuError(f"the firmware did not reach its idle loop (PC 0x{pc:08x})")
+            pc = raw & ~1
+            if pc not in self.idle_pcs:
+                raise EmuError(f"the firmware did not reach its idle loop (PC 0x{raw:08x})")
         raise EmuError("interrupts kept coming: an interrupt line is never cleared")
 
 

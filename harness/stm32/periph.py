@@ -7,6 +7,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from random import Random
 
+from emu import mmio_map
 from unicorn.unicorn_py3.unicorn import Uc
 
 HSE_HZ = 8_000_000  # the ST-LINK's MCO on OSC_IN
@@ -24,7 +25,7 @@ SECTOR_ERASE_NS = {
 
 
 class Regs:
-    """A block of 32-bit registers mapped with unicorn's mmio_map. Subclasses override
+    """A block of 32-bit registers mapped as IO (emu.mmio_map). Subclasses override
     ``read``/``write`` for the registers that behave; the others are plain storage."""
 
     size = 0x400
@@ -38,7 +39,7 @@ class Regs:
         pass
 
     def attach(self, uc: Uc) -> None:
-        uc.mmio_map(self.base, self.size, self._rd, None, self._wr, None)
+        mmio_map(uc, self.base, self.size, self._rd, None, self._wr, None)
 
     def _rd(self, uc: object, offset: int, size: int, user: object) -> int:
         aligned = offset & ~3
@@ -367,7 +368,7 @@ class Flash(Regs):
     def attach_sector(self, uc: Uc) -> None:
         for _, addr, size in NVM_SECTORS:
             base = addr - FLASH_BASE  # each access's offset is the sector's: user adds this
-            uc.mmio_map(addr, size, self._array_rd, base, self._array_wr, base)
+            mmio_map(uc, addr, size, self._array_rd, base, self._array_wr, base)
 
     def _array_rd(self, uc: object, offset: int, size: int, user: int) -> int:
         self.stall()

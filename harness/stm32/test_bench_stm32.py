@@ -1,12 +1,22 @@
 """bench/stm32.py marks issue 19's goal (the busiest period at 1 m/s, 5 % or less) met or MISSED,
-ends with the summary line, and exits 1 on a miss only with --strict."""
+ends with the summary line, and exits 1 on a miss only with --strict; docs/stm32.md's figures are
+what it prints.
+
+Each run of the bench (the move, without and with --fixes, and --corners) is emulated once, in a
+module fixture, by each pytest-xdist worker that runs a test of this module; the tests print and
+mark it as they need (``bench.report``). What the bench printed, without and with --fixes, goes
+into the build (``printed``): the figures scripts/test.sh shows after the tests."""
 
 from __future__ import annotations
 
+import argparse
+import contextlib
 import importlib
+import io
 import re
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 from conftest import ROOT
@@ -17,17 +27,56 @@ bench = importlib.import_module("stm32")
 GOAL = re.compile(
     r"  goal: the busiest period at 1 m/s, without position fixes: ([\d.]+) <= 5 %: (met|MISSED)"
 )
+NO_AVR = ("--avr-bench", "/nonexistent")
+
+Measured = tuple[argparse.Namespace, Any]  # the bench's arguments, its bench.Run
 
 
-def run(elf: Path, capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, list[str]]:
-    code = bench.main([str(elf), "--avr-bench", "/nonexistent", *argv])
-    return code, capsys.readouterr().out.splitlines()
+def measure(elf: Path, *argv: str) -> Measured:
+    args = bench.parse_args([str(elf), *argv])
+    run = bench.measure(args)
+    assert not isinstance(run, int), f"bench/stm32.py {' '.join(argv)}: exit {run}"
+    return args, run
 
 
-def test_the_busiest_period_is_marked_against_5_percent(
-    elf: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    code, out = run(elf, capsys, "--strict")
+def report(measured: Measured, strict: bool = False) -> tuple[int, list[str]]:
+    """What bench/stm32.py prints for this run, and its exit code (with ``--strict``: 1 on a
+    miss)."""
+    args, run = measured
+    args = argparse.Namespace(**{**vars(args), "strict": strict})
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = bench.report(run, args)
+    return code, out.getvalue().splitlines()
+
+
+def printed(elf: Path, name: str, out: list[str]) -> None:
+    """What the bench printed, into the build beside the ELF (bench/<name>.txt), for
+    scripts/test.sh to show."""
+    path = elf.parent / "bench" / f"{name}.txt"
+    path.parent.mkdir(exist_ok=True)
+    path.write_text("".join(line + "\n" for line in out))
+
+
+@pytest.fixture(scope="module")
+def plain_run(elf: Path) -> Measured:
+    """The move as `python bench/stm32.py ELF` runs it: the one-rate AVR's bench_avr beside when
+    scripts/test.sh has built it."""
+    return measure(elf)
+
+
+@pytest.fixture(scope="module")
+def fixes_run(elf: Path) -> Measured:
+    return measure(elf, *NO_AVR, "--fixes")
+
+
+@pytest.fixture(scope="module")
+def corners_run(elf: Path) -> Measured:
+    return measure(elf, *NO_AVR, "--corners")
+
+
+def test_the_busiest_period_is_marked_against_5_percent(plain_run: Measured) -> None:
+    code, out = report(plain_run, strict=True)
     goals = [m for m in map(GOAL.fullmatch, out) if m]
     assert len(goals) == 1, out
     busiest = next(line for line in out if line.startswith("  busiest period at 1 m/s"))
@@ -39,17 +88,17 @@ def test_the_busiest_period_is_marked_against_5_percent(
 
 
 def test_a_missed_goal_is_marked_and_fails_only_with_strict(
-    elf: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+    plain_run: Measured, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setattr(bench, "GOAL_LOAD_PCT", 1.0)
-    code, out = run(elf, capsys, "--strict")
+    code, out = report(plain_run, strict=True)
     assert any(line.endswith("<= 1 %: MISSED") for line in out), out
     assert out[-1] == (
         "bench/stm32.py: goals met: 0 of 1; MISSED: goal: the busiest period at 1 m/s, "
         "without position fixes"
     )
     assert code == 1
-    assert run(elf, capsys)[0] == 0
+    assert report(plain_run)[0] == 0
 
 
 def _doc_table() -> dict[str, tuple[str, str]]:
@@ -116,17 +165,19 @@ def _figure(out: list[str], pattern: str, after: str = "") -> re.Match[str]:
 
 
 def test_the_figures_in_docs_stm32_md_are_what_the_bench_prints(
-    elf: Path, capsys: pytest.CaptureFixture[str]
+    elf: Path, plain_run: Measured, fixes_run: Measured, corners_run: Measured
 ) -> None:
     """Every cell of docs/stm32.md's table of figures, as bench/stm32.py prints it at this commit
     (the AVR's column from bench_avr's one-rate build, when scripts/test.sh has built it)."""
     avr_bench = ROOT / "build-avr0" / "harness" / "avr" / "bench_avr"
-    code, out = bench.main([str(elf)]), capsys.readouterr().out.splitlines()
-    fixes_code, fixes = bench.main([str(elf), "--avr-bench", "/nonexistent", "--fixes"]), None
-    fixes = capsys.readouterr().out.splitlines()
-    corners_code = bench.main([str(elf), "--avr-bench", "/nonexistent", "--corners"])
-    corners = capsys.readouterr().out.splitlines()
+    (code, out), (fixes_code, fixes), (corners_code, corners) = (
+        report(plain_run),
+        report(fixes_run),
+        report(corners_run),
+    )
     assert code == 0 and fixes_code == 0 and corners_code == 0
+    printed(elf, "stm32", out)
+    printed(elf, "stm32_fixes", fixes)
     cruise = "at 1 m/s ("
     tick = _figure(out, r"control tick \(SysTick handler\)\s+(\d+) mean\s+(\d+) worst", cruise)
     servo = _figure(

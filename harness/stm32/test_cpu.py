@@ -3,12 +3,14 @@ unicorn 2.1.4's faulty exception return, and what the firmware set up at boot (c
 timers, the configuration compiled in)."""
 
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
+import emu
 import pytest
 from board import Stm32Board, robot
-from emu import IRQ0, SYSTICK, Cpu, EmuError, thumb_insn_count
+from emu import IRQ0, SRAM_BASE, SYSTICK, Cpu, EmuError, thumb_insn_count
 from unicorn import UC_ERR_EXCEPTION
 from unicorn.arm_const import (
     UC_ARM_REG_LR,
@@ -31,6 +33,44 @@ REGS = (UC_ARM_REG_R0, UC_ARM_REG_R1, UC_ARM_REG_R2, UC_ARM_REG_R3, UC_ARM_REG_R
 def board(elf: Any) -> Stm32Board:
     bc, sc, f = robot()
     return Stm32Board(elf, sc, f, bc)
+
+
+def test_a_run_that_never_stops_is_stopped_and_reported(
+    board: Stm32Board, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """No instruction budget (unicorn would count every instruction): a run that never reaches
+    where it stops, here a branch to itself in RAM, is stopped by the watchdog after HANG_S of
+    wall-clock time and reported."""
+    monkeypatch.setattr(emu, "HANG_S", 0.5)
+    cpu = board.cpu
+    loop = SRAM_BASE + 0x1_0000  # above the firmware's RAM, below its stack
+    cpu.uc.mem_write(loop, bytes.fromhex("fee7"))  # b .
+    cpu.uc.reg_write(UC_ARM_REG_PC, loop | 1)
+    t0 = time.monotonic()
+    with pytest.raises(EmuError, match=r"ran 0.5 s without stopping \(PC 0x20010000\)"):
+        cpu.run_until_idle()
+    assert time.monotonic() - t0 < 5
+    assert not cpu.runs & 1
+
+
+def test_an_exception_in_a_peripheral_model_stops_the_run_and_is_raised(
+    board: Stm32Board, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The models' callbacks are called from unicorn's C without the binding's guard
+    (emu.mmio_map): an exception in one still stops the run, and reaches the caller."""
+
+    def broken(off: int) -> int:
+        raise RuntimeError(f"GPIOA read at 0x{off:x}")
+
+    monkeypatch.setattr(board.gpio["A"], "read", broken)
+    cpu = board.cpu
+    code = SRAM_BASE + 0x1_0000  # above the firmware's RAM, below its stack
+    cpu.uc.mem_write(code, bytes.fromhex("08680868fee7"))  # ldr r0, [r1] (twice); b .
+    cpu.uc.reg_write(UC_ARM_REG_R1, 0x4002_0010)  # GPIOA IDR
+    cpu.uc.reg_write(UC_ARM_REG_PC, code | 1)
+    with pytest.raises(RuntimeError, match="GPIOA read at 0x10"):
+        cpu.step(code + 4)
+    assert not cpu.runs & 1
 
 
 def test_unicorn_stops_at_exc_return_without_the_workaround(board: Stm32Board) -> None:
