@@ -433,6 +433,10 @@ class Cpu:
         """Counts executed instructions in ``insns`` (a block hook: slower)."""
         if on and not self._counting:
             self._hook = self.uc.hook_add(UC_HOOK_BLOCK, self._block)
+            # unicorn calls a block hook from the code it translates once the hook is there:
+            # blocks translated before (the boot's, the ticks' before counting) would run
+            # uncounted for as long as their translation lasts. Translated again, all count.
+            self.uc.ctl_flush_tb()
         elif not on and self._counting:
             self.uc.hook_del(self._hook)
         self._counting = on

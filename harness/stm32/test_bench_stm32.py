@@ -2,10 +2,11 @@
 ends with the summary line, and exits 1 on a miss only with --strict; docs/stm32.md's figures are
 what it prints.
 
-Each run of the bench (the move, without and with --fixes, and --corners) is emulated once, in a
-module fixture, by each pytest-xdist worker that runs a test of this module; the tests print and
-mark it as they need (``bench.report``). What the bench printed, without and with --fixes, goes
-into the build (``printed``): the figures scripts/test.sh shows after the tests."""
+Each run of the bench (the move, without and with --fixes, and --corners) is emulated once per
+worker, in a module fixture (pytest-xdist's load scheduling sends a module's consecutive tests to
+one worker, as a rule); the tests print and mark it as they need (``bench.report``). What the
+bench printed, without and with --fixes, goes into the build (``printed``): the figures
+scripts/test.sh shows after the tests."""
 
 from __future__ import annotations
 
@@ -209,7 +210,9 @@ def test_the_figures_in_docs_stm32_md_are_what_the_bench_prints(
     text = (ROOT / "docs" / "stm32.md").read_text()
     record = _figure(out, r"^a record: (\d+) words of 32 bits, written ([\d.]+) ms after")
     assert f"it is written {record[2]} ms after\nSET_ODOMETRIE's last byte" in text
-    goal = _figure(fixes, r"^  (goal: the busiest period at 1 m/s, .*: [\d.]+ <= 5 %: met)$")
+    goal = _figure(
+        fixes, r"^  (goal: the busiest period at 1 m/s, .*: [\d.]+ <= 5 %: (met|MISSED))$"
+    )
     assert f"(`{goal[1]}`)" in " ".join(text.split())
     if not avr_bench.is_file():
         return  # the AVR's column needs scripts/test.sh's one-rate AVR build
