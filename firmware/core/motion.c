@@ -274,7 +274,7 @@ static int corner_fit(struct corner_shape *sh, const struct orders *o, int32_t t
 			return -1;
 		/* An arc about a free wheel would leave it still while its motor turns: the lost
 		 * encoder of faults.c. An arc an eighth of their half track inside instead (within
-		 * a sixteenth, the robot turning 7 % faster than planned as the arc began did). */
+		 * a sixteenth, the robot turning faster than planned as the arc began did). */
 		if (sh->r_um > free_um - free_um / 8 && sh->r_um < free_um + free_um / 8)
 			sh->r_um = free_um - free_um / 8;
 		corner_shape(sh, lim, theta, c, s,

@@ -295,7 +295,8 @@ void orders_curve_start(struct orders *o, const struct orders_measure *m,
  * no. */
 void orders_pivot_start(struct orders *o, int32_t stop_um, uint32_t turn32);
 
-/* 1 while a GOTO that started on a pivot runs (orders_pivot_start()); 0 without the corners. */
+/* 1 from a pivot's start (orders_pivot_start()) until its turn is over (its line's heading
+ * at rest) or another order begins; 0 without the corners. */
 static inline int orders_pivoting(const struct orders *o)
 {
 #if CONFIG_MOTION_CORNERS
