@@ -26,6 +26,12 @@ void fix_init(struct fix *f, uint16_t slow_hz)
 	}
 #if CONFIG_FIX
 	f->carry = (struct fix_carry){{0, 0, 0, 0}, 0, 0, 0, 0, 0, 0, 0, 0};
+	f->fusing = (struct fix_meas){0, 0, 0, 0, 0, 0};
+	f->fusing_t = 0;
+	f->fusing_then = (struct fix_entry){0, 0, 0, 0};
+	f->fusing_newer = 0;
+	f->fusing_before_um = 0;
+	f->in_flight = 0;
 #endif
 	f->info = (struct fix_info){0, 0, 0, FIX_RESULT_NONE, 0};
 	for (uint8_t i = 0; i < FIX_HISTORY_N; i++)
@@ -44,12 +50,16 @@ static void push(struct fix *f, const struct odometry_pose *pose, uint32_t radiu
 	f->countdown = f->spacing;
 	if (f->carry.left) /* the entries still to move are one further from the newest */
 		f->carry.next++;
+	if (f->in_flight) /* and those the fusion in flight will move */
+		f->fusing_newer++;
 }
 
 static void carry_some(struct fix *f);
 
-static uint8_t fuse(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
-		    struct uncertainty *u, const struct fix_meas *z, uint32_t t);
+static void fuse_begin(struct fix *f, struct odometry_pose *pose, struct uncertainty *u,
+		       const struct fix_meas *z, uint32_t t);
+static void fuse_step(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
+		      struct uncertainty *u);
 
 void fix_record(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
 		struct uncertainty *u, uint8_t busy)
@@ -61,12 +71,18 @@ void fix_record(struct fix *f, struct odometry_position *pos, struct odometry_po
 		carry_some(f);
 		return; /* the next fix is compared with a history that has moved */
 	}
-	if (f->pending && !busy && uncertainty_fuse_ready(u)) {
+	if (busy)
+		return;
+	if (f->in_flight) {
+		fuse_step(f, pos, pose, u);
+		return;
+	}
+	if (f->pending && uncertainty_fuse_ready(u)) {
 		uint8_t i = f->first;
 
 		f->first = (uint8_t)((i + 1u) % FIX_QUEUE);
 		f->pending--;
-		(void)fuse(f, pos, pose, u, &f->waiting[i], f->waiting_t[i]);
+		fuse_begin(f, pose, u, &f->waiting[i], f->waiting_t[i]);
 	}
 }
 
@@ -234,32 +250,80 @@ uint8_t fix_apply(struct fix *f, struct odometry_position *pos, struct odometry_
 	return FIX_RESULT_NONE;
 }
 
-static uint8_t fuse(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
-		    struct uncertainty *u, const struct fix_meas *z, uint32_t t)
+/* A fix against the estimate at its time t: counted at once when there is none to compare it
+ * with, or when it is beyond any use; else its fusion starts (fuse_step() over the next
+ * periods). */
+static void fuse_begin(struct fix *f, struct odometry_pose *pose, struct uncertainty *u,
+		       const struct fix_meas *z, uint32_t t)
 {
 	struct fix_entry now_e = {pose->x_um, pose->y_um, pose->heading_turn32, u->radius_um};
-	struct fix_entry then;
 	struct uncertainty_fix uf;
-	struct uncertainty_correction c;
-	uint32_t newer, before;
-	uint8_t why = pose_at(f, t, &now_e, &then, &newer);
+	uint32_t newer;
+	uint8_t why = pose_at(f, t, &now_e, &f->fusing_then, &newer);
 
-	if (why != FIX_RESULT_NONE)
-		return count(f, why, 0);
-	innovation(f, z, &then, &now_e, u, &uf);
+	if (why != FIX_RESULT_NONE) {
+		(void)count(f, why, 0);
+		return;
+	}
+	innovation(f, z, &f->fusing_then, &now_e, u, &uf);
 	if (uf.gate_q8 == 0) /* the estimate is what is off: widened to reach the fix */
 		uncertainty_widen(u, fx_mag32(uf.dx_um) + fx_mag32(uf.dy_um), 0);
-	before = u->radius_um;
-	if (uncertainty_fuse(u, &uf, &c))
-		return count(f, FIX_RESULT_OUTLIER, c.d2_q8);
-	correct(f, pos, pose, &then, &c, newer, before > u->radius_um ? before - u->radius_um : 0);
-	return count(f, FIX_RESULT_FUSED, c.d2_q8);
+	f->fusing_before_um = u->radius_um;
+	if (uncertainty_fuse_begin(u, &uf)) {
+		(void)count(f, FIX_RESULT_OUTLIER, UINT32_MAX);
+		return;
+	}
+	f->fusing = *z;
+	f->fusing_t = t;
+	f->fusing_newer = newer;
+	f->in_flight = 1;
 }
 
-void fix_forget(struct fix *f, const struct odometry_pose *pose, const struct uncertainty *u)
+/* The next step of the fusion in flight; at its end, the estimate corrected, or the outlier
+ * counted. A fusion the radius abandoned (a widening, a recalibration: the covariance changed
+ * under it) leaves its fix to be tried again, first in the queue. */
+static void fuse_step(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
+		      struct uncertainty *u)
+{
+	struct uncertainty_correction c;
+	uint32_t before = f->fusing_before_um;
+
+	switch (uncertainty_fuse_step(u, &c)) {
+	case UNCERTAINTY_FUSE_BUSY:
+		return;
+	case UNCERTAINTY_FUSE_FUSED:
+		f->in_flight = 0;
+		correct(f, pos, pose, &f->fusing_then, &c, f->fusing_newer,
+			before > u->radius_um ? before - u->radius_um : 0);
+		(void)count(f, FIX_RESULT_FUSED, c.d2_q8);
+		return;
+	case UNCERTAINTY_FUSE_OUTLIER:
+		f->in_flight = 0;
+		(void)count(f, FIX_RESULT_OUTLIER, c.d2_q8);
+		return;
+	default:
+		f->in_flight = 0;
+		if (f->pending == FIX_QUEUE) { /* no room left: it waited too long */
+			(void)count(f, FIX_RESULT_TOO_OLD, 0);
+			return;
+		}
+		f->first = (uint8_t)((f->first + FIX_QUEUE - 1u) % FIX_QUEUE);
+		f->waiting[f->first] = f->fusing;
+		f->waiting_t[f->first] = f->fusing_t;
+		f->pending++;
+		return;
+	}
+}
+
+void fix_forget(struct fix *f, const struct odometry_pose *pose, struct uncertainty *u)
 {
 	for (; f->pending; f->pending--) /* measured before what set the pose: would undo it */
 		(void)count(f, FIX_RESULT_STALE, 0);
+	if (f->in_flight) {
+		f->in_flight = 0;
+		uncertainty_fuse_abandon(u);
+		(void)count(f, FIX_RESULT_STALE, 0);
+	}
 	f->forget = f->now;
 	f->count = 0;
 	f->carry.left = 0; /* what it would move is forgotten */
@@ -268,7 +332,7 @@ void fix_forget(struct fix *f, const struct odometry_pose *pose, const struct un
 
 #else
 
-void fix_forget(struct fix *f, const struct odometry_pose *pose, const struct uncertainty *u)
+void fix_forget(struct fix *f, const struct odometry_pose *pose, struct uncertainty *u)
 {
 	(void)f;
 	(void)pose;

@@ -1,7 +1,7 @@
 /* Position fixes (SET_FIX): a short history of the planner's poses, so that a fix measured
  * age_ms ago is compared with the estimate of that moment, fused with the error radius's
- * covariance (uncertainty_fuse()), and its correction carried to now. docs/strategy.md shows a
- * master feeding its lidar's fixes; docs/protocol.md the message.
+ * covariance (uncertainty_fuse_begin(), over five periods), and its correction carried to now.
+ * docs/strategy.md shows a master feeding its lidar's fixes; docs/protocol.md the message.
  *
  * CONFIG_FIX 0 (the AVR's build: its CPU budget has no room) compiles it out: the protocol layer
  * rejects SET_FIX and FIX_INFO as UNSUPPORTED and VERSION's CAP_FIX reads 0. */
@@ -28,9 +28,9 @@
 #define FIX_QUEUE (CONFIG_FIX ? 4 : 1)
 /* History entries a planner period moves with a fused fix's correction: the estimate now moves
  * at once, the entries since the measured time over the next periods (a 500 ms old fix's 50
- * entries in 4 periods at 1 kHz), and the next fix waits for them. One period's carrying stays
+ * entries in 7 periods at 1 kHz), and the next fix waits for them. One period's carrying stays
  * within the CPU budget (bench/stm32.py --fixes). */
-#define FIX_CARRY_PER_PERIOD 16
+#define FIX_CARRY_PER_PERIOD 8
 
 struct fix_entry {
 	int32_t x_um, y_um;
@@ -79,13 +79,22 @@ struct fix {
 	uint8_t countdown;
 	uint8_t outliers_in_a_row;
 	/* Fixes waiting for the error radius to be between two batches (uncertainty_fuse_ready()),
-	 * in the order they came, with the period each was measured at: one is fused a period. */
+	 * in the order they came, with the period each was measured at: one is fused at a time. */
 	struct fix_meas waiting[FIX_QUEUE];
 	uint32_t waiting_t[FIX_QUEUE];
 	uint8_t first;
 	uint8_t pending;
 #if CONFIG_FIX
 	struct fix_carry carry; /* the last fused fix's, over the next periods */
+	/* The fix being fused (uncertainty_fuse_step(), a step a period): it, its period, the
+	 * estimate then, the history entries at or after then (one more at each entry kept), the
+	 * radius before. */
+	struct fix_meas fusing;
+	uint32_t fusing_t;
+	struct fix_entry fusing_then;
+	uint32_t fusing_newer;
+	uint32_t fusing_before_um;
+	uint8_t in_flight;
 #endif
 	struct fix_info info;
 };
@@ -96,8 +105,9 @@ void fix_init(struct fix *f, uint16_t slow_hz);
 /* Once a planner period, after the orders (their set points from the estimate before a fix:
  * a fused fix re-aims them at the next period): keeps the estimate of this period in the
  * history, moves the history with the last fix's correction (FIX_CARRY_PER_PERIOD entries), and
- * when that is done, fuses a fix that waited for the radius's batch to end, unless busy (the
- * period already did heavy work: a fix then waits for the next one).
+ * when that is done, takes the next step of the fusion in flight (uncertainty_fuse_step()), or
+ * starts that of a fix that waited for the radius's batch to end; not when busy (the period
+ * already did heavy work: the step then waits for the next one).
  * Interrupt-safe: no (the planner's context). */
 #if CONFIG_FIX
 void fix_record(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
@@ -115,15 +125,17 @@ static inline void fix_record(struct fix *f, struct odometry_position *pos,
 #endif
 
 /* The estimate was set by other means (SET_NEW_POS, a recalibration): fixes measured before
- * now would undo it, and are STALE. Interrupt-safe: no. */
-void fix_forget(struct fix *f, const struct odometry_pose *pose, const struct uncertainty *u);
+ * now would undo it, and are STALE, the one in flight too (its fusion abandoned in u).
+ * Interrupt-safe: no. */
+void fix_forget(struct fix *f, const struct odometry_pose *pose, struct uncertainty *u);
 
 /* A fix: compared with the estimate of the moment it was measured, gated, fused, its correction
  * carried to now (pose and pos, the planner's, moved as one rigid motion with the history since
- * then), at the first period the error radius is between two batches (within UNCERTAINTY_STAGES
- * periods; one fix a period, in the order they came; FIX_QUEUE may wait, the oldest is dropped
- * as TOO_OLD beyond). Returns FIX_RESULT_NONE: fix_record() fuses it and counts the result in
- * f->info.
+ * then), from the first period the error radius is between two batches (within
+ * UNCERTAINTY_STAGES periods), over five periods; one fix at a time, in the order they came;
+ * FIX_QUEUE may wait, the oldest is dropped as TOO_OLD beyond; a fusion the radius abandons
+ * (it changed meanwhile) is tried again first. Returns FIX_RESULT_NONE: fix_record() fuses it
+ * and counts the result in f->info.
  * Interrupt-safe: no. */
 uint8_t fix_apply(struct fix *f, struct odometry_position *pos, struct odometry_pose *pose,
 		  struct uncertainty *u, const struct fix_meas *z);

@@ -82,6 +82,9 @@ uint32_t fx_isqrt32_up(uint32_t v)
 
 uint32_t fx_isqrt64(uint64_t v)
 {
+#ifdef ARCH_FX_ISQRT64 /* an arch folder's kernel (firmware/arch/armv7m), with the same bits */
+	return ARCH_FX_ISQRT64(v);
+#else
 	uint64_t r, q;
 	uint8_t m = 0;
 
@@ -110,6 +113,7 @@ uint32_t fx_isqrt64(uint64_t v)
 	if (r * r > v)
 		r--;
 	return (uint32_t)r;
+#endif
 }
 
 /* The sine and cosine (s, c) of an angle in the first quadrant, moved on by q quarter turns. */

@@ -298,13 +298,9 @@ static int corner_fit(struct corner_shape *sh, const struct orders *o, int32_t t
  * phi_um (on the angle axis). Each overlap strays from its line by at most a_h e^2 / (6 a h) and
  * a phi^2 / (6 a_h h) (the line braking or starting at a, the heading's rate from or to rest at
  * a_h, h half the drive track), kept within half the tolerance. Planned once for a corner and
- * the one it looks ahead at. */
-struct pivot_shape {
-	int64_t e_um, phi_um;
-	int64_t overlap_us; /* the time both overlaps take: sqrt(2 e / a) + sqrt(2 phi / a_h) */
-};
-
-static void pivot_shape_of(struct pivot_shape *pv, const struct orders *o, int32_t tol_um)
+ * the one it looks ahead at, from the shape kept in struct motion (the overlaps' time:
+ * sqrt(2 e / a) + sqrt(2 phi / a_h)). */
+static void pivot_shape_of(struct motion_pivot_shape *pv, const struct orders *o, int32_t tol_um)
 {
 	int64_t a = o->grip_a_um_s2[0], ah = o->grip_a_um_s2[1];
 	int64_t k = 3 * (int64_t)tol_um * (int64_t)(o->cfg.drive_track_um / 2u); /* 6 dev h */
@@ -320,6 +316,23 @@ static void pivot_shape_of(struct pivot_shape *pv, const struct orders *o, int32
 		pv->phi_um = turn;
 	pv->overlap_us = fx_isqrt64((uint64_t)(2 * pv->e_um * 1000000000000 / a)) +
 			 fx_isqrt64((uint64_t)(2 * pv->phi_um * 1000000000000 / ah));
+	/* phi on the angle axis as a heading [turn * 2^32] */
+	pv->phi_turn32 = (uint32_t)((pv->phi_um << 32) / o->pi_track_um);
+}
+
+/* The pivot's shape made again when the accelerations (SET_VITESSE_*) or the tolerance
+ * (SET_CORNER) changed: 1, and no corner is planned in this period (its 64-bit square roots and
+ * divisions and a corner's planning would add up: bench/stm32.py --corners). */
+static int pivot_refresh(struct motion *mo, const struct orders *o)
+{
+	int32_t key[3] = {o->grip_a_um_s2[0], o->grip_a_um_s2[1], mo->corner_um};
+
+	if (key[0] == mo->pivot_key[0] && key[1] == mo->pivot_key[1] && key[2] == mo->pivot_key[2])
+		return 0;
+	for (uint8_t i = 0; i < 3; i++)
+		mo->pivot_key[i] = key[i];
+	pivot_shape_of(&mo->pivot_shape, o, mo->corner_um);
+	return 1;
 }
 
 /* A rest-to-rest move of d_um at v_um_s and a_um_s2 at most [us]. */
@@ -337,7 +350,7 @@ static int64_t move_us(int64_t d_um, int64_t v_um_s, int64_t a_um_s2)
  * the curve its ramps from and to v, (v - v_c)^2 / (a v), and its length at v_c against the
  * polyline's it replaces at v. */
 static int corner_pivots(const struct orders *o, const struct corner_shape *sh, uint32_t theta,
-			 int64_t len1_um, int64_t len2_um, const struct pivot_shape *pv)
+			 int64_t len1_um, int64_t len2_um, const struct motion_pivot_shape *pv)
 {
 	int64_t a = o->grip_a_um_s2[0], v = scaled(o, o->traj.v_max_um_s);
 	int64_t len = len1_um < len2_um ? len1_um : len2_um, vc = sh->v_um_s, turn, t;
@@ -525,7 +538,7 @@ static int curve_joins(const struct proto_msg *msg)
  * a stop at the point, when there is no such curve. */
 static void corner_ahead(struct motion_corner *k, const struct planner *pl,
 			 const struct motion_entry *next, int64_t rest_um, int64_t free_um,
-			 const struct pivot_shape *pv)
+			 const struct motion_pivot_shape *pv)
 {
 	const struct motion *mo = &pl->motion;
 	const struct orders *o = &pl->orders;
@@ -565,14 +578,13 @@ static void corner_ahead(struct motion_corner *k, const struct planner *pl,
  * planned with, as the corner before looked ahead at it): into k, 1. */
 static int pivot_plan(struct motion_corner *k, const struct orders *o,
 		      const struct corner_shape *sh, uint32_t theta, int64_t len2_um,
-		      const struct pivot_shape *pv)
+		      const struct motion_pivot_shape *pv)
 {
 	if (!corner_pivots(o, sh, theta, k->len1_um, len2_um, pv))
 		return 0;
 	k->pivot = 1;
 	k->pivot_um = (int32_t)(pv->e_um < k->len1_um / 2 ? pv->e_um : k->len1_um / 2);
-	/* phi on the angle axis as a heading [turn * 2^32] */
-	k->pivot_turn32 = (uint32_t)((pv->phi_um << 32) / o->pi_track_um);
+	k->pivot_turn32 = pv->phi_turn32;
 	return 1;
 }
 #endif
@@ -624,15 +636,14 @@ static void corner_plan(struct planner *pl, const struct board_config *cfg,
 	a = o->grip_a_um_s2[0]; /* the line's, out of the curve */
 	u = o->sp_dist.vel_um_s;
 #if CONFIG_MOTION_CORNERS
-	struct pivot_shape pv;
+	const struct motion_pivot_shape *pv = &pl->motion.pivot_shape;
 	int64_t cap;
 
-	pivot_shape_of(&pv, o, pl->motion.corner_um);
 	/* A pivot, where the line can still stop at the point */
-	if ((u * u <= 2 * a * len1 && pivot_plan(k, o, &sh, theta, len2, &pv)) || sh.v_um_s == 0)
+	if ((u * u <= 2 * a * len1 && pivot_plan(k, o, &sh, theta, len2, pv)) || sh.v_um_s == 0)
 		return;
 	/* No faster than the line after the curve can slow down for what follows it */
-	corner_ahead(k, pl, next, len2 - sh.reach_um, free_um, &pv);
+	corner_ahead(k, pl, next, len2 - sh.reach_um, free_um, pv);
 	cap = (int64_t)k->ahead_v_um_s * k->ahead_v_um_s +
 	      2 * a * (len2 - sh.reach_um - k->ahead_reach_um - UM_PER_MM);
 	cap = cap > 0 ? (int64_t)fx_isqrt64((uint64_t)cap) : 0;
@@ -691,7 +702,7 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 	const struct motion_corner *k = &mo->corner;
 	int32_t e, stop_um;
 
-	if (!mo->through)
+	if (!mo->through || pivot_refresh(mo, o))
 		return;
 	if (!mo->running || mo->count == 0 || mo->paused || o->designation != PROTO_GOTO ||
 	    (o->state != ORDER_STATE_TRANSLATE && !o->curve)) {

@@ -72,6 +72,15 @@ struct motion {
 	int32_t braking_vel[2];
 #if CONFIG_MOTION_CORNERS
 	uint16_t pivot_ms_per_mm_s_q8[2]; /* 1 / a pivot's accelerations, as ms_per_mm_s_q8 */
+	/* A pivot's shape (motion.c, pivot_shape_of()) at the accelerations and the tolerance of
+	 * pivot_key, made again in a period of its own when they change: e and phi [um], the time
+	 * both overlaps take [us], phi as a heading [turn * 2^32]. */
+	struct motion_pivot_shape {
+		int64_t e_um, phi_um;
+		int64_t overlap_us;
+		uint32_t phi_turn32;
+	} pivot_shape;
+	int32_t pivot_key[3];
 #endif
 };
 

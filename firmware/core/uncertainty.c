@@ -47,6 +47,11 @@ enum stage {
 	STAGE_SYS_RATIO,
 	STAGE_SYS_TRACK,
 	STAGE_RADIUS,
+	/* A position fix's fusion (uncertainty_fuse_step()): held by the stages above. */
+	STAGE_FUSE_X,
+	STAGE_FUSE_Y,
+	STAGE_FUSE_HEADING,
+	STAGE_FUSE_END,
 };
 
 typedef char uncertainty_stages_counted[(STAGE_RADIUS == UNCERTAINTY_STAGES) ? 1 : -1];
@@ -236,12 +241,21 @@ static uint32_t heading_units(uint32_t bound_turn32)
 
 static void run_stages(struct uncertainty *u, uint8_t n);
 
+/* What changes the covariance first finishes the batch in flight, and abandons a fusion in
+ * flight (nothing of it is committed before its end: uncertainty_fuse_step()). */
+static void finish_stages(struct uncertainty *u)
+{
+	if (u->stage > STAGE_RADIUS)
+		u->stage = STAGE_EIGEN;
+	run_stages(u, UINT8_MAX);
+}
+
 /* After a reset the radius is refreshed at once: the batch in flight is finished, then the
  * last stages run, all in this call. A recalibration's tick pays for up to a whole batch (a few
  * per match), so that the master reading POSITION when the order ends sees the new radius. */
 static void request_radius(struct uncertainty *u)
 {
-	run_stages(u, UINT8_MAX); /* fewer than that: until idle */
+	finish_stages(u);
 	u->stage = STAGE_EIGEN;
 	run_stages(u, UINT8_MAX);
 }
@@ -343,6 +357,21 @@ int uncertainty_set_model(struct uncertainty *u, const struct uncertainty_model 
 	return 0;
 }
 
+/* The systematic terms and the fixed errors from zero (a reset, or folded into the covariance). */
+static void clear_terms(struct uncertainty *u)
+{
+	for (int i = 0; i < 2; i++) {
+		u->w1[i].hi = 0;
+		u->w1[i].lo = 0;
+		u->w2[i].hi = 0;
+		u->w2[i].lo = 0;
+		u->d[i] = 0;
+		u->fixed_um[i] = 0;
+	}
+	u->travel2_um = 0;
+	u->turn_um = 0;
+}
+
 void uncertainty_reset(struct uncertainty *u, uint32_t radius_um, uint32_t heading_turn32)
 {
 	u->saturated = 0;
@@ -352,16 +381,7 @@ void uncertainty_reset(struct uncertainty *u, uint32_t radius_um, uint32_t headi
 	u->xt = 0;
 	u->yt = 0;
 	u->tt = var_of_bound(u, heading_units(heading_turn32), 0, TT_CAP);
-	u->travel2_um = 0;
-	u->turn_um = 0;
-	for (int i = 0; i < 2; i++) {
-		u->w1[i].hi = 0;
-		u->w1[i].lo = 0;
-		u->w2[i].hi = 0;
-		u->w2[i].lo = 0;
-		u->d[i] = 0;
-		u->fixed_um[i] = 0;
-	}
+	clear_terms(u);
 	clear_batch(&u->acc);
 	u->stage = STAGE_IDLE;
 	u->radius_um = radius_um;
@@ -484,7 +504,7 @@ void uncertainty_widen(struct uncertainty *u, uint32_t position_um, uint32_t whe
 
 	if ((position_um | wheel_um) == 0 || u->saturated)
 		return;
-	run_stages(u, UINT8_MAX); /* a batch in flight propagates what it started with */
+	finish_stages(u); /* a batch in flight propagates what it started with */
 	u->xx = var_plus_sigma(u, u->xx, pos, VAR_CAP);
 	u->yy = var_plus_sigma(u, u->yy, pos, VAR_CAP);
 	u->tt = var_plus_sigma(u, u->tt, heading, TT_CAP);
@@ -811,7 +831,7 @@ static void run_stages(struct uncertainty *u, uint8_t n)
  * A batch without travel propagates nothing: Fp is the identity, the noise is zero. */
 static void start_batch(struct uncertainty *u)
 {
-	run_stages(u, UINT8_MAX);
+	finish_stages(u);
 	if (u->acc.abs_left_q8 != 0 || u->acc.abs_right_q8 != 0) {
 		u->run = u->acc;
 		u->stage = STAGE_DIRECTION;
@@ -870,6 +890,12 @@ uint8_t uncertainty_get_radius_mm(const struct uncertainty *u)
 	return u->radius_mm;
 }
 
+int uncertainty_fuse_ready(const struct uncertainty *u)
+{
+	return u->stage == STAGE_IDLE || u->stage == STAGE_EIGEN;
+}
+
+#if CONFIG_FIX
 /* The covariance as a 3 x 3 matrix (x, y in 4 um, the heading in 2^-16 rad), for a fusion. */
 struct cov3 {
 	int64_t p[3][3];
@@ -948,21 +974,21 @@ static int64_t div_round_s64(int64_t a, int64_t b)
  * times the innovation (delta[], and the later coordinates' innovations with it), the
  * covariance loses the gain times its row i (the diagonal rounded up: it stays a bound).
  * Returns nu[i]^2 / s [2^-8], saturating. */
-static uint64_t fuse_one(struct cov3 *m, int64_t nu[3], int64_t delta[3], uint8_t i, int64_t r)
+static uint64_t fuse_one(struct uncertainty_fusion *z, uint8_t i, int64_t r)
 {
-	int64_t s = m->p[i][i] + r;
-	int64_t g[3] = {m->p[0][i], m->p[1][i], m->p[2][i]};
-	int64_t v = nu[i];
+	int64_t s = z->p[i][i] + r;
+	int64_t g[3] = {z->p[0][i], z->p[1][i], z->p[2][i]};
+	int64_t v = z->nu[i];
 	uint64_t d2 = ((uint64_t)(v * v) << 8) / (uint64_t)s;
 
 	for (uint8_t j = 0; j < 3; j++) {
 		int64_t d = div_round_s64(g[j] * v, s);
 
-		delta[j] += d;
-		nu[j] -= d;
+		z->delta[j] += d;
+		z->nu[j] -= d;
 		for (uint8_t k = j; k < 3; k++) {
-			m->p[j][k] -= j == k ? (g[j] * g[k]) / s : div_round_s64(g[j] * g[k], s);
-			m->p[k][j] = m->p[j][k];
+			z->p[j][k] -= j == k ? (g[j] * g[k]) / s : div_round_s64(g[j] * g[k], s);
+			z->p[k][j] = z->p[j][k];
 		}
 	}
 	return d2;
@@ -1008,69 +1034,120 @@ static void cover_now(struct uncertainty *u)
 				       : (uint8_t)((r_um + 999u) / 1000u);
 }
 
-int uncertainty_fuse_ready(const struct uncertainty *u)
+int uncertainty_fuse_begin(struct uncertainty *u, const struct uncertainty_fix *f)
 {
-	return u->stage == STAGE_IDLE || u->stage == STAGE_EIGEN;
-}
-
-int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
-		     struct uncertainty_correction *c)
-{
-	struct uncertainty w = *u;
+	struct uncertainty_fusion *z = &u->fusion;
+	struct uncertainty w = *u; /* folded here: u keeps its terms unless the fix is fused */
 	struct cov3 m;
-	int64_t nu[3], delta[3] = {0, 0, 0};
 	int64_t rp = (int64_t)((f->sigma_um + UNCERTAINTY_POS_UM - 1) / UNCERTAINTY_POS_UM);
 	int64_t rt = (int64_t)heading_units(f->sigma_turn32);
-	uint64_t d2 = 0;
-	int64_t g = 0;
-	uint32_t rx, ry, rh; /* the fused variances' roots */
-	int far = innovations(f, nu);
 
-	c->d2_q8 = UINT32_MAX;
-	if (far) /* beyond the field: nothing to fuse */
+	if (innovations(f, z->nu)) /* beyond the field: nothing to fuse */
 		return 1;
 	fold_all(&w, &m);
 	carry_cov(&m, f->since_dx_um, f->since_dy_um, -1);
-	if (f->growth_um) { /* the prior then: now's, less what grew since (added back below) */
-		g = (int64_t)sigma_of_bound(&w, div_up(f->growth_um, UNCERTAINTY_POS_UM));
+	z->g = 0;
+	if (f->growth_um) { /* the prior then: now's, less what grew since (added back later) */
+		int64_t g = (int64_t)sigma_of_bound(&w, div_up(f->growth_um, UNCERTAINTY_POS_UM));
+
 		m.p[0][0] = m.p[0][0] - g * g > m.p[0][0] / 4 ? m.p[0][0] - g * g : m.p[0][0] / 4;
 		m.p[1][1] = m.p[1][1] - g * g > m.p[1][1] / 4 ? m.p[1][1] - g * g : m.p[1][1] / 4;
 		shrink_cov(&m);
+		z->g = g;
 	}
-	rp = rp * rp + 1;
-	rt = rt * rt + 1;
-	d2 += fuse_one(&m, nu, delta, 0, rp);
-	d2 += fuse_one(&m, nu, delta, 1, rp);
-	if (f->sigma_turn32)
-		d2 += fuse_one(&m, nu, delta, 2, rt);
-	c->d2_q8 = d2 > UINT32_MAX ? UINT32_MAX : (uint32_t)d2;
-	if (!w.saturated && f->gate_q8 && d2 > f->gate_q8)
-		return 1;
-	carry_cov(&m, f->since_dx_um, f->since_dy_um, 1);
-	w.saturated = 0;
-	w.xx = var_back(m.p[0][0], VAR_CAP);
-	w.yy = var_back(m.p[1][1], VAR_CAP);
-	w.tt = var_back(m.p[2][2], TT_CAP);
-	rx = fx_isqrt32_up((uint32_t)w.xx);
-	ry = fx_isqrt32_up((uint32_t)w.yy);
-	rh = fx_isqrt32_up((uint32_t)w.tt);
-	w.xy = cov_back(m.p[0][1], rx, ry);
-	w.xt = cov_back(m.p[0][2], rx, rh);
-	w.yt = cov_back(m.p[1][2], ry, rh);
-	/* The growth since the measured time, as an independent variance (sigma = growth / k): the
-	 * fixes in flight each add theirs, which a sum of sigmas would count over and over. */
-	if (f->growth_um) {
-		w.xx = var_back((int64_t)w.xx + g * g, VAR_CAP);
-		w.yy = var_back((int64_t)w.yy + g * g, VAR_CAP);
+	for (uint8_t i = 0; i < 3; i++) {
+		for (uint8_t j = 0; j < 3; j++)
+			z->p[i][j] = m.p[i][j];
+		z->delta[i] = 0;
 	}
-	*u = w;
-	u->stage = STAGE_EIGEN; /* the radius from the fused covariance, over the next ticks */
-	cover_now(u);
-	c->dx_um = (int32_t)(delta[0] * UNCERTAINTY_POS_UM);
-	c->dy_um = (int32_t)(delta[1] * UNCERTAINTY_POS_UM);
-	c->dheading_turn32 = (int32_t)fx_shr_round64(delta[2] * TURN32_PER_RAD, 16);
+	z->r[0] = rp * rp + 1;
+	z->r[1] = rt * rt + 1;
+	z->since_dx_um = f->since_dx_um;
+	z->since_dy_um = f->since_dy_um;
+	z->gate_q8 = f->gate_q8;
+	z->heading = f->sigma_turn32 != 0;
+	z->saturated = w.saturated;
+	z->stage_before = u->stage;
+	z->d2 = 0;
+	u->stage = STAGE_FUSE_X;
 	return 0;
 }
+
+/* The end of a fusion: the gate, then the fused covariance carried forward to now and made the
+ * radius's (the systematic terms it folded in, from zero), the growth since added back. */
+static enum uncertainty_fuse_result fuse_end(struct uncertainty *u,
+					     struct uncertainty_correction *c)
+{
+	struct uncertainty_fusion *z = &u->fusion;
+	struct cov3 m;
+	uint32_t rx, ry, rh; /* the fused variances' roots */
+
+	c->d2_q8 = z->d2 > UINT32_MAX ? UINT32_MAX : (uint32_t)z->d2;
+	if (!z->saturated && z->gate_q8 && z->d2 > z->gate_q8) {
+		u->stage = z->stage_before;
+		return UNCERTAINTY_FUSE_OUTLIER;
+	}
+	for (uint8_t i = 0; i < 3; i++)
+		for (uint8_t j = 0; j < 3; j++)
+			m.p[i][j] = z->p[i][j];
+	carry_cov(&m, z->since_dx_um, z->since_dy_um, 1);
+	u->saturated = 0;
+	u->xx = var_back(m.p[0][0], VAR_CAP);
+	u->yy = var_back(m.p[1][1], VAR_CAP);
+	u->tt = var_back(m.p[2][2], TT_CAP);
+	rx = fx_isqrt32_up((uint32_t)u->xx);
+	ry = fx_isqrt32_up((uint32_t)u->yy);
+	rh = fx_isqrt32_up((uint32_t)u->tt);
+	u->xy = cov_back(m.p[0][1], rx, ry);
+	u->xt = cov_back(m.p[0][2], rx, rh);
+	u->yt = cov_back(m.p[1][2], ry, rh);
+	/* The growth since the measured time, as an independent variance (sigma = growth / k): the
+	 * fixes in flight each add theirs, which a sum of sigmas would count over and over. */
+	if (z->g) {
+		u->xx = var_back((int64_t)u->xx + z->g * z->g, VAR_CAP);
+		u->yy = var_back((int64_t)u->yy + z->g * z->g, VAR_CAP);
+	}
+	clear_terms(u);
+	u->stage = STAGE_EIGEN; /* the radius from the fused covariance, over the next ticks */
+	cover_now(u);
+	c->dx_um = (int32_t)(z->delta[0] * UNCERTAINTY_POS_UM);
+	c->dy_um = (int32_t)(z->delta[1] * UNCERTAINTY_POS_UM);
+	c->dheading_turn32 = (int32_t)fx_shr_round64(z->delta[2] * TURN32_PER_RAD, 16);
+	return UNCERTAINTY_FUSE_FUSED;
+}
+
+enum uncertainty_fuse_result uncertainty_fuse_step(struct uncertainty *u,
+						   struct uncertainty_correction *c)
+{
+	struct uncertainty_fusion *z = &u->fusion;
+
+	switch (u->stage) {
+	case STAGE_FUSE_X:
+		z->d2 += fuse_one(z, 0, z->r[0]);
+		u->stage = STAGE_FUSE_Y;
+		return UNCERTAINTY_FUSE_BUSY;
+	case STAGE_FUSE_Y:
+		z->d2 += fuse_one(z, 1, z->r[0]);
+		u->stage = STAGE_FUSE_HEADING;
+		return UNCERTAINTY_FUSE_BUSY;
+	case STAGE_FUSE_HEADING:
+		if (z->heading)
+			z->d2 += fuse_one(z, 2, z->r[1]);
+		u->stage = STAGE_FUSE_END;
+		return UNCERTAINTY_FUSE_BUSY;
+	case STAGE_FUSE_END:
+		return fuse_end(u, c);
+	default:
+		return UNCERTAINTY_FUSE_ABANDONED;
+	}
+}
+
+void uncertainty_fuse_abandon(struct uncertainty *u)
+{
+	if (u->stage > STAGE_RADIUS)
+		u->stage = u->fusion.stage_before;
+}
+#endif
 
 void uncertainty_keep(const struct uncertainty *u, struct uncertainty_kept *k)
 {

@@ -9,6 +9,8 @@
 
 #include <stdint.h>
 
+#include "feature_set.h"
+
 #define UNCERTAINTY_RADIUS_MAX_MM 255
 #define UNCERTAINTY_BATCH_TICKS_MAX 64
 /* A batch also ends when its wheels have travelled this much [um], bounding the linearisation. */
@@ -51,6 +53,27 @@ struct uncertainty_batch {
 	uint32_t heading_turn32; /* at its end */
 	uint8_t ticks;
 };
+
+#if CONFIG_FIX
+/* A position fix being fused (uncertainty_fuse_begin()): the covariance at the fix's time
+ * [the covariance's units] with the coordinates fused so far, the innovations left, the
+ * state's correction so far [4 um, 2^-16 rad], the fix's variances (position, heading), the
+ * growth since the fix's time as a sigma [4 um], the squared Mahalanobis distance so far [2^-8],
+ * and what the fix carries on to the last step. */
+struct uncertainty_fusion {
+	int64_t p[3][3];
+	int64_t nu[3];
+	int64_t delta[3];
+	int64_t r[2];
+	int64_t g;
+	uint64_t d2;
+	int32_t since_dx_um, since_dy_um;
+	uint32_t gate_q8;
+	uint8_t heading;      /* the fix has a heading */
+	uint8_t saturated;    /* the prior's, its systematic terms folded in */
+	uint8_t stage_before; /* the radius's stage the fusion held: back to it after an outlier */
+};
+#endif
 
 struct uncertainty {
 	struct uncertainty_config cfg;
@@ -102,6 +125,10 @@ struct uncertainty {
 	uint32_t radius_um;
 
 	uint8_t radius_mm;
+#if CONFIG_FIX
+	struct uncertainty_fusion
+		fusion; /* a position fix's, in flight (stage past the radius's) */
+#endif
 };
 
 /* Check cfg and model and start from a zero radius (call uncertainty_reset for another start),
@@ -199,7 +226,7 @@ void uncertainty_keep(const struct uncertainty *u, struct uncertainty_kept *k);
 void uncertainty_resume(struct uncertainty *u, uint32_t radius_um, const struct uncertainty_kept *k,
 			uint32_t position_um, uint32_t wheel_um);
 
-/* A position fix against the estimate at the time it was measured (uncertainty_fuse()). */
+/* A position fix against the estimate at the time it was measured (uncertainty_fuse_begin()). */
 struct uncertainty_fix {
 	int32_t dx_um, dy_um;    /* fix - estimate [um] */
 	int32_t dheading_turn32; /* fix - estimate, wrapped [turn * 2^32] */
@@ -225,18 +252,42 @@ struct uncertainty_correction {
  * as a sigma of bound / k, so that the radius that follows is k sigma of the fused covariance. The
  * growth of the radius since the fix was measured is added back afterwards as a variance (sigma =
  * growth / k): the fix says nothing of what the odometry did since, and the fixes in flight each
- * add theirs. A fix whose squared Mahalanobis distance passes gate_q8 changes nothing and returns
- * 1 (an outlier); otherwise 0, c says how far to move the estimate at the measured time, and the
- * radius follows within UNCERTAINTY_STAGES updates (until then it reads the larger one of
- * before). A saturated covariance takes any fix. Only when uncertainty_fuse_ready(). In 64 bits:
- * it runs at a fix (10 Hz), not every tick. interrupt-safe: no. */
-int uncertainty_fuse(struct uncertainty *u, const struct uncertainty_fix *f,
-		     struct uncertainty_correction *c);
+ * add theirs. A saturated covariance takes any fix. In 64 bits.
+ *
+ * Over five calls, so that no planner period pays for all of it (bench/stm32.py --fixes):
+ * uncertainty_fuse_begin() folds the terms and carries the covariance back; each
+ * uncertainty_fuse_step() then does one more: x, y, the heading, the end. Meanwhile the radius's
+ * stages are held (a batch waits: the covariance is not touched), and whatever changes the
+ * covariance (a widening, a reset, a recalibration, a new model, a batch handed over early)
+ * abandons the fusion first, before anything of it was committed: the step then returns
+ * UNCERTAINTY_FUSE_ABANDONED and the fix may be tried again.
+ *
+ * uncertainty_fuse_begin(): only when uncertainty_fuse_ready(). Returns 1 when the fix is beyond
+ * any use (nothing started: an outlier), 0 when the fusion started. Interrupt-safe: no. */
+#if CONFIG_FIX
+int uncertainty_fuse_begin(struct uncertainty *u, const struct uncertainty_fix *f);
 
-/* 1 when uncertainty_fuse() may run: no batch is being propagated and the radius's stages have
- * not begun (they then start again from the fused covariance, over the next ticks). A fix
- * waits for it (at most UNCERTAINTY_STAGES updates), so that a fusion never pays for a batch.
- * Interrupt-safe: yes. */
+enum uncertainty_fuse_result {
+	UNCERTAINTY_FUSE_BUSY,      /* one more step to call, the next period */
+	UNCERTAINTY_FUSE_FUSED,     /* c: how far to move the estimate at the measured time */
+	UNCERTAINTY_FUSE_OUTLIER,   /* the squared Mahalanobis distance passed gate_q8: nothing */
+	UNCERTAINTY_FUSE_ABANDONED, /* the covariance changed under it, or none in flight */
+};
+
+/* The next step of the fusion in flight. At its end, FUSED or OUTLIER, with c->d2_q8 the fix's
+ * squared Mahalanobis distance; FUSED: the radius follows within UNCERTAINTY_STAGES updates
+ * (until then it reads the larger one of before). Interrupt-safe: no. */
+enum uncertainty_fuse_result uncertainty_fuse_step(struct uncertainty *u,
+						   struct uncertainty_correction *c);
+
+/* The fusion in flight, if any, given up (the fix's own side dropped it). Interrupt-safe: no. */
+void uncertainty_fuse_abandon(struct uncertainty *u);
+#endif
+
+/* 1 when uncertainty_fuse_begin() may run: no batch is being propagated, the radius's stages
+ * have not begun (they then start again from the fused covariance, over the next ticks), and no
+ * fusion is in flight. A fix waits for it (at most UNCERTAINTY_STAGES updates), so that a
+ * fusion never pays for a batch. Interrupt-safe: yes. */
 int uncertainty_fuse_ready(const struct uncertainty *u);
 
 #endif

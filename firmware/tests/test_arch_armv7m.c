@@ -70,12 +70,66 @@ static void test_isqrt_random(void **state)
 	}
 }
 
+/* The 64-bit root both ways (the reference: fixmath.c's fx_isqrt64 of this build); 1 when they
+ * agree. */
+static int same_isqrt64(uint64_t v)
+{
+	uint32_t ref = fx_isqrt64(v), got = fx_isqrt64_newton(v);
+
+	if (ref == got)
+		return 1;
+	print_error("v %llu: reference %lu, armv7m %lu\n", (unsigned long long)v,
+		    (unsigned long)ref, (unsigned long)got);
+	return 0;
+}
+
+/* Squares and their neighbours for roots of every bit length, the extremes, and the values
+ * where the kernel's shift and its Newton step change (v's top word 0, 1, 2^30, 2^32 - 1). */
+static void test_isqrt64_edges(void **state)
+{
+	(void)state;
+	for (uint32_t bits = 1; bits <= 32; bits++)
+		for (int64_t d = -300; d <= 300; d++) {
+			uint64_t r = (uint64_t)((bits == 32 ? 0xffffffffu : (1u << bits) - 1u)) +
+				     (uint64_t)d;
+			uint64_t sq;
+
+			if (r > 0xffffffffu)
+				continue;
+			sq = r * r;
+			assert_true(same_isqrt64(sq));
+			assert_true(same_isqrt64(sq + 1u));
+			assert_true(same_isqrt64(sq - 1u));
+			assert_true(same_isqrt64(sq + 2u * r)); /* the next square less one */
+		}
+	assert_true(same_isqrt64(0));
+	assert_true(same_isqrt64(UINT64_MAX));
+	assert_true(same_isqrt64(UINT64_MAX - 1u));
+	assert_true(same_isqrt64((uint64_t)1 << 32));
+	assert_true(same_isqrt64(((uint64_t)1 << 32) - 1u));
+	assert_true(same_isqrt64((uint64_t)1 << 62));
+	assert_true(same_isqrt64(((uint64_t)1 << 62) - 1u));
+	assert_true(same_isqrt64((uint64_t)1 << 63));
+}
+
+static void test_isqrt64_random(void **state)
+{
+	(void)state;
+	for (uint32_t i = 0; i < 3000000u; i++) {
+		uint64_t v = ((uint64_t)rng_u32() << 32) | rng_u32();
+		uint64_t r = v >> 32;
+
+		assert_true(same_isqrt64(v >> (i % 64u)));              /* every bit length */
+		assert_true(same_isqrt64(r * r + (v & 0xffu) - 0x80u)); /* near a square */
+	}
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
-		cmocka_unit_test(test_isqrt_small_values),
-		cmocka_unit_test(test_isqrt_squares),
-		cmocka_unit_test(test_isqrt_random),
+		cmocka_unit_test(test_isqrt_small_values), cmocka_unit_test(test_isqrt_squares),
+		cmocka_unit_test(test_isqrt_random),       cmocka_unit_test(test_isqrt64_edges),
+		cmocka_unit_test(test_isqrt64_random),
 	};
 
 	return cmocka_run_group_tests(tests, NULL, NULL);

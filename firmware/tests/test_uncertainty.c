@@ -517,6 +517,169 @@ static void test_widen(void **state)
 	assert_int_equal(uncertainty_get_radius_mm(&u), r);
 }
 
+/* The covariance and the radius of two errors radii, equal. */
+static void assert_same_cov(const struct uncertainty *a, const struct uncertainty *b)
+{
+	assert_int_equal(a->xx, b->xx);
+	assert_int_equal(a->xy, b->xy);
+	assert_int_equal(a->yy, b->yy);
+	assert_int_equal(a->xt, b->xt);
+	assert_int_equal(a->yt, b->yt);
+	assert_int_equal(a->tt, b->tt);
+	assert_int_equal(a->saturated, b->saturated);
+	assert_int_equal(a->radius_um, b->radius_um);
+	assert_int_equal(a->radius_mm, b->radius_mm);
+}
+
+/* A fix 5 mm off in x, of sigma 1 mm, no heading, nothing since. */
+static const struct uncertainty_fix fix_5mm = {5000, 0, 0, 1000, 0, 0, 0, 0, 0};
+
+/* From a 30 mm radius after some driving (systematic terms to fold: a ratio error). */
+static void fusion_start(struct uncertainty *u)
+{
+	static const struct uncertainty_setup s = {6554, 6554, TRACK_UM, 300, 0, 0, 776, 16, 1000};
+
+	heading_rad = 0;
+	assert_int_equal(uncertainty_setup_init(u, &s), 0);
+	uncertainty_reset(u, 30000, 0);
+	drive(u, 1000, 1000, 200, TRACK_UM);
+	settle(u);
+}
+
+/* A fusion in steps (uncertainty.h): begin, then x, y, the heading, the end, one step a planner
+ * period with the odometry's update before each. The covariance is not touched until the end
+ * (the batch of the travel meanwhile waits for the stages), the correction then pulls by the
+ * noises (a prior of sigma 30 / k = 9.9 mm against 1 mm: 99 % of 5 mm), and the travel of the
+ * fusion's periods is propagated after it. */
+static void test_fusion_in_steps(void **state)
+{
+	struct uncertainty u, before;
+	struct uncertainty_correction c;
+	int steps = 0;
+
+	(void)state;
+	fusion_start(&u);
+	before = u;
+	assert_true(uncertainty_fuse_ready(&u));
+	assert_int_equal(uncertainty_fuse_begin(&u, &fix_5mm), 0);
+	assert_false(uncertainty_fuse_ready(&u)); /* one fusion at a time */
+	for (;;) {
+		enum uncertainty_fuse_result r;
+
+		drive(&u, 1000, 1000, 1, TRACK_UM);
+		r = uncertainty_fuse_step(&u, &c);
+		steps++;
+		if (r != UNCERTAINTY_FUSE_BUSY) {
+			assert_int_equal(r, UNCERTAINTY_FUSE_FUSED);
+			break;
+		}
+		assert_same_cov(&u, &before);
+		assert_true(steps < 10);
+	}
+	assert_int_equal(steps, 4);
+	assert_in_range(c.dx_um, 4900, 5000);
+	assert_int_equal(c.dy_um, 0);
+	assert_true(c.d2_q8 > 0);
+	/* The radius follows: within k sigma of the fix's 1 mm, and the travel since (4 mm,
+	 * then 96 more) propagated from there. */
+	settle(&u);
+	assert_in_range(uncertainty_get_radius_mm(&u), 3, 8);
+	assert_int_equal(uncertainty_fuse_step(&u, &c), UNCERTAINTY_FUSE_ABANDONED); /* none */
+	drive(&u, 1000, 1000, 96, TRACK_UM);
+	settle(&u);
+	assert_true(u.xx > 0 && u.yy > 0);
+	assert_in_range(uncertainty_get_radius_mm(&u), 4, 12);
+}
+
+/* An outlier changes nothing: the covariance, the radius and the stages are those of before. */
+static void test_fusion_outlier_changes_nothing(void **state)
+{
+	struct uncertainty u, before;
+	struct uncertainty_correction c;
+	struct uncertainty_fix far = fix_5mm;
+	enum uncertainty_fuse_result r;
+
+	(void)state;
+	far.dx_um = 200000; /* 200 mm against 30 */
+	far.gate_q8 = 16u << 8;
+	fusion_start(&u);
+	before = u;
+	assert_int_equal(uncertainty_fuse_begin(&u, &far), 0);
+	do
+		r = uncertainty_fuse_step(&u, &c);
+	while (r == UNCERTAINTY_FUSE_BUSY);
+	assert_int_equal(r, UNCERTAINTY_FUSE_OUTLIER);
+	assert_int_equal(c.d2_q8 > (16u << 8), 1);
+	assert_same_cov(&u, &before);
+	assert_int_equal(u.stage, before.stage);
+	assert_true(uncertainty_fuse_ready(&u));
+	/* Beyond the field: refused at once, nothing started. */
+	far.dx_um = 300000000;
+	assert_int_equal(uncertainty_fuse_begin(&u, &far), 1);
+	assert_true(uncertainty_fuse_ready(&u));
+}
+
+/* What changes the covariance while a fusion is in flight abandons it before anything of it
+ * was committed: the covariance is then exactly what the change alone makes of it, and the
+ * stages run again. Each change, after each number of steps. */
+enum change { WIDEN, RESET_AXIS, RESET_HEADING, RESET_ALONG, CAP_ALONG, NEW_MODEL, RESET, GIVE_UP };
+
+static void change(struct uncertainty *u, enum change k)
+{
+	static const struct uncertainty_model m = {TRACK_UM, 500, 100, 200};
+
+	switch (k) {
+	case WIDEN:
+		uncertainty_widen(u, 3000, 2000);
+		break;
+	case RESET_AXIS:
+		uncertainty_reset_axis(u, UNCERTAINTY_AXIS_X, 2000);
+		break;
+	case RESET_HEADING:
+		uncertainty_reset_heading(u, 1u << 22);
+		break;
+	case RESET_ALONG:
+		uncertainty_reset_along(u, 1u << 29, 2000);
+		break;
+	case CAP_ALONG:
+		assert_int_equal(uncertainty_cap_along(u, 1u << 29, 2000), 1);
+		break;
+	case NEW_MODEL:
+		assert_int_equal(uncertainty_set_model(u, &m), 0);
+		break;
+	case RESET:
+		uncertainty_reset(u, 7000, 1u << 20);
+		break;
+	case GIVE_UP:
+		uncertainty_fuse_abandon(u);
+		break;
+	}
+}
+
+static void test_fusion_abandoned_by_a_change(void **state)
+{
+	(void)state;
+	for (int k = WIDEN; k <= GIVE_UP; k++)
+		for (int n = 0; n < 4; n++) {
+			struct uncertainty u, twin;
+			struct uncertainty_correction c;
+
+			fusion_start(&u);
+			twin = u;
+			assert_int_equal(uncertainty_fuse_begin(&u, &fix_5mm), 0);
+			for (int i = 0; i < n; i++)
+				assert_int_equal(uncertainty_fuse_step(&u, &c),
+						 UNCERTAINTY_FUSE_BUSY);
+			change(&u, (enum change)k);
+			change(&twin, (enum change)k);
+			assert_int_equal(uncertainty_fuse_step(&u, &c), UNCERTAINTY_FUSE_ABANDONED);
+			settle(&u);
+			settle(&twin);
+			assert_same_cov(&u, &twin);
+			assert_true(uncertainty_fuse_ready(&u));
+		}
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -535,6 +698,9 @@ int main(void)
 		cmocka_unit_test(test_resets),
 		cmocka_unit_test(test_saturation),
 		cmocka_unit_test(test_config_checks),
+		cmocka_unit_test(test_fusion_in_steps),
+		cmocka_unit_test(test_fusion_outlier_changes_nothing),
+		cmocka_unit_test(test_fusion_abandoned_by_a_change),
 	};
 
 	return cmocka_run_group_tests(tests, NULL, NULL);

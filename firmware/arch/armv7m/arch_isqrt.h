@@ -33,4 +33,40 @@ static inline uint32_t fx_isqrt32_rem_newton(uint32_t *rem)
 	return x;
 }
 
+/* floor(sqrt(v)) of a 64-bit value, where the reference (fixmath.c's fx_isqrt64()) takes a 64-bit
+ * division (a library call, dozens of instructions) and 64-bit shifts by variable amounts:
+ * - below 2^32, the 32-bit kernel above;
+ * - else v shifted left by an even s until its top two bits are not both zero, V = v 4^(s/2):
+ *   its top word t in [2^30, 2^32) has the root r1 = floor(sqrt(t)) in [2^15, 2^16), and
+ *   R = r1 2^16 is at most sqrt(V), above it by less than 2^16. One Newton step from R,
+ *   y = R + floor((V - R^2) / (2 R)), is at least floor(sqrt(V)) (the step's mean is at least
+ *   the root, and flooring keeps it at least the floor) and above sqrt(V) by less than
+ *   (2^16)^2 / (2 R) <= 1: floor(sqrt(V)) or one more, which the square tells. V - R^2 is
+ *   (t - r1^2) 2^32 + V's low word, t - r1^2 <= 2 r1 < 2^17: (V - R^2) / (2 R) is
+ *   floor(floor((V - R^2) / 2^17) / r1), a 32-bit division of a 32-bit numerator;
+ * - the root of v is then floor(sqrt(V)) / 2^(s/2), floored (the floor of a floor).
+ * test_arch_armv7m runs it on the host against the reference: the squares and their
+ * neighbours of every bit length, the extremes, random values. */
+static inline uint32_t fx_isqrt64_newton(uint64_t v)
+{
+	uint32_t hi = (uint32_t)(v >> 32), t, r1, rem, s, num, y;
+	uint64_t big;
+
+	if (hi == 0) {
+		uint32_t lo = (uint32_t)v;
+
+		return fx_isqrt32_rem_newton(&lo);
+	}
+	s = (uint32_t)__builtin_clz(hi) & ~1u;
+	big = v << s;
+	t = (uint32_t)(big >> 32);
+	rem = t;
+	r1 = fx_isqrt32_rem_newton(&rem); /* rem = t - r1^2 */
+	num = (rem << 15) | ((uint32_t)big >> 17);
+	y = (r1 << 16) + num / r1; /* at most 2^32 - 1 + 1: wraps only there */
+	if (y < (r1 << 16) || (uint64_t)y * y > big)
+		y--;
+	return y >> (s >> 1);
+}
+
 #endif
