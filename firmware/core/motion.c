@@ -148,6 +148,7 @@ void motion_setting(struct planner *pl, const struct proto_msg *msg)
 	}
 }
 
+#if CONFIG_MOTION_CORNERS
 /* [mm/s] or [mm/s^2], at least 1. */
 static int32_t mm_of_um(int32_t um)
 {
@@ -182,11 +183,6 @@ static int32_t corner_reach_um(const struct planner *pl, const struct board_conf
 #define CORNER_V_MIN_UM_S 50000
 #define Q30 ((int64_t)1 << 30)
 
-/* What a curve of radius r_um is, at the corner's limits (docs/control.md "Corners"). */
-struct corner_shape {
-	int64_t r_um, v_um_s, clothoid_um, arc_um, reach_um;
-};
-
 /* A speed limit at the speed scale, as apply_limits() (orders.c) gives it outside a curve. */
 static int32_t scaled(const struct orders *o, int32_t v_um_s)
 {
@@ -216,8 +212,8 @@ static void corner_limits(const struct orders *o, int64_t lim[6])
  * speed; the clothoids (the curvature's rise at the heading's acceleration: h v^2 / (r a)
  * long) within the turn's arc and within the tolerance's share (their shift p = L^2 / 24 r).
  * The curve starts reach_um before the point; it passes (r + p) / cos - r from the point (its
- * middle, on the bisector), which p_max keeps within the tolerance (corner_fit()). */
-static void corner_shape(struct corner_shape *sh, const int64_t lim[6], uint32_t theta,
+ * middle, on the bisector), which p_max keeps within the tolerance (fit_try()). */
+static void corner_shape(struct motion_shape *sh, const int64_t lim[6], uint32_t theta,
 			 int32_t cos_q30, int32_t sin_q30, int64_t p_max)
 {
 	int64_t r = sh->r_um, v = lim[0], l_max, vv, p;
@@ -248,51 +244,64 @@ static void corner_shape(struct corner_shape *sh, const int64_t lim[6], uint32_t
  * radius whose arc alone passes within five eighths of the tolerance, ((r / cos) - r), the
  * clothoids' shift p within what that leaves of seven eighths (the curve passes (r + p) / cos
  * - r from the point), and the curve within half of either line (its radius smaller until it
- * is), at most v_cap_um_s and r_max_um. 0, or -1 when no curve fits. */
-static int corner_fit(struct corner_shape *sh, const struct orders *o, int32_t tol_um,
-		      uint32_t theta, int64_t len1_um, int64_t len2_um, int64_t free_um,
-		      int64_t v_cap_um_s, int64_t r_max_um)
-{
-	int64_t lim[6], half = (len1_um < len2_um ? len1_um : len2_um) / 2, dev = tol_um * 5 / 8;
-	int32_t s, c;
+ * is), at most v_cap_um_s and r_max_um. In up to six tries, one a call: fit_start(), then
+ * fit_try() while it returns FIT_MORE. */
+enum fit_result { FIT_OK, FIT_NONE, FIT_MORE };
 
-	corner_limits(o, lim);
-	if (lim[0] > v_cap_um_s)
-		lim[0] = v_cap_um_s;
+static enum fit_result fit_start(struct motion_fit *ft, struct motion_shape *sh,
+				 const struct orders *o, int32_t tol_um, uint32_t theta,
+				 int64_t len1_um, int64_t len2_um, int64_t free_um,
+				 int64_t v_cap_um_s, int64_t r_max_um)
+{
+	int64_t dev = tol_um * 5 / 8;
+
+	corner_limits(o, ft->lim);
+	if (ft->lim[0] > v_cap_um_s)
+		ft->lim[0] = v_cap_um_s;
 	if (theta < ((uint32_t)1 << 22)) { /* a third of a degree: the line goes on */
-		*sh = (struct corner_shape){.r_um = CORNER_R_MAX_UM, .v_um_s = lim[0]};
-		return 0;
+		*sh = (struct motion_shape){.r_um = CORNER_R_MAX_UM, .v_um_s = ft->lim[0]};
+		return FIT_OK;
 	}
-	fx_sincos(theta / 2u, &s, &c);
-	sh->r_um = Q30 - c > 0 ? dev * c / (Q30 - c) : CORNER_R_MAX_UM;
+	ft->half_um = (len1_um < len2_um ? len1_um : len2_um) / 2;
+	ft->free_um = free_um;
+	ft->tol_um = tol_um;
+	ft->theta = theta;
+	ft->tries = 0;
+	fx_sincos(theta / 2u, &ft->sin_q30, &ft->cos_q30);
+	sh->r_um =
+		Q30 - ft->cos_q30 > 0 ? dev * ft->cos_q30 / (Q30 - ft->cos_q30) : CORNER_R_MAX_UM;
 	if (sh->r_um > r_max_um)
 		sh->r_um = r_max_um;
-	for (uint8_t i = 0; i < 6; i++) {
-		int64_t tail, aim;
-
-		if (sh->r_um < 1000)
-			return -1;
-		/* An arc about a free wheel would leave it still while its motor turns: the lost
-		 * encoder of faults.c. An arc an eighth of their half track inside instead (within
-		 * a sixteenth, the robot turning faster than planned as the arc began did). */
-		if (sh->r_um > free_um - free_um / 8 && sh->r_um < free_um + free_um / 8)
-			sh->r_um = free_um - free_um / 8;
-		corner_shape(sh, lim, theta, c, s,
-			     (int64_t)tol_um * 7 / 8 * c / Q30 - sh->r_um * (Q30 - c) / Q30);
-		if (sh->reach_um <= half)
-			break;
-		/* The radius that would reach half, were the clothoids as long: they grow as the
-		 * radius shrinks at the line's speed (h v^2 / (r a')), so each try aims a sixteenth
-		 * of half shorter than the last, and a gentle turn fits within the tries. */
-		tail = sh->clothoid_um / 2;
-		aim = half - half * i / 16;
-		sh->r_um = aim > tail ? sh->r_um * (aim - tail) / (sh->reach_um - tail) - 1
-				      : sh->r_um / 2;
-	}
-	return sh->reach_um <= half && sh->v_um_s >= CORNER_V_MIN_UM_S ? 0 : -1;
+	return FIT_MORE;
 }
 
-#if CONFIG_MOTION_CORNERS
+static enum fit_result fit_try(struct motion_fit *ft, struct motion_shape *sh)
+{
+	int64_t c = ft->cos_q30, half = ft->half_um, free_um = ft->free_um, tail, aim;
+
+	if (sh->r_um < 1000)
+		return FIT_NONE;
+	/* An arc about a free wheel would leave it still while its motor turns: the lost encoder
+	 * of faults.c. An arc an eighth of their half track inside instead (within a sixteenth,
+	 * the robot turning faster than planned as the arc began did). */
+	if (sh->r_um > free_um - free_um / 8 && sh->r_um < free_um + free_um / 8)
+		sh->r_um = free_um - free_um / 8;
+	corner_shape(sh, ft->lim, ft->theta, ft->cos_q30, ft->sin_q30,
+		     (int64_t)ft->tol_um * 7 / 8 * c / Q30 - sh->r_um * (Q30 - c) / Q30);
+	if (sh->reach_um <= half)
+		return sh->v_um_s >= CORNER_V_MIN_UM_S ? FIT_OK : FIT_NONE;
+	if (ft->tries == 5)
+		return FIT_NONE;
+	/* The radius that would reach half, were the clothoids as long: they grow as the radius
+	 * shrinks at the line's speed (h v^2 / (r a')), so each try aims a sixteenth of half
+	 * shorter than the last, and a gentle turn fits within the tries. */
+	tail = sh->clothoid_um / 2;
+	aim = half - half * ft->tries / 16;
+	sh->r_um = aim > tail ? sh->r_um * (aim - tail) / (sh->reach_um - tail) - 1 : sh->r_um / 2;
+	ft->tries++;
+	return FIT_MORE;
+}
+
 /* A pivot (docs/control.md "Corners", 6): the line brakes to rest at the point while the heading
  * starts turning e_um before it, and the next line starts while the heading brakes its last
  * phi_um (on the angle axis). Each overlap strays from its line by at most a_h e^2 / (6 a h) and
@@ -349,7 +358,7 @@ static int64_t move_us(int64_t d_um, int64_t v_um_s, int64_t a_um_s2)
  * in place its overlaps leave (the first shorter within half the line: e no more than that);
  * the curve its ramps from and to v, (v - v_c)^2 / (a v), and its length at v_c against the
  * polyline's it replaces at v. */
-static int corner_pivots(const struct orders *o, const struct corner_shape *sh, uint32_t theta,
+static int corner_pivots(const struct orders *o, const struct motion_shape *sh, uint32_t theta,
 			 int64_t len1_um, int64_t len2_um, const struct motion_pivot_shape *pv)
 {
 	int64_t a = o->grip_a_um_s2[0], v = scaled(o, o->traj.v_max_um_s);
@@ -528,98 +537,72 @@ static int curve_joins(const struct proto_msg *msg)
 }
 
 #if CONFIG_MOTION_CORNERS
-/* Looking one corner ahead (docs/control.md "Corners", 4): the curve at the next order's point,
- * planned as it will be when this corner's curve starts (the line after this curve, rest_um,
- * towards that point along heading_turn32), when the next order passes through to a GOTO
- * waiting behind it. Its speed is taken at most what stops the line halfway along the line
- * after it, where no curve there can start earlier (corner_fit() keeps a curve within half of
- * either line): that curve's own look ahead then never asks it slower. Into k->ahead_*: the
- * speed [um/s] the line must be able to slow down to, and how far before the point; 0 and 0,
- * a stop at the point, when there is no such curve. */
-static void corner_ahead(struct motion_corner *k, const struct planner *pl,
-			 const struct motion_entry *next, int64_t rest_um, int64_t free_um,
-			 const struct motion_pivot_shape *pv)
-{
-	const struct motion *mo = &pl->motion;
-	const struct orders *o = &pl->orders;
-	const struct motion_entry *after = &mo->queue[(mo->head + 1u) % PROTO_MOTION_QUEUE_DEPTH];
-	int64_t dx, dy, len3, room, v, a = o->grip_a_um_s2[0];
-	uint32_t theta;
-	struct corner_shape sh;
+/* The running order's corner with the next one waiting, k (motion.h), planned again when either
+ * order, a limit or the tolerance changed: the next order a GOTO without recalibration, the
+ * trapezoid (no jerk limit), the line able to brake to the curve's speed before the curve. The
+ * curve's speed, its deceleration (the line's share of half of 7/8 of the grip, with the
+ * heading's part of the wheel's: a (1 + k h / r)), its shape, and where it starts.
+ *
+ * In steps, a few a planner period (CORNER_STEPS_PER_MS): each curve's fit tries one radius a
+ * step, the pivot's comparison and the look ahead's are steps of their own, so that no period
+ * pays for a whole plan (bench/stm32.py --corners). Until the plan is done, the corner is not
+ * taken: the line keeps its aim. */
+enum plan_step {
+	PLAN_DONE,
+	PLAN_FIT,       /* the curve's fit */
+	PLAN_PIVOT,     /* a pivot instead, where it loses less time */
+	PLAN_AHEAD,     /* the corner after it, looked ahead at */
+	PLAN_AHEAD_FIT, /* its curve's fit */
+	PLAN_AHEAD_END, /* its pivot's comparison, the speed the line must slow down to for it */
+	PLAN_CAP,       /* the curve no faster than the line after it can slow down from */
+	PLAN_CAP_FIT,   /* ... a slower fit on the same radius at most */
+	PLAN_END,       /* its deceleration, and whether the line can still brake to it */
+};
+#define CORNER_STEPS_PER_MS 2
 
-	k->ahead_len1_um = (int32_t)rest_um;
-	k->ahead_seq = after->seq;
-	k->ahead_v_um_s = 0;
-	k->ahead_reach_um = 0;
-	if (mo->count < 2 || !(options_of(&next->msg) & PROTO_OPT_PASS_THROUGH) ||
-	    !curve_joins(&after->msg))
-		return;
-	dx = (int64_t)(after->msg.arg[ARG_GOTO_X_MM] - next->msg.arg[ARG_GOTO_X_MM]) * UM_PER_MM;
-	dy = (int64_t)(after->msg.arg[ARG_GOTO_Y_MM] - next->msg.arg[ARG_GOTO_Y_MM]) * UM_PER_MM;
-	len3 = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
-	theta = fx_angle_dist(fx_atan2((int32_t)dy, (int32_t)dx), k->heading_turn32);
-	if (corner_fit(&sh, o, mo->corner_um, theta, rest_um, len3, free_um, INT32_MAX,
-		       CORNER_R_MAX_UM) < 0 ||
-	    corner_pivots(o, &sh, theta, rest_um, len3, pv))
-		return; /* a stop at the point, or a pivot there */
-	room = len3 / 2 - sh.reach_um;
-	v = sh.v_um_s;
-	if (v * v > 2 * a * room)
-		v = room > 0 ? (int64_t)fx_isqrt64((uint64_t)(2 * a * room)) : 0;
-	k->ahead_v_um_s = (int32_t)v;
-	k->ahead_reach_um = (int32_t)sh.reach_um;
-}
-
-#endif
-
-#if CONFIG_MOTION_CORNERS
 /* A pivot pv rather than the curve sh (v_um_s 0: none fits) at a corner k whose next order is a
  * GOTO a curve may join, when it loses less time (corner_pivots(), on the line k was first
  * planned with, as the corner before looked ahead at it): into k, 1. */
 static int pivot_plan(struct motion_corner *k, const struct orders *o,
-		      const struct corner_shape *sh, uint32_t theta, int64_t len2_um,
 		      const struct motion_pivot_shape *pv)
 {
-	if (!corner_pivots(o, sh, theta, k->len1_um, len2_um, pv))
+	if (!corner_pivots(o, &k->sh, k->theta, k->len1_um, k->len2_um, pv))
 		return 0;
 	k->pivot = 1;
 	k->pivot_um = (int32_t)(pv->e_um < k->len1_um / 2 ? pv->e_um : k->len1_um / 2);
 	k->pivot_turn32 = pv->phi_turn32;
 	return 1;
 }
-#endif
 
-/* The running order's corner with the next one waiting, k (motion.h), planned again when either
- * order, a limit or the tolerance changed: the next order a GOTO without recalibration, the
- * trapezoid (no jerk limit), the line able to brake to the curve's speed before the curve. The
- * curve's speed, its deceleration (the line's share of half of 7/8 of the grip, with the
- * heading's part of the wheel's: a (1 + k h / r)), its shape, and where it starts. */
-static void corner_plan(struct planner *pl, const struct board_config *cfg,
-			const struct motion_entry *next, struct motion_corner *k)
+/* The line to the corner's point now [um]: on a curve, the line after it; else from the
+ * estimate to the point, along the bearing. */
+static int32_t line_left_um(const struct planner *pl)
+{
+	const struct orders *o = &pl->orders;
+	int64_t px = (int64_t)o->target_x_um - pl->m.pose.x_um;
+	int64_t py = (int64_t)o->target_y_um - pl->m.pose.y_um;
+
+	return o->curve ? o->cv.rest_um : (int32_t)fx_isqrt64((uint64_t)(px * px + py * py));
+}
+
+/* The plan's first step: the corner's geometry, the curve's fit started. */
+static void plan_start(struct planner *pl, const struct board_config *cfg,
+		       const struct motion_entry *next, struct motion_corner *k)
 {
 	const struct orders *o = &pl->orders;
 	int64_t dx = (int64_t)next->msg.arg[ARG_GOTO_X_MM] * UM_PER_MM - o->target_x_um;
 	int64_t dy = (int64_t)next->msg.arg[ARG_GOTO_Y_MM] * UM_PER_MM - o->target_y_um;
-	int64_t px = (int64_t)o->target_x_um - pl->m.pose.x_um, lim[6], g7, u, a, v, len2;
-	int64_t py = (int64_t)o->target_y_um - pl->m.pose.y_um;
-	int64_t free_um = (int64_t)(cfg->orders.drive_track_um / 2u) * 65536 / pl->free_ratio_q16;
-	/* On a curve, the line after it; else from the estimate to the point, along the bearing */
-	int32_t len1 =
-		o->curve ? o->cv.rest_um : (int32_t)fx_isqrt64((uint64_t)(px * px + py * py));
-	uint32_t line = o->curve ? pl->motion.line_turn32 : o->bearing_turn32, theta;
-	struct corner_shape sh;
+	int32_t len1 = line_left_um(pl);
+	uint32_t line = o->curve ? pl->motion.line_turn32 : o->bearing_turn32;
 
 	k->ok = 0;
-#if CONFIG_MOTION_CORNERS
 	k->pivot = 0;
-#endif
+	k->step = PLAN_DONE;
 	if (k->seq != pl->motion.running_seq || k->next_seq != next->seq) {
-#if CONFIG_MOTION_CORNERS
 		/* The curve looked ahead at, as the last corner planned it */
 		if (o->curve && k->next_seq == pl->motion.running_seq &&
 		    k->ahead_seq == next->seq && k->ahead_len1_um < len1)
 			len1 = k->ahead_len1_um;
-#endif
 		k->len1_um = len1;
 	}
 	k->seq = pl->motion.running_seq;
@@ -628,55 +611,187 @@ static void corner_plan(struct planner *pl, const struct board_config *cfg,
 	    (!o->curve && !o->bearing_valid))
 		return;
 	k->heading_turn32 = fx_atan2((int32_t)dy, (int32_t)dx);
-	theta = fx_angle_dist(k->heading_turn32, line);
-	len2 = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
-	if (corner_fit(&sh, o, pl->motion.corner_um, theta, k->len1_um, len2, free_um, INT32_MAX,
-		       CORNER_R_MAX_UM) < 0)
-		sh.v_um_s = 0;  /* no curve: a pivot, or the corner of before the curves */
-	a = o->grip_a_um_s2[0]; /* the line's, out of the curve */
-	u = o->sp_dist.vel_um_s;
-#if CONFIG_MOTION_CORNERS
-	const struct motion_pivot_shape *pv = &pl->motion.pivot_shape;
-	int64_t cap;
+	k->theta = fx_angle_dist(k->heading_turn32, line);
+	k->len2_um = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
+	k->free_um = (int64_t)(cfg->orders.drive_track_um / 2u) * 65536 / pl->free_ratio_q16;
+	switch (fit_start(&k->fit, &k->sh, o, pl->motion.corner_um, k->theta, k->len1_um,
+			  k->len2_um, k->free_um, INT32_MAX, CORNER_R_MAX_UM)) {
+	case FIT_MORE:
+		k->step = PLAN_FIT;
+		break;
+	case FIT_NONE:
+		k->sh.v_um_s = 0; /* no curve: a pivot, or the corner of before the curves */
+				  /* fall through */
+	default:
+		k->step = PLAN_PIVOT;
+		break;
+	}
+}
 
-	/* A pivot, where the line can still stop at the point */
-	if ((u * u <= 2 * a * len1 && pivot_plan(k, o, &sh, theta, len2, pv)) || sh.v_um_s == 0)
+/* Looking one corner ahead (docs/control.md "Corners", 4): the curve at the next order's point,
+ * planned as it will be when this corner's curve starts (the line after this curve, towards
+ * that point along k->heading_turn32), when the next order passes through to a GOTO waiting
+ * behind it. Its speed is taken at most what stops the line halfway along the line after it,
+ * where no curve there can start earlier (a fit keeps a curve within half of either line): that
+ * curve's own look ahead then never asks it slower. Into k->ahead_*: the speed [um/s] the line
+ * must be able to slow down to, and how far before the point; 0 and 0, a stop at the point,
+ * when there is no such curve. The fit's start: the next step. */
+static enum plan_step plan_ahead(struct motion_corner *k, const struct planner *pl)
+{
+	const struct motion *mo = &pl->motion;
+	const struct motion_entry *next = &mo->queue[mo->head];
+	const struct motion_entry *after = &mo->queue[(mo->head + 1u) % PROTO_MOTION_QUEUE_DEPTH];
+	int64_t rest_um = k->len2_um - k->sh.reach_um, dx, dy;
+
+	k->ahead_len1_um = (int32_t)rest_um;
+	k->ahead_seq = after->seq;
+	k->ahead_v_um_s = 0;
+	k->ahead_reach_um = 0;
+	if (mo->count < 2 || !(options_of(&next->msg) & PROTO_OPT_PASS_THROUGH) ||
+	    !curve_joins(&after->msg))
+		return PLAN_CAP;
+	dx = (int64_t)(after->msg.arg[ARG_GOTO_X_MM] - next->msg.arg[ARG_GOTO_X_MM]) * UM_PER_MM;
+	dy = (int64_t)(after->msg.arg[ARG_GOTO_Y_MM] - next->msg.arg[ARG_GOTO_Y_MM]) * UM_PER_MM;
+	k->len3_um = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
+	k->ahead_theta = fx_angle_dist(fx_atan2((int32_t)dy, (int32_t)dx), k->heading_turn32);
+	switch (fit_start(&k->fit, &k->ahead_sh, &pl->orders, mo->corner_um, k->ahead_theta,
+			  rest_um, k->len3_um, k->free_um, INT32_MAX, CORNER_R_MAX_UM)) {
+	case FIT_MORE:
+		return PLAN_AHEAD_FIT;
+	case FIT_NONE:
+		return PLAN_CAP; /* a stop at the point */
+	default:
+		return PLAN_AHEAD_END;
+	}
+}
+
+/* The corner looked ahead at, its curve fitted: a pivot there (a stop at the point), or the
+ * speed the line after this curve must be able to slow down to for it. */
+static void plan_ahead_end(struct motion_corner *k, const struct planner *pl)
+{
+	const struct orders *o = &pl->orders;
+	const struct motion_shape *sh = &k->ahead_sh;
+	int64_t a = o->grip_a_um_s2[0], room = k->len3_um / 2 - sh->reach_um, v = sh->v_um_s;
+
+	if (corner_pivots(o, sh, k->ahead_theta, k->ahead_len1_um, k->len3_um,
+			  &pl->motion.pivot_shape))
 		return;
-	/* No faster than the line after the curve can slow down for what follows it */
-	corner_ahead(k, pl, next, len2 - sh.reach_um, free_um, pv);
-	cap = (int64_t)k->ahead_v_um_s * k->ahead_v_um_s +
-	      2 * a * (len2 - sh.reach_um - k->ahead_reach_um - UM_PER_MM);
+	if (v * v > 2 * a * room)
+		v = room > 0 ? (int64_t)fx_isqrt64((uint64_t)(2 * a * room)) : 0;
+	k->ahead_v_um_s = (int32_t)v;
+	k->ahead_reach_um = (int32_t)sh->reach_um;
+}
+
+/* No faster than the line after the curve can slow down for what follows it: slower, on the
+ * same radius at most (the curve starts no earlier, its clothoids shorter), the fit's start. */
+static enum plan_step plan_cap(struct motion_corner *k, const struct planner *pl)
+{
+	const struct orders *o = &pl->orders;
+	int64_t a = o->grip_a_um_s2[0];
+	int64_t cap = (int64_t)k->ahead_v_um_s * k->ahead_v_um_s +
+		      2 * a * (k->len2_um - k->sh.reach_um - k->ahead_reach_um - UM_PER_MM);
+
 	cap = cap > 0 ? (int64_t)fx_isqrt64((uint64_t)cap) : 0;
-	/* Slower, on the same radius at most: the curve starts no earlier, its clothoids shorter */
-	if (cap < sh.v_um_s && corner_fit(&sh, o, pl->motion.corner_um, theta, k->len1_um, len2,
-					  free_um, cap, sh.r_um) < 0)
-		return;
-#else
-	if (sh.v_um_s == 0)
-		return;
-#endif
+	if (cap >= k->sh.v_um_s)
+		return PLAN_END;
+	switch (fit_start(&k->fit, &k->sh, o, pl->motion.corner_um, k->theta, k->len1_um,
+			  k->len2_um, k->free_um, cap, k->sh.r_um)) {
+	case FIT_MORE:
+		return PLAN_CAP_FIT;
+	case FIT_NONE:
+		return PLAN_DONE; /* the corner of before the curves */
+	default:
+		return PLAN_END;
+	}
+}
+
+/* The curve planned: its deceleration and where it starts, unless the line, as it is now, can
+ * no longer brake to its speed before it. */
+static void plan_end(struct motion_corner *k, const struct planner *pl,
+		     const struct board_config *cfg)
+{
+	const struct orders *o = &pl->orders;
+	const struct motion_shape *sh = &k->sh;
+	int64_t lim[6], g7, a, v = sh->v_um_s, u = o->sp_dist.vel_um_s;
+
 	corner_limits(o, lim);
 	g7 = cfg->orders.grip_um_s2 - (cfg->orders.grip_um_s2 >> 3);
-	a = g7 / 4 * sh.r_um / (sh.r_um + lim[5]);
+	a = g7 / 4 * sh->r_um / (sh->r_um + lim[5]);
 	k->c.a_um_s2 = (int32_t)(a < o->grip_a_um_s2[0] ? a : o->grip_a_um_s2[0]);
 	if (k->c.a_um_s2 < PROFILE_A_MIN_UM_S2)
 		k->c.a_um_s2 = PROFILE_A_MIN_UM_S2;
-	v = sh.v_um_s;
-	a = o->grip_a_um_s2[0];                           /* the line's, out of the curve */
-	if (u * u - v * v > 2 * a * (len1 - sh.reach_um)) /* too late to slow down for it */
+	a = o->grip_a_um_s2[0]; /* the line's, out of the curve */
+	if (u * u - v * v > 2 * a * (line_left_um(pl) - sh->reach_um)) /* too late for it */
 		return;
 	k->c.v_um_s = (int32_t)v;
-	k->c.clothoid_um = (int32_t)sh.clothoid_um;
-	k->c.arc_um = (int32_t)sh.arc_um;
-	k->reach_um = (int32_t)sh.reach_um;
-	k->c.rest_um = (int32_t)(len2 - sh.reach_um);
+	k->c.clothoid_um = (int32_t)sh->clothoid_um;
+	k->c.arc_um = (int32_t)sh->arc_um;
+	k->reach_um = (int32_t)sh->reach_um;
+	k->c.rest_um = (int32_t)(k->len2_um - sh->reach_um);
 	k->brake_um = (int32_t)(v * v / (2 * a));
 	k->ok = 1;
 }
 
+/* The step after a fit's try: the same while it goes on, ok when it fitted, none when not. */
+static enum plan_step after_try(enum fit_result r, enum plan_step now, enum plan_step ok,
+				enum plan_step none)
+{
+	return r == FIT_MORE ? now : r == FIT_OK ? ok : none;
+}
+
+/* One step of the plan in progress. */
+static void plan_step(struct planner *pl, const struct board_config *cfg, struct motion_corner *k)
+{
+	const struct orders *o = &pl->orders;
+	int64_t u = o->sp_dist.vel_um_s, a = o->grip_a_um_s2[0];
+	enum fit_result r;
+
+	switch (k->step) {
+	case PLAN_FIT:
+		r = fit_try(&k->fit, &k->sh);
+		if (r == FIT_NONE)
+			k->sh.v_um_s =
+				0; /* no curve: a pivot, or the corner of before the curves */
+		k->step = after_try(r, PLAN_FIT, PLAN_PIVOT, PLAN_PIVOT);
+		break;
+	case PLAN_PIVOT: /* a pivot, where the line can still stop at the point */
+		k->step = (u * u <= 2 * a * line_left_um(pl) &&
+			   pivot_plan(k, o, &pl->motion.pivot_shape)) ||
+					  k->sh.v_um_s == 0
+				  ? PLAN_DONE
+				  : PLAN_AHEAD;
+		break;
+	case PLAN_AHEAD:
+		k->step = plan_ahead(k, pl);
+		break;
+	case PLAN_AHEAD_FIT:
+		r = fit_try(&k->fit, &k->ahead_sh);
+		k->step = after_try(r, PLAN_AHEAD_FIT, PLAN_AHEAD_END, PLAN_CAP);
+		break;
+	case PLAN_AHEAD_END:
+		plan_ahead_end(k, pl);
+		k->step = PLAN_CAP;
+		break;
+	case PLAN_CAP:
+		k->step = plan_cap(k, pl);
+		break;
+	case PLAN_CAP_FIT:
+		r = fit_try(&k->fit, &k->sh);
+		k->step = after_try(r, PLAN_CAP_FIT, PLAN_END, PLAN_DONE);
+		break;
+	default:
+		plan_end(k, pl, cfg);
+		k->step = PLAN_DONE;
+		break;
+	}
+}
+
+enum corner_plan { CORNER_KEPT, CORNER_PLANNED, CORNER_PLANNING };
+
 /* The corner planned for the running order and the next, kept while neither they, the limits
- * nor the tolerance change. 1 when it was planned just now. */
-static int corner_current(struct planner *pl, const struct board_config *cfg)
+ * nor the tolerance change: CORNER_PLANNED when its plan ended just now, CORNER_PLANNING while
+ * it goes on. */
+static enum corner_plan corner_current(struct planner *pl, const struct board_config *cfg)
 {
 	struct motion *mo = &pl->motion;
 	const struct orders *o = &pl->orders;
@@ -684,15 +799,22 @@ static int corner_current(struct planner *pl, const struct board_config *cfg)
 	int32_t key[4] = {o->traj.v_max_um_s, o->grip_a_um_s2[0], o->rot.v_max_um_s,
 			  mo->corner_um + ((int32_t)o->scale_percent << 24)};
 	struct motion_corner *k = &mo->corner;
+	uint32_t steps = CORNER_STEPS_PER_MS * ((mo->ms_per_tick_q8 + 255u) >> 8);
 
-	if (k->seq == mo->running_seq && k->next_seq == next->seq && k->key[0] == key[0] &&
-	    k->key[1] == key[1] && k->key[2] == key[2] && k->key[3] == key[3])
-		return 0;
-	for (uint8_t i = 0; i < 4; i++)
-		k->key[i] = key[i];
-	corner_plan(pl, cfg, next, k);
-	return 1;
+	if (k->seq != mo->running_seq || k->next_seq != next->seq || k->key[0] != key[0] ||
+	    k->key[1] != key[1] || k->key[2] != key[2] || k->key[3] != key[3]) {
+		for (uint8_t i = 0; i < 4; i++)
+			k->key[i] = key[i];
+		plan_start(pl, cfg, next, k);
+		steps--;
+	} else if (k->step == PLAN_DONE) {
+		return CORNER_KEPT;
+	}
+	for (; steps > 0 && k->step != PLAN_DONE; steps--)
+		plan_step(pl, cfg, k);
+	return k->step == PLAN_DONE ? CORNER_PLANNED : CORNER_PLANNING;
 }
+#endif
 
 void motion_before(struct planner *pl, const struct board_config *cfg)
 {
@@ -700,6 +822,7 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 	struct motion *mo = &pl->motion;
 	struct orders *o = &pl->orders;
 	const struct motion_corner *k = &mo->corner;
+	enum corner_plan plan;
 	int32_t e, stop_um;
 
 	if (!mo->through || pivot_refresh(mo, o))
@@ -709,7 +832,10 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 		o->through_um = 0;
 		return;
 	}
-	if (corner_current(pl, cfg) || o->curve) {
+	plan = corner_current(pl, cfg);
+	if (plan == CORNER_PLANNING) /* not taken before its plan is done: the line keeps its aim */
+		return;
+	if (plan == CORNER_PLANNED || o->curve) {
 		/* The line aims past the point by what braking to the curve's speed takes, less
 		 * the curve's start, from this very update on (on a curve, from its target). */
 		o->through_um = k->ok ? k->brake_um - k->reach_um

@@ -18,6 +18,25 @@ struct motion_entry {
 	uint8_t seq;
 };
 
+#if CONFIG_MOTION_CORNERS
+/* What a curve of radius r_um is, at the corner's limits (docs/control.md "Corners"): its speed,
+ * its clothoids' and its arc's lengths, and how far before the point it starts. */
+struct motion_shape {
+	int64_t r_um, v_um_s, clothoid_um, arc_um, reach_um;
+};
+
+/* A curve's fit in progress (motion.c, fit_start() and fit_try(), one try a call): the limits
+ * it keeps, half the shorter line, the free wheels' arc's radius [um], the tolerance [um], the
+ * half turn's sine and cosine [Q30], the turn [turn * 2^32], the tries done. */
+struct motion_fit {
+	int64_t lim[6];
+	int64_t half_um, free_um;
+	int32_t tol_um, sin_q30, cos_q30;
+	uint32_t theta;
+	uint8_t tries;
+};
+#endif
+
 /* A pass-through corner's curve, planned for the running order and the next one (motion.c). */
 struct motion_corner {
 	uint8_t seq;             /* the running order's sequence number it is for */
@@ -30,7 +49,7 @@ struct motion_corner {
 	uint32_t heading_turn32; /* the next line's */
 	struct orders_curve c;
 #if CONFIG_MOTION_CORNERS /* the AVR's layout as without them: its budget is tight */
-	/* The corner after it, looked ahead at (motion.c, corner_ahead()) */
+	/* The corner after it, looked ahead at (motion.c, plan_ahead()) */
 	uint8_t ahead_seq;      /* the order after the next one */
 	int32_t ahead_len1_um;  /* the line after this curve, as that corner is planned with */
 	int32_t ahead_v_um_s;   /* the speed the line slows down to for it (0: a stop) */
@@ -40,6 +59,14 @@ struct motion_corner {
 	uint8_t pivot;
 	int32_t pivot_um;
 	uint32_t pivot_turn32;
+	/* The plan in progress, a few steps a planner period (motion.c, plan_step()): its next
+	 * step (PLAN_DONE: none), the fit being tried, the curve and the one looked ahead at, the
+	 * turns [turn * 2^32] and the lines after each point [um], the free wheels' arc radius. */
+	uint8_t step;
+	struct motion_fit fit;
+	struct motion_shape sh, ahead_sh;
+	uint32_t theta, ahead_theta;
+	int64_t len2_um, len3_um, free_um;
 #endif
 };
 

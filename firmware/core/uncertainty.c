@@ -245,7 +245,7 @@ static void run_stages(struct uncertainty *u, uint8_t n);
  * flight (nothing of it is committed before its end: uncertainty_fuse_step()). */
 static void finish_stages(struct uncertainty *u)
 {
-	if (u->stage > STAGE_RADIUS)
+	if (CONFIG_FIX && u->stage > STAGE_RADIUS)
 		u->stage = STAGE_EIGEN;
 	run_stages(u, UINT8_MAX);
 }

@@ -187,7 +187,7 @@ def test_the_figures_in_docs_stm32_md_are_what_the_bench_prints(
     slow = _figure(out, r"planner \(board_slow: [^)]*\)\s+(\d+) mean\s+(\d+) worst", cruise)
     busy = _figure(out, r"busiest period at 1 m/s.*: \d+ instructions, ([\d.]+) %")
     busy_fixes = _figure(fixes, r"busiest period at 1 m/s.*: \d+ instructions, ([\d.]+) %")
-    busy_corners = _figure(corners, r"busiest period of the tour.*: \d+ instructions, ([\d.]+) %")
+    busy_corners = _figure(corners, r"busiest period of the tours.*: \d+ instructions, ([\d.]+) %")
     mem = _figure(out, r"^flash (\d+) bytes .*; RAM (\d+) bytes static")
     want = {
         "control tick at 1 m/s, mean": f"{tick[1]} instructions",
@@ -197,7 +197,7 @@ def test_the_figures_in_docs_stm32_md_are_what_the_bench_prints(
         "instructions",
         "CPU load of the busiest period": f"{busy[1]} % (estimate)",
         "the same with a SET_FIX every 100 ms (`--fixes`)": f"{busy_fixes[1]} % (estimate)",
-        "a tour through PASS_THROUGH corners (`--corners`), its busiest period": (
+        "tours through PASS_THROUGH corners (`--corners`), their busiest period": (
             f"{busy_corners[1]} % (estimate)"
         ),
         "flash": f"{mem[1]} bytes",

@@ -352,7 +352,7 @@ def test_a_tour_through_corners_stays_within_the_tolerance_and_is_faster(toleran
 @st.composite
 def tours(draw: st.DrawFn) -> list[tuple[int, int]]:
     """3 to 5 lines from the start (0, -850), each 150 to 1400 mm long after a turn of up to
-    150 degrees, within the table: long lines before short ones are what corner_ahead()
+    150 degrees, within the table: long lines before short ones are what plan_ahead()
     (motion.c) is for."""
     x, y, heading = 0.0, -850.0, math.radians(draw(st.integers(20, 160)))
     pts: list[tuple[int, int]] = []
@@ -380,7 +380,7 @@ def tours(draw: st.DrawFn) -> list[tuple[int, int]]:
 # bench/course.py --max-turn 90's seed 16, its last corners: a curve of radius 149 mm planned
 # just outside the band kept from the free wheels' half track (140 mm), turning 7 % faster than
 # planned as the arc began, rolled the inner free wheel on the spot while its motor turned: the
-# lost encoder of faults.c, PB_MOTEUR with no contact (motion.c corner_fit(), the band now an
+# lost encoder of faults.c, PB_MOTEUR with no contact (motion.c fit_try(), the band now an
 # eighth of that half track on either side).
 @example(
     seed=16,
