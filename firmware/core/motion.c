@@ -529,6 +529,7 @@ static void update_braking(struct motion *mo, const struct orders *o)
 	}
 }
 
+#if CONFIG_MOTION_CORNERS
 /* A GOTO that a curve may join: no recalibration bit. */
 static int curve_joins(const struct proto_msg *msg)
 {
@@ -536,7 +537,6 @@ static int curve_joins(const struct proto_msg *msg)
 	       !(msg->arg[ARG_GOTO_OPTIONS] & (ORDERS_OPT_LINE | ORDERS_OPT_BORDER));
 }
 
-#if CONFIG_MOTION_CORNERS
 /* The running order's corner with the next one waiting, k (motion.h), planned again when either
  * order, a limit or the tolerance changed: the next order a GOTO without recalibration, the
  * trapezoid (no jerk limit), the line able to brake to the curve's speed before the curve. The
