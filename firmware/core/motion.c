@@ -244,8 +244,9 @@ static void corner_shape(struct motion_shape *sh, const int64_t lim[6], uint32_t
  * radius whose arc alone passes within five eighths of the tolerance, ((r / cos) - r), the
  * clothoids' shift p within what that leaves of seven eighths (the curve passes (r + p) / cos
  * - r from the point), and the curve within half of either line (its radius smaller until it
- * is), at most v_cap_um_s and r_max_um. In up to six tries, one a call: fit_start(), then
- * fit_try() while it returns FIT_MORE. */
+ * is), at most v_cap_um_s and r_max_um. In up to six tries, one a call: fit_start() (FIT_OK at
+ * once for a turn under a third of a degree, the line going on; else FIT_MORE), then fit_try()
+ * while it returns FIT_MORE. */
 enum fit_result { FIT_OK, FIT_NONE, FIT_MORE };
 
 static enum fit_result fit_start(struct motion_fit *ft, struct motion_shape *sh,
@@ -614,18 +615,10 @@ static void plan_start(struct planner *pl, const struct board_config *cfg,
 	k->theta = fx_angle_dist(k->heading_turn32, line);
 	k->len2_um = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
 	k->free_um = (int64_t)(cfg->orders.drive_track_um / 2u) * 65536 / pl->free_ratio_q16;
-	switch (fit_start(&k->fit, &k->sh, o, pl->motion.corner_um, k->theta, k->len1_um,
-			  k->len2_um, k->free_um, INT32_MAX, CORNER_R_MAX_UM)) {
-	case FIT_MORE:
-		k->step = PLAN_FIT;
-		break;
-	case FIT_NONE:
-		k->sh.v_um_s = 0; /* no curve: a pivot, or the corner of before the curves */
-				  /* fall through */
-	default:
-		k->step = PLAN_PIVOT;
-		break;
-	}
+	k->step = fit_start(&k->fit, &k->sh, o, pl->motion.corner_um, k->theta, k->len1_um,
+			    k->len2_um, k->free_um, INT32_MAX, CORNER_R_MAX_UM) == FIT_MORE
+			  ? PLAN_FIT
+			  : PLAN_PIVOT;
 }
 
 /* Looking one corner ahead (docs/control.md "Corners", 4): the curve at the next order's point,
@@ -654,15 +647,10 @@ static enum plan_step plan_ahead(struct motion_corner *k, const struct planner *
 	dy = (int64_t)(after->msg.arg[ARG_GOTO_Y_MM] - next->msg.arg[ARG_GOTO_Y_MM]) * UM_PER_MM;
 	k->len3_um = fx_isqrt64((uint64_t)(dx * dx + dy * dy));
 	k->ahead_theta = fx_angle_dist(fx_atan2((int32_t)dy, (int32_t)dx), k->heading_turn32);
-	switch (fit_start(&k->fit, &k->ahead_sh, &pl->orders, mo->corner_um, k->ahead_theta,
-			  rest_um, k->len3_um, k->free_um, INT32_MAX, CORNER_R_MAX_UM)) {
-	case FIT_MORE:
-		return PLAN_AHEAD_FIT;
-	case FIT_NONE:
-		return PLAN_CAP; /* a stop at the point */
-	default:
-		return PLAN_AHEAD_END;
-	}
+	return fit_start(&k->fit, &k->ahead_sh, &pl->orders, mo->corner_um, k->ahead_theta, rest_um,
+			 k->len3_um, k->free_um, INT32_MAX, CORNER_R_MAX_UM) == FIT_MORE
+		       ? PLAN_AHEAD_FIT
+		       : PLAN_AHEAD_END;
 }
 
 /* The corner looked ahead at, its curve fitted: a pivot there (a stop at the point), or the
@@ -694,15 +682,10 @@ static enum plan_step plan_cap(struct motion_corner *k, const struct planner *pl
 	cap = cap > 0 ? (int64_t)fx_isqrt64((uint64_t)cap) : 0;
 	if (cap >= k->sh.v_um_s)
 		return PLAN_END;
-	switch (fit_start(&k->fit, &k->sh, o, pl->motion.corner_um, k->theta, k->len1_um,
-			  k->len2_um, k->free_um, cap, k->sh.r_um)) {
-	case FIT_MORE:
-		return PLAN_CAP_FIT;
-	case FIT_NONE:
-		return PLAN_DONE; /* the corner of before the curves */
-	default:
-		return PLAN_END;
-	}
+	return fit_start(&k->fit, &k->sh, o, pl->motion.corner_um, k->theta, k->len1_um, k->len2_um,
+			 k->free_um, cap, k->sh.r_um) == FIT_MORE
+		       ? PLAN_CAP_FIT
+		       : PLAN_END;
 }
 
 /* The curve planned: its deceleration and where it starts, unless the line, as it is now, can
