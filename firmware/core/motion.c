@@ -8,17 +8,23 @@
 #include "fixmath.h"
 #include "protocol_defs.h"
 
+/* 1 / a deceleration [ms per mm/s, 2^-8], rounded up, saturating: a division, made where the
+ * deceleration is set (at init, at a curve's or a pivot's start), not at each braking. */
+static uint16_t ms_per_mm_s_q8_of(int32_t a_um_s2)
+{
+	uint32_t a = (uint32_t)a_um_s2 / 1000u;
+	uint32_t r = ((1000u << 8) + a - 1u) / (a > 0 ? a : 1u);
+
+	return (uint16_t)(r > 0xFFFFu ? 0xFFFFu : r);
+}
+
 void motion_init(struct motion *mo, const struct board_config *cfg, const struct orders *o,
 		 uint16_t slow_hz)
 {
 	*mo = (struct motion){0};
 	mo->ms_per_tick_q8 = (uint16_t)((1000u << 8) / slow_hz);
-	for (uint8_t k = 0; k < 2; k++) { /* 1 / PAUSE's deceleration [ms per mm/s, 2^-8] */
-		uint32_t a = (uint32_t)o->grip_a_um_s2[2 + k] / 1000u;   /* at init: a division */
-		uint32_t r = ((1000u << 8) + a - 1u) / (a > 0 ? a : 1u); /* rounded up */
-
-		mo->ms_per_mm_s_q8[k] = (uint16_t)(r > 0xFFFFu ? 0xFFFFu : r);
-	}
+	for (uint8_t k = 0; k < 2; k++) /* 1 / PAUSE's deceleration of each axis */
+		mo->ms_per_mm_s_q8[k] = ms_per_mm_s_q8_of(o->grip_a_um_s2[2 + k]);
 	mo->scale_percent = 100;
 	mo->corner_um = MOTION_CORNER_DEFAULT_MM * UM_PER_MM;
 	/* A message waits for the period's end, the planner works on it (planner_ticks), the
@@ -478,8 +484,6 @@ void motion_publish(const struct planner *pl, struct proto_snapshot *s)
 	out->braking_ms = mo->braking_ms;
 }
 
-/* MOTION's braking distance and time, at the set points' speeds: computed again only when they
- * or the smoothing changed (a cruise costs nothing). */
 /* 1 / PAUSE's deceleration of an axis as ms_per_mm_s_q8: on a curve (mode 1), the curve's for
  * the line; in a pivot (2), the pivot's; else the grip's shares. */
 static uint16_t braking_ms_per_mm_s_q8(const struct motion *mo, int32_t mode, uint8_t axis)
@@ -491,6 +495,8 @@ static uint16_t braking_ms_per_mm_s_q8(const struct motion *mo, int32_t mode, ui
 	return mode == 1 && axis == 0 ? mo->curve_ms_per_mm_s_q8 : mo->ms_per_mm_s_q8[axis];
 }
 
+/* MOTION's braking distance and time, at the set points' speeds: computed again only when they
+ * or the smoothing changed (a cruise costs nothing). */
 static void update_braking(struct motion *mo, const struct orders *o)
 {
 	/* Each speed rounded up to a step of 2^14 um/s (16.4 mm/s): the figures are those of the
@@ -732,17 +738,16 @@ static void plan_step(struct planner *pl, const struct board_config *cfg, struct
 	switch (k->step) {
 	case PLAN_FIT:
 		r = fit_try(&k->fit, &k->sh);
+		/* no curve: a pivot, or the corner of before the curves */
 		if (r == FIT_NONE)
-			k->sh.v_um_s =
-				0; /* no curve: a pivot, or the corner of before the curves */
+			k->sh.v_um_s = 0;
 		k->step = after_try(r, PLAN_FIT, PLAN_PIVOT, PLAN_PIVOT);
 		break;
 	case PLAN_PIVOT: /* a pivot, where the line can still stop at the point */
-		k->step = (u * u <= 2 * a * line_left_um(pl) &&
-			   pivot_plan(k, o, &pl->motion.pivot_shape)) ||
-					  k->sh.v_um_s == 0
-				  ? PLAN_DONE
-				  : PLAN_AHEAD;
+		if (u * u <= 2 * a * line_left_um(pl) && pivot_plan(k, o, &pl->motion.pivot_shape))
+			k->step = PLAN_DONE;
+		else
+			k->step = k->sh.v_um_s == 0 ? PLAN_DONE : PLAN_AHEAD;
 		break;
 	case PLAN_AHEAD:
 		k->step = plan_ahead(k, pl);
@@ -840,22 +845,14 @@ void motion_before(struct planner *pl, const struct board_config *cfg)
 	pl->status &= (uint8_t)~STATUS_END_BITS;
 	run_next(pl);
 	if (k->ok && mo->running) {
-		uint32_t a = (uint32_t)k->c.a_um_s2 / 1000u;
-		uint32_t r = ((1000u << 8) + a - 1u) / (a > 0 ? a : 1u);
-
 		orders_curve_start(o, &pl->m, &k->c, k->heading_turn32);
 		mo->line_turn32 = k->heading_turn32;
-		mo->curve_ms_per_mm_s_q8 = (uint16_t)(r > 0xFFFFu ? 0xFFFFu : r);
+		mo->curve_ms_per_mm_s_q8 = ms_per_mm_s_q8_of(k->c.a_um_s2);
 		mo->braking_vel[0] = INT32_MIN; /* MOTION's figures again, at the curve's */
 	} else if (k->pivot && mo->running) {
 		orders_pivot_start(o, stop_um, k->pivot_turn32);
-		for (uint8_t i = 0; i < 2;
-		     i++) { /* MOTION's figures at the pivot's accelerations */
-			uint32_t a = (uint32_t)o->grip_a_um_s2[i] / 1000u;
-			uint32_t r = ((1000u << 8) + a - 1u) / (a > 0 ? a : 1u);
-
-			mo->pivot_ms_per_mm_s_q8[i] = (uint16_t)(r > 0xFFFFu ? 0xFFFFu : r);
-		}
+		for (uint8_t i = 0; i < 2; i++) /* MOTION's figures at the pivot's accelerations */
+			mo->pivot_ms_per_mm_s_q8[i] = ms_per_mm_s_q8_of(o->grip_a_um_s2[i]);
 		mo->braking_vel[0] = INT32_MIN;
 	}
 #else
